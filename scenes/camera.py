@@ -1,0 +1,160 @@
+"""Pinhole camera model: OpenCV conventions, written once.
+
+Frames and units (see ../shared/DESIGN.md):
+
+* World frame: right-handed, +Z up, metres.
+* Camera frame: OpenCV (x right, y down, z forward). A pose is (R, t) with
+  ``x_cam = R @ x_world + t``; the rows of R are the camera axes expressed in
+  the world frame and the centre is ``C = -R.T @ t``.
+* Pixels: OpenCV, pixel centres at integer coordinates, u to the right, v down.
+  ``K = [[f, 0, cx], [0, f, cy], [0, 0, 1]]``; a centred principal point is
+  ``cx = W/2 - 0.5``, ``cy = H/2 - 0.5``.
+* Depth is z-depth along the optical axis, never distance along the ray.
+
+This module knows no renderer; ``scenes.mitsuba_convert`` is the one place that
+turns these poses into Mitsuba transforms.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def _as_matrix(a, shape, name):
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} has non-finite entries: {arr.tolist()}")
+    return arr
+
+
+def intrinsics(f_px: float, width: int, height: int) -> np.ndarray:
+    """K for square pixels and a centred principal point (OpenCV pixel centres)."""
+    if not (np.isfinite(f_px) and f_px > 0):
+        raise ValueError(f"focal length f_px = {f_px} is out of range: allowed > 0")
+    return np.array([[f_px, 0.0, width / 2.0 - 0.5],
+                     [0.0, f_px, height / 2.0 - 0.5],
+                     [0.0, 0.0, 1.0]])
+
+
+def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """World-to-camera rotation R of an OpenCV camera at ``eye`` looking at ``target``.
+
+    ``up`` is the world direction that appears upward in the image (toward -v).
+    """
+    eye = np.asarray(eye, float)
+    forward = np.asarray(target, float) - eye
+    n = np.linalg.norm(forward)
+    if n == 0:
+        raise ValueError("look_at: eye and target coincide")
+    z = forward / n
+    x = np.cross(z, np.asarray(up, float))
+    nx = np.linalg.norm(x)
+    if nx < 1e-9:
+        raise ValueError(f"look_at: up {tuple(up)} is parallel to the viewing direction")
+    x /= nx
+    y = np.cross(z, x)
+    return np.stack([x, y, z])
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera: OpenCV intrinsics K, pose (R, t), image size in pixels."""
+
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    width: int
+    height: int
+
+    def __post_init__(self):
+        object.__setattr__(self, "K", _as_matrix(self.K, (3, 3), "K"))
+        object.__setattr__(self, "R", _as_matrix(self.R, (3, 3), "R"))
+        object.__setattr__(self, "t", _as_matrix(np.ravel(self.t), (3,), "t"))
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if int(v) != v or not (1 <= v <= 16384):
+                raise ValueError(f"camera {name} = {v} is out of range: allowed 1 to 16384 px")
+            object.__setattr__(self, name, int(v))
+        if not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-9) or np.linalg.det(self.R) < 0:
+            raise ValueError("R must be a proper rotation matrix (orthonormal, det +1)")
+
+    # -- construction ---------------------------------------------------------
+    @classmethod
+    def look_at(cls, eye, target, f_px, width, height, up=(0.0, 1.0, 0.0)) -> "Camera":
+        R = look_at_rotation(eye, target, up)
+        return cls(intrinsics(f_px, width, height), R, -R @ np.asarray(eye, float), width, height)
+
+    # -- geometry -------------------------------------------------------------
+    @property
+    def center(self) -> np.ndarray:
+        """Optical centre in the world frame (metres)."""
+        return -self.R.T @ self.t
+
+    @property
+    def f_px(self) -> float:
+        return float(self.K[0, 0])
+
+    def to_camera(self, points_world) -> np.ndarray:
+        """(N,3) world points -> (N,3) camera-frame points (metres)."""
+        p = np.atleast_2d(np.asarray(points_world, float))
+        return p @ self.R.T + self.t
+
+    def project(self, points_world) -> np.ndarray:
+        """(N,3) world points -> (N,2) pixel coordinates (u, v); NaN behind the camera."""
+        pc = self.to_camera(points_world)
+        z = pc[:, 2:3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uvw = pc @ self.K.T
+            uv = uvw[:, :2] / z
+        uv[(z[:, 0] <= 0)] = np.nan
+        return uv
+
+    def depth(self, points_world) -> np.ndarray:
+        """z-depth (metres) of world points along the optical axis."""
+        return self.to_camera(points_world)[:, 2]
+
+    def rays(self, pixels) -> tuple[np.ndarray, np.ndarray]:
+        """Unit world-frame ray directions through (N,2) pixels; origin is ``center``."""
+        px = np.atleast_2d(np.asarray(pixels, float))
+        homog = np.column_stack([px, np.ones(len(px))])
+        d_cam = homog @ np.linalg.inv(self.K).T
+        d = d_cam @ self.R
+        return self.center, d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def in_image(self, uv, margin: float = 0.0) -> np.ndarray:
+        """True where pixel coordinates lie inside the image (pixel edges at -0.5, W-0.5)."""
+        uv = np.atleast_2d(uv)
+        with np.errstate(invalid="ignore"):
+            return ((uv[:, 0] >= -0.5 + margin) & (uv[:, 0] <= self.width - 0.5 - margin)
+                    & (uv[:, 1] >= -0.5 + margin) & (uv[:, 1] <= self.height - 0.5 - margin))
+
+    @property
+    def horizontal_fov_rad(self) -> float:
+        return 2.0 * float(np.arctan(self.width / 2.0 / self.K[0, 0]))
+
+    def to_dict(self) -> dict:
+        return {"K": self.K.tolist(), "R": self.R.tolist(), "t": self.t.tolist(),
+                "width": self.width, "height": self.height}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Camera":
+        return cls(np.array(d["K"]), np.array(d["R"]), np.array(d["t"]), d["width"], d["height"])
+
+
+def triangulate_rectified(u_left, v_left, u_right, left: Camera, baseline_m: float) -> np.ndarray:
+    """Triangulate matches of a conventional (parallel) stereo pair into world points.
+
+    Disparity d = u_left - u_right; Z = f B / d; X, Y from the left camera. Returns
+    (N,3) world points in metres (NaN where d <= 0).
+    """
+    u_left, v_left, u_right = (np.asarray(a, float) for a in (u_left, v_left, u_right))
+    d = u_left - u_right
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(d > 0, left.K[0, 0] * baseline_m / d, np.nan)
+    x = (u_left - left.K[0, 2]) * z / left.K[0, 0]
+    y = (v_left - left.K[1, 2]) * z / left.K[1, 1]
+    pc = np.column_stack([x, y, z])
+    return (pc - left.t) @ left.R

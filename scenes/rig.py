@@ -1,0 +1,61 @@
+"""Stereo rig in conventional (parallel) geometry, as in the paper (section III).
+
+Both cameras share R; the right camera's centre is the left one's moved by the
+baseline along the left camera's +x axis. Hence ``t_right = t_left - (B, 0, 0)``
+and the disparity of a world point is ``d = u_left - u_right = f B / Z``.
+Units: metres; frames as in ``scenes.camera``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenes.camera import Camera, intrinsics, look_at_rotation
+
+
+@dataclass(frozen=True)
+class StereoRig:
+    """A conventional stereo pair: ``left``, ``right`` and the baseline in metres."""
+
+    left: Camera
+    right: Camera
+    baseline_m: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.baseline_m) and self.baseline_m > 0):
+            raise ValueError(f"baseline_m = {self.baseline_m} is out of range: allowed > 0")
+        if not np.allclose(self.left.R, self.right.R, atol=1e-12):
+            raise ValueError("conventional stereo needs both cameras to share R")
+        expected = self.left.t - np.array([self.baseline_m, 0.0, 0.0])
+        if not np.allclose(self.right.t, expected, atol=1e-12):
+            raise ValueError("right camera must be the left one moved by the baseline along its +x")
+
+    @classmethod
+    def conventional(cls, center, target, baseline_m, f_px, width, height,
+                     up=(-1.0, 0.0, 0.0)) -> "StereoRig":
+        """Place the rig with its mid-baseline point at ``center`` looking at ``target``.
+
+        The default ``up`` (world -X appears up in the image) puts the image x axis,
+        and so the baseline, along world +Y: across the reference plate's bend.
+        """
+        R = look_at_rotation(center, target, up)
+        K = intrinsics(f_px, width, height)
+        c = np.asarray(center, float)
+        c_left = c - 0.5 * baseline_m * R[0]
+        left = Camera(K, R, -R @ c_left, width, height)
+        right = Camera(K, R, left.t - np.array([baseline_m, 0.0, 0.0]), width, height)
+        return cls(left, right, float(baseline_m))
+
+    @property
+    def center(self) -> np.ndarray:
+        """Mid-baseline point (world, metres)."""
+        return 0.5 * (self.left.center + self.right.center)
+
+    @property
+    def cameras(self) -> dict[str, Camera]:
+        return {"left": self.left, "right": self.right}
+
+    def disparity(self, depth_m):
+        """Disparity in pixels for a z-depth in metres: f B / Z."""
+        return self.left.f_px * self.baseline_m / np.asarray(depth_m, float)

@@ -1,0 +1,106 @@
+"""Plain-numpy description of a scene: rig, projector, lighting, materials, ground.
+
+No Mitsuba here: reconstruction may import these types. Units: metres, radians;
+radiometric quantities are relative (the camera model maps them to digital numbers).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from scenes.pattern import square_grid
+from scenes.projector import Projector
+from scenes.rig import StereoRig
+
+MATERIAL_KINDS = ("diffuse", "roughconductor")
+METALS = ("Al", "Fe")  # Mitsuba conductor presets: aluminium, iron (steel)
+
+
+@dataclass(frozen=True)
+class Material:
+    """Plate material: white diffuse by default, or a rough metal (GGX ``alpha``)."""
+
+    kind: str = "diffuse"
+    albedo: float = 0.8
+    metal: str = "Al"
+    alpha: float = 0.2
+
+    def __post_init__(self):
+        if self.kind not in MATERIAL_KINDS:
+            raise ValueError(f"material kind = {self.kind!r} is not allowed: choose one of {MATERIAL_KINDS}")
+        if not (0.0 <= self.albedo <= 1.0):
+            raise ValueError(f"material albedo = {self.albedo} is out of range: allowed 0 to 1")
+        if self.metal not in METALS:
+            raise ValueError(f"material metal = {self.metal!r} is not allowed: choose one of {METALS}")
+        if not (0.001 <= self.alpha <= 1.0):
+            raise ValueError(f"material alpha = {self.alpha} is out of range: allowed 0.001 to 1")
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Passive: an overhead square area light. Active: the projector, plus ``ambient``.
+
+    ``plate_radiance`` is the radiance a white (albedo 1) plate facing +Z at the
+    origin receives from each light when on; lights are scaled to give it, so the
+    images are well exposed whatever the distances.
+    """
+
+    area_size_m: float = 0.3
+    area_height_m: float = 0.9
+    plate_radiance: float = 0.85
+    ambient: float = 0.0  # fraction of the passive light left on in active images
+
+    def __post_init__(self):
+        if not (0.0 <= self.ambient <= 1.0):
+            raise ValueError(f"lighting ambient = {self.ambient} is out of range: allowed 0 to 1")
+        if not (self.area_size_m > 0 and self.area_height_m > 0 and self.plate_radiance > 0):
+            raise ValueError("lighting sizes and plate_radiance must be > 0")
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Everything but the plate: stereo rig, projector, lighting, material, ground."""
+
+    rig: StereoRig
+    projector: Projector
+    material: Material = field(default_factory=Material)
+    lighting: Lighting = field(default_factory=Lighting)
+    ground_albedo: float = 0.03
+    ground_z_m: float = -0.2
+    max_depth: int = 3
+
+    def with_rig(self, rig: StereoRig) -> "SceneSpec":
+        return replace(self, rig=rig)
+
+
+# Reference experiment (paper V-A, DESIGN.md): cameras 0.40 m above the plate looking
+# straight down, 1280 x 960 px, f = 2000 px, baseline 0.10 m, projector between them.
+REFERENCE = dict(distance_m=0.40, width=1280, height=960, f_px=2000.0, baseline_m=0.10,
+                 projector_width=1024, projector_height=768, projector_f_px=1600.0)
+
+
+def default_pattern(width=1024, height=768):
+    """4 x 4 squares of 10 mm at 0.4 m (40 px at f = 1600), x gap 6 mm, row gap 20 mm."""
+    return square_grid(width, height, rows=4, cols=4, square_px=40, gap_x_px=24, gap_y_px=80)
+
+
+def reference_scene(distance_m: float = REFERENCE["distance_m"], width: int = REFERENCE["width"],
+                    height: int = REFERENCE["height"], f_px: float = REFERENCE["f_px"],
+                    baseline_m: float = REFERENCE["baseline_m"], target=(0.0, 0.0, 0.0),
+                    projector_kind: str = "pinhole", pattern=None, material: Material | None = None,
+                    lighting: Lighting | None = None) -> SceneSpec:
+    """The paper's reference set-up, optionally changed; the rig looks straight down at ``target``."""
+    if not (0.05 <= distance_m <= 5.0):
+        raise ValueError(f"distance_m = {distance_m} is out of range: allowed 0.05 to 5 m")
+    target = np.asarray(target, float)
+    center = target + np.array([0.0, 0.0, distance_m])
+    rig = StereoRig.conventional(center, target, baseline_m, f_px, width, height)
+    pattern = pattern or default_pattern(REFERENCE["projector_width"], REFERENCE["projector_height"])
+    if projector_kind == "spot":
+        # Same footprint as the pinhole: tan(cutoff) = (W/2) / f, texture stretched to +-cutoff.
+        cutoff = float(np.arctan(pattern.width / 2.0 / REFERENCE["projector_f_px"]))
+        proj = Projector.look_at(center, target, pattern, kind="spot", cutoff_rad=cutoff)
+    else:
+        proj = Projector.look_at(center, target, pattern, f_px=REFERENCE["projector_f_px"], kind=projector_kind)
+    return SceneSpec(rig, proj, material or Material(), lighting or Lighting())

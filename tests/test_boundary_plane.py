@@ -1,0 +1,209 @@
+"""Tests for reconstruction.boundary_plane (the paper's L1 boundary plane)."""
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.optimize import minimize
+
+from reconstruction.boundary_plane import (
+    BoundaryPlane,
+    boundary_l1_objective,
+    fit_boundary_plane,
+    least_squares_plane,
+    plane_frame,
+)
+
+L_PLATE, W_PLATE, BEND = 0.1165, 0.0735, np.radians(10.0)
+
+
+def bent_plate_boundary(n_arc=200, n_end=30):
+    """Boundary of the reference plate curled about Y: x = R sin(s/R), z = R(1 - cos(s/R))."""
+    radius = L_PLATE / BEND
+    s = np.linspace(-L_PLATE / 2, L_PLATE / 2, n_arc)
+    x, z = radius * np.sin(s / radius), radius * (1 - np.cos(s / radius))
+    side = np.c_[x, np.full_like(x, -W_PLATE / 2), z]
+    y = np.linspace(-W_PLATE / 2, W_PLATE / 2, n_end)[1:-1]
+    end_pos = np.c_[np.full_like(y, x[-1]), y, np.full_like(y, z[-1])]
+    end_neg = np.c_[np.full_like(y, x[0]), y[::-1], np.full_like(y, z[0])]
+    return np.vstack([side, end_pos, side[::-1] * [1, -1, 1], end_neg])
+
+
+def random_rotation(rng):
+    q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    return q * np.sign(np.linalg.det(q))
+
+
+def wobbly_loop(seed):
+    """A non-planar closed curve in a random pose (no symmetry to help the fit)."""
+    rng = np.random.default_rng(seed)
+    u = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    loop = np.c_[0.05 * np.cos(u), 0.03 * np.sin(u),
+                 0.004 * np.sin(2 * u + 1.0) + 0.002 * np.cos(3 * u) + 0.0005 * rng.standard_normal(60)]
+    return loop @ random_rotation(rng).T + 0.1 * rng.standard_normal(3)
+
+
+def exact_l1(points, normal, offset):
+    """Independent exact ∮|D| ds: per segment, split where D changes sign."""
+    n = normal / np.linalg.norm(normal)
+    d0 = points @ n - offset / np.linalg.norm(normal)
+    d1 = np.roll(d0, -1)
+    seg = np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)
+    total = 0.0
+    for a, b, length in zip(d0, d1, seg):
+        if a * b >= 0:
+            total += length * (abs(a) + abs(b)) / 2
+        else:
+            t = a / (a - b)
+            total += length * (t * abs(a) + (1 - t) * abs(b)) / 2
+    return total
+
+
+def angle_between(n1, n2):
+    return np.arctan2(np.linalg.norm(np.cross(n1, n2)), abs(n1 @ n2))
+
+
+def unit(theta, phi):
+    return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+
+
+def test_planar_polygon_in_tilted_plane_is_exact():
+    rng = np.random.default_rng(5)
+    rotation = random_rotation(rng)
+    polygon = np.array([[0, 0], [0.1, 0], [0.1, 0.05], [0.06, 0.05], [0.05, 0.02], [0.03, 0.06], [0, 0.06]])
+    boundary = np.c_[polygon, np.zeros(len(polygon))] @ rotation.T + [0.3, -0.2, 0.5]
+    n_true = rotation[:, 2]
+    for plane in (fit_boundary_plane(boundary), least_squares_plane(boundary)):
+        assert isinstance(plane, BoundaryPlane)
+        assert angle_between(plane.normal, n_true) < 1e-9
+        assert plane.normal[2] >= 0 and np.linalg.norm(plane.normal) == pytest.approx(1, abs=1e-15)
+        assert np.max(np.abs(plane.signed_distance(boundary))) < 1e-12
+        assert plane.objective_m2 < 1e-15
+        assert abs(plane.signed_distance(plane.point)) < 1e-15
+
+
+def test_bent_plate_normal_is_z_and_l1_offset_matches_brute_force():
+    boundary = bent_plate_boundary()
+    l1, ls = fit_boundary_plane(boundary), least_squares_plane(boundary)
+    assert (l1.method, ls.method) == ("irls", "least_squares")
+    assert angle_between(l1.normal, [0, 0, 1]) < 1e-9
+    assert angle_between(ls.normal, [0, 0, 1]) < 1e-9
+
+    # brute force on the independent exact objective: coarse grid of tilts and offsets...
+    def objective(v):
+        return exact_l1(boundary, unit(v[0], v[1]), v[2])
+
+    grid = [(th, ph, d) for th in (0.0, 0.002, 0.005) for ph in np.linspace(0, 2 * np.pi, 6, endpoint=False)
+            for d in np.linspace(0.0, 0.0025, 26)]
+    start = min(grid, key=objective)
+    assert start[0] == 0.0  # the untilted plane wins on the grid
+    # ...then refinement from the best grid point
+    res = minimize(objective, np.array([0.001, 0.3, start[2]]), method="Nelder-Mead",
+                   options=dict(xatol=1e-11, fatol=1e-15, maxiter=4000))
+    assert res.x[0] < 1e-6  # brute force also finds the horizontal plane
+    assert l1.offset == pytest.approx(res.x[2], abs=1e-8)
+    assert l1.objective_m2 <= res.fun * (1 + 1e-12)
+    assert l1.objective_m2 == pytest.approx(exact_l1(boundary, l1.normal, l1.offset), rel=1e-12)
+
+    # the L1 offset is the arc-length median height; for the smooth curve it is
+    # R (1 - cos((L + W) / (4 R))) = 1.6896 mm (the 200-point polyline is within 0.2 um)
+    radius = L_PLATE / BEND
+    assert l1.offset == pytest.approx(radius * (1 - np.cos((L_PLATE + W_PLATE) / (4 * radius))), abs=1e-6)
+    # the L2 plane sits at the arc-length mean height, ~0.19 mm lower
+    seg = np.linalg.norm(np.roll(boundary, -1, axis=0) - boundary, axis=1)
+    z_mean = np.sum(seg * (boundary[:, 2] + np.roll(boundary[:, 2], -1))) / (2 * seg.sum())
+    assert ls.offset == pytest.approx(z_mean, abs=1e-15)
+    assert 0.15e-3 < l1.offset - ls.offset < 0.25e-3
+    assert l1.objective_m2 < exact_l1(boundary, ls.normal, ls.offset)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_irls_matches_direct_minimisation_on_asymmetric_loop(seed):
+    boundary = wobbly_loop(seed)
+    plane = fit_boundary_plane(boundary)
+    assert plane.iterations < 500
+    theta, phi = np.arccos(plane.normal[2]), np.arctan2(plane.normal[1], plane.normal[0])
+
+    def objective(v):
+        return exact_l1(boundary, unit(v[0], v[1]), v[2])
+
+    res = minimize(objective, [theta + 0.01, phi - 0.01, plane.offset + 2e-4], method="Nelder-Mead",
+                   options=dict(xatol=1e-12, fatol=1e-17, maxiter=6000, maxfev=12000))
+    assert plane.objective_m2 <= res.fun * (1 + 1e-12)
+    assert angle_between(plane.normal, unit(res.x[0], res.x[1])) < 1e-6
+    assert plane.offset == pytest.approx(res.x[2], abs=1e-9)
+
+
+def test_outlier_spike_moves_least_squares_plane_more():
+    corners = [(0, 0), (0.1, 0), (0.1, 0.06), (0, 0.06)]
+    square = np.array([[x0 + (x1 - x0) * t, y0 + (y1 - y0) * t, 0.0]
+                       for (x0, y0), (x1, y1) in zip(corners, corners[1:] + corners[:1])
+                       for t in np.linspace(0, 1, 10, endpoint=False)])
+    square[5, 2] = 0.02  # a 20 mm spike on one of 40 boundary points
+    l1, ls = fit_boundary_plane(square), least_squares_plane(square)
+    tilt_l1, tilt_ls = angle_between(l1.normal, [0, 0, 1]), angle_between(ls.normal, [0, 0, 1])
+    assert tilt_ls > np.radians(2.0)  # measured 3.07 deg
+    assert tilt_l1 < 1e-9  # the L1 plane stays on the 38 unspiked points
+    assert abs(l1.offset) < 1e-12 < 1e-3 < abs(ls.offset)
+
+
+def test_exact_objective_matches_dense_quadrature():
+    boundary = wobbly_loop(7)
+    plane = least_squares_plane(boundary)
+    normal = plane.normal + np.array([0.01, -0.02, 0.0])  # some plane crossing the loop
+    normal /= np.linalg.norm(normal)
+    offset = plane.offset + 5e-4
+    ends = np.roll(boundary, -1, axis=0)
+    numeric = 0.0
+    for a, b in zip(boundary, ends):
+        length = np.linalg.norm(b - a)
+        value, _ = quad(lambda t: abs((a + t * (b - a)) @ normal - offset), 0, 1, epsabs=1e-16, epsrel=1e-13, limit=200)
+        numeric += length * value
+    exact = boundary_l1_objective(boundary, normal, offset)
+    assert exact == pytest.approx(numeric, rel=1e-9)
+    assert exact == pytest.approx(exact_l1(boundary, normal, offset), rel=1e-12)
+    # the least-squares objective too: ∮D² ds against quadrature
+    numeric_sq = sum(np.linalg.norm(b - a) * quad(lambda t: ((a + t * (b - a)) @ plane.normal - plane.offset) ** 2,
+                                                  0, 1, epsabs=0, epsrel=1e-13)[0] for a, b in zip(boundary, ends))
+    assert plane.objective_m2 == pytest.approx(numeric_sq, rel=1e-9)
+
+
+def test_toward_orients_the_normal():
+    boundary = bent_plate_boundary(n_arc=40, n_end=8)
+    down = fit_boundary_plane(boundary, toward=[0, 0, -1])
+    up = fit_boundary_plane(boundary)
+    assert down.normal == pytest.approx(-up.normal, abs=1e-15)
+    assert down.offset == pytest.approx(-up.offset, abs=1e-15)
+    assert least_squares_plane(boundary, toward=[0.1, 0, -1]).normal[2] < 0
+
+
+def test_plane_frame_is_orthonormal_with_normal_as_z():
+    plane = fit_boundary_plane(wobbly_loop(3))
+    rotation, origin = plane_frame(plane)
+    assert rotation @ rotation.T == pytest.approx(np.eye(3), abs=1e-15)
+    assert np.linalg.det(rotation) == pytest.approx(1.0, abs=1e-15)
+    assert rotation[2] == pytest.approx(plane.normal, abs=1e-15)
+    assert abs(plane.signed_distance(origin)) < 1e-15
+    world = np.array([[0.01, 0.02, 0.03], [-0.2, 0.1, 0.0]])
+    local = (world - origin) @ rotation.T
+    assert local[:, 2] == pytest.approx(plane.signed_distance(world), abs=1e-15)
+    assert local @ rotation + origin == pytest.approx(world, abs=1e-15)
+    flat_rotation, _ = plane_frame(fit_boundary_plane(bent_plate_boundary(n_arc=40, n_end=8)))
+    assert flat_rotation == pytest.approx(np.eye(3), abs=1e-12)
+
+
+def test_bad_boundaries_raise():
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match="repeats its first"):
+        fit_boundary_plane(np.vstack([square, square[:1]]))
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        fit_boundary_plane(square[:, :2])
+    with pytest.raises(ValueError, match="at least 3"):
+        least_squares_plane(square[:2])
+    with pytest.raises(ValueError, match="collinear"):
+        fit_boundary_plane(np.c_[np.arange(5.0), 2 * np.arange(5.0), np.zeros(5)])
+    with pytest.raises(ValueError, match="NaN"):
+        fit_boundary_plane(np.where(np.eye(4, 3) > 0, np.nan, square))
+    with pytest.raises(ValueError, match="toward"):
+        fit_boundary_plane(square, toward=[0, 0, 0])
+    with pytest.raises(ValueError, match="tol"):
+        fit_boundary_plane(square, tol=-1)
