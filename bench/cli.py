@@ -11,6 +11,8 @@ import importlib
 import os
 import sys
 
+from scenes.runtime import RendererUnavailable
+
 # name -> module exposing add_parser(subparsers) and run(args) -> int
 COMMANDS = {
     "render": "bench.cmd_render",
@@ -53,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("platebench: interrupted; completed outputs are kept, partial ones removed", file=sys.stderr)
         return 130
-    except (UserError, ValueError, FileExistsError, FileNotFoundError) as e:
+    except (UserError, ValueError, FileExistsError, FileNotFoundError, RendererUnavailable) as e:
         if os.environ.get("PLATEBENCH_DEBUG"):
             raise
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__

@@ -80,11 +80,24 @@ class GroundTruthCaster:
     def __init__(self, renderer):
         self.r = renderer
         self.mi = renderer.mi
+        # Scalar variants trace one ray per Python call: use trimesh/embree instead.
+        self._vectorised = not renderer.variant.startswith("scalar")
+
+    def _mesh_intersector(self):
+        import trimesh  # noqa: PLC0415
+        return trimesh.ray.ray_triangle.RayMeshIntersector(self.r.plate.mesh) \
+            if not trimesh.ray.has_embree else trimesh.ray.ray_pyembree.RayMeshIntersector(self.r.plate.mesh)
 
     # -- Mitsuba queries ------------------------------------------------------
     def _first_hits(self, camera_name: str, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
         """Triangle index hit by each pixel-centre ray (-1 none), via sensor.sample_ray."""
         mi = self.mi
+        if not self._vectorised:
+            W, H = cam.width, cam.height
+            vv, uu = np.mgrid[0:H, 0:W]
+            origin, dirs = cam.rays(np.column_stack([uu.ravel(), vv.ravel()]).astype(float))
+            prim = self._mesh_intersector().intersects_first(np.repeat(origin[None], len(dirs), 0), dirs)
+            return prim.reshape(H, W), None
         import drjit as dr  # noqa: PLC0415  (scenes.runtime has set up libLLVM already)
         W, H = cam.width, cam.height
         idx = dr.arange(mi.UInt32, W * H)
@@ -106,6 +119,12 @@ class GroundTruthCaster:
         dist = np.linalg.norm(d, axis=1)
         d = d / dist[:, None]
         o = origins + d * slack * 0.1
+        if not self._vectorised:
+            locs, ray_idx, _ = self._mesh_intersector().intersects_location(o, d, multiple_hits=True)
+            hit_t = np.einsum("ij,ij->i", locs - o[ray_idx], d[ray_idx])
+            blocked = np.zeros(len(o), bool)
+            blocked[ray_idx[hit_t < (dist - slack - slack * 0.1)[ray_idx]]] = True
+            return blocked
         ray = mi.Ray3f(mi.Point3f(*(o[:, k].astype(np.float32) for k in range(3))),
                        mi.Vector3f(*(d[:, k].astype(np.float32) for k in range(3))))
         ray.maxt = mi.Float((dist - slack).astype(np.float32))

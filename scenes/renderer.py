@@ -75,15 +75,21 @@ class PlateRenderer:
         return {"type": "twosided", "material": inner}
 
     def _empty_mesh(self, name: str, bsdf: dict | None):
+        """A mesh sized for the current plate (one placeholder triangle before any plate);
+        set_plate fills its buffers through traverse."""
         mi = self.mi
         props = mi.Properties()
         if bsdf is not None:
             props["bsdf"] = mi.load_dict(bsdf)
-        # Placeholder single triangle; set_plate fills the real buffers via traverse.
-        mesh = mi.Mesh(name, 3, 1, props=props)
+        if self._plate is None:
+            v, f = np.array([0, 0, 0, 1e-3, 0, 0, 0, 1e-3, 0], np.float32), np.array([0, 1, 2], np.uint32)
+        else:
+            v = np.asarray(self._plate.mesh.vertices, np.float32).ravel()
+            f = np.asarray(self._plate.mesh.faces, np.uint32).ravel()
+        mesh = mi.Mesh(name, v.size // 3, f.size // 3, props=props)
         params = mi.traverse(mesh)
-        params["vertex_positions"] = [0, 0, 0, 1e-3, 0, 0, 0, 1e-3, 0]
-        params["faces"] = [0, 1, 2]
+        params["vertex_positions"] = type(params["vertex_positions"])(v)
+        params["faces"] = type(params["faces"])(f)
         params.update()
         return mesh
 
@@ -190,9 +196,15 @@ class PlateRenderer:
     def _load_plate(self, plate) -> None:
         v = np.asarray(plate.mesh.vertices, np.float32).ravel()
         f = np.asarray(plate.mesh.faces, np.uint32).ravel()
-        for params, prefix in ((self.params, "plate."), (self.gt_params, "plate.")):
-            params[prefix + "vertex_positions"] = self.mi.Float(v)
-            params[prefix + "faces"] = self.mi.UInt(f)
+        if self.variant.startswith("scalar") and len(self.params["plate.vertex_positions"]) != v.size:
+            # Scalar variants cannot resize buffers through traverse: rebuild (no kernels to lose).
+            self._build(self._spec)
+            self.set_scene(self._spec)
+            return
+        for params in (self.params, self.gt_params):
+            # Construct with the buffer's own type (dynamic in every variant, scalar too).
+            params["plate.vertex_positions"] = type(params["plate.vertex_positions"])(v)
+            params["plate.faces"] = type(params["plate.faces"])(f)
             params.update()
 
     def _set_lighting(self, lighting: str) -> None:

@@ -9,6 +9,8 @@ only from LLVM 16 on), and point ``DRJIT_LIBLLVM_PATH`` at it. If none is found 
 point drjit at nothing (so it can never load the system's LLVM 15) and fall back to
 ``scalar_rgb`` with a one-line warning.
 
+``PLATEBENCH_LLVM_CANDIDATES`` (colon-separated paths) replaces the search list.
+
 Variant order: explicit argument > ``PLATEBENCH_VARIANT`` > ``cuda_ad_rgb`` when a
 GPU is present > ``llvm_ad_rgb`` > ``scalar_rgb``.
 """
@@ -18,11 +20,11 @@ import ctypes
 import glob
 import os
 import sys
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 _MIN_LLVM = 16
+_NO_LLVM = "/nonexistent/platebench-found-no-libLLVM-16-or-newer"
 _state: dict = {}
 
 
@@ -45,6 +47,9 @@ def llvm_version(path: str) -> tuple[int, int, int] | None:
 
 
 def _candidates() -> list[str]:
+    override = os.environ.get("PLATEBENCH_LLVM_CANDIDATES")
+    if override is not None:  # colon-separated list replacing the search (used by tests)
+        return [p for p in override.split(":") if p]
     out = []
     for prefix in dict.fromkeys([sys.prefix, sys.base_prefix]):
         out += sorted(glob.glob(os.path.join(prefix, "lib", "libLLVM.so.*")), reverse=True)
@@ -87,7 +92,7 @@ def _prepare_llvm() -> LLVMChoice:
         else:
             choice = find_libllvm()
             # Never let drjit fall back to the system's default libLLVM (15 aborts).
-            os.environ["DRJIT_LIBLLVM_PATH"] = choice.path or os.devnull
+            os.environ["DRJIT_LIBLLVM_PATH"] = choice.path or _NO_LLVM
             _state["llvm"] = choice
     return _state["llvm"]
 
@@ -127,7 +132,7 @@ def mitsuba(variant: str | None = None):
     if want not in mi.variants():
         raise RendererUnavailable(f"variant {want!r} is not built: choose one of {mi.variants()}")
     if want == "scalar_rgb" and not variant and not _state.get("warned"):
-        warnings.warn(f"platebench: falling back to scalar_rgb (slow): {choice.note}", RuntimeWarning, stacklevel=2)
+        print(f"platebench: warning: falling back to scalar_rgb (slow): {choice.note}", file=sys.stderr)
         _state["warned"] = True
     if mi.variant() != want:
         mi.set_variant(want)

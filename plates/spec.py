@@ -1,0 +1,342 @@
+"""Plate specifications: frozen, validated, JSON-safe.
+
+Units: metres and radians (degrees appear only inside error messages).
+
+Frames. World frame: right-handed, +Z up; the undeformed plate lies in z = 0,
+centred on the origin, length along X, width along Y. Material (flat-plate)
+coordinates uv: u in [-L/2, L/2] along X, v in [-W/2, W/2] along Y, metres.
+The deformation describes the TOP surface of the plate (the side facing +Z when
+flat); a plate with thickness_m > 0 has its bottom surface offset by thickness_m
+along the negative top normal.
+
+Bending coordinate (CylindricalBend, Fold). ``axis_rad`` is the in-plane direction
+of the bend (cylinder) axis, measured from +Y toward -X: the axis direction in uv is
+g = (-sin a, cos a) and the plate bends along e = (cos a, sin a). So axis_rad = 0
+puts the axis along the width (Y) and the plate curls along its length (the paper's
+case); axis_rad = pi/2 puts the axis along the length. The bending coordinate is
+s = u cos a + v sin a, ranging over [-S/2, S/2] with S = L|cos a| + W|sin a|.
+
+Directions: "up" means the bent part rises toward +Z (concave side facing +Z, the
+camera side); "down" is the mirror image.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import MISSING, dataclass, field, fields
+from typing import Any, ClassVar, Mapping
+
+__all__ = [
+    "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent",
+    "Deformation", "PlateSpec", "reference_spec", "FAMILIES",
+]
+
+MAX_BEND_RAD = math.radians(350.0)
+MAX_FOLD_RAD = math.radians(180.0)
+MAX_TWIST_RAD = math.radians(90.0)
+DIRECTIONS = ("up", "down")
+
+
+class PlateSpecError(ValueError):
+    """A plate specification is invalid; the message names field, value and range."""
+
+
+def _deg(x: float) -> str:
+    return f"{math.degrees(x):.2f} deg"
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}"
+
+
+def _number(owner: str, name: str, value: Any, allowed: str) -> float:
+    """Coerce a real number to float; reject bools, strings, NaN and inf."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise PlateSpecError(f"{owner}.{name} = {value!r} is not a number: allowed {allowed}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise PlateSpecError(f"{owner}.{name} = {value} is not a finite number: allowed {allowed}")
+    return value
+
+
+def _check(obj: Any, name: str, lo: float, hi: float, *, unit: str = "m",
+           lo_open: bool = False, hi_open: bool = False, allowed: str | None = None) -> float:
+    """Validate field ``name`` of ``obj`` against [lo, hi] (open ends as flagged), store as float."""
+    owner = type(obj).__name__
+    if allowed is None:
+        if unit == "rad":
+            allowed = f"{math.degrees(lo):g} to {math.degrees(hi):g} deg"
+            allowed += f" ({math.degrees(hi):g} excluded)" if hi_open else ""
+        elif math.isinf(hi):
+            allowed = f"{'> ' if lo_open else '>= '}{_fmt(lo)} m"
+        else:
+            allowed = f"{_fmt(lo)} to {_fmt(hi)} m"
+    value = _number(owner, name, getattr(obj, name), allowed)
+    bad = value < lo or value > hi or (lo_open and value == lo) or (hi_open and value == hi)
+    if bad:
+        shown = f"{_fmt(value)} ({_deg(value)})" if unit == "rad" else _fmt(value)
+        raise PlateSpecError(f"{owner}.{name} = {shown} is out of range: allowed {allowed}")
+    object.__setattr__(obj, name, value)
+    return value
+
+
+def _check_direction(obj: Any) -> None:
+    if obj.direction not in DIRECTIONS:
+        raise PlateSpecError(
+            f"{type(obj).__name__}.direction = {obj.direction!r} is not allowed: allowed 'up' or 'down'")
+
+
+@dataclass(frozen=True)
+class Flat:
+    """No deformation: the plate stays in z = 0."""
+
+    family: ClassVar[str] = "flat"
+
+
+@dataclass(frozen=True)
+class CylindricalBend:
+    """Uniform cylindrical bend, arc length preserved.
+
+    angle_rad: angle between the end tangents of the extreme material lines, 0 to
+    350 deg. The signed curvature is +-angle_rad / S (S: the plate's extent along the
+    bending coordinate, see module docstring). The plate centre (u, v) = (0, 0)
+    stays at the origin with normal +Z. direction: "up" (ends rise toward +Z) or
+    "down". axis_rad: bend-axis direction in [0, pi), 0 = axis along the width (Y).
+    """
+
+    angle_rad: float
+    direction: str = "up"
+    axis_rad: float = 0.0
+    family: ClassVar[str] = "cylinder"
+
+    def __post_init__(self) -> None:
+        _check(self, "angle_rad", 0.0, MAX_BEND_RAD, unit="rad")
+        _check_direction(self)
+        _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
+
+
+@dataclass(frozen=True)
+class Fold:
+    """Off-centre fold: a circular arc of total angle angle_rad inside a band.
+
+    The band has width band_m and is centred at bending coordinate position_m; the
+    plate is flat on both sides of it and C1 continuous (arc length preserved).
+    Anchoring: the part with s < position_m - band_m/2 stays fixed in the z = 0
+    plane (identity map); the band and the flap beyond it move. angle_rad 0 to
+    180 deg (beyond that the flap would cut through the fixed part). direction and
+    axis_rad as in CylindricalBend. The band must lie inside the plate (checked by
+    PlateSpec, which knows the plate size).
+    """
+
+    angle_rad: float
+    position_m: float
+    band_m: float
+    direction: str
+    axis_rad: float = 0.0
+    family: ClassVar[str] = "fold"
+
+    def __post_init__(self) -> None:
+        _check(self, "angle_rad", 0.0, MAX_FOLD_RAD, unit="rad")
+        _check(self, "position_m", -math.inf, math.inf, allowed="a finite number of metres")
+        _check(self, "band_m", 0.0, math.inf, lo_open=True)
+        _check_direction(self)
+        _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
+
+
+@dataclass(frozen=True)
+class Twist:
+    """Helicoidal twist about the X axis: (u, v cos(k u), v sin(k u)), k = angle_rad / L.
+
+    angle_rad is the signed total twist between the two ends (u = -L/2 and u = +L/2),
+    -90 to 90 deg; positive turns the +u end counter-clockwise about +X. Not
+    arc-length preserving (edges away from v = 0 stretch).
+    """
+
+    angle_rad: float
+    family: ClassVar[str] = "twist"
+
+    def __post_init__(self) -> None:
+        _check(self, "angle_rad", -MAX_TWIST_RAD, MAX_TWIST_RAD, unit="rad")
+
+
+@dataclass(frozen=True)
+class Dome:
+    """Spherical cap as a height field over the flat plate: z = z(u, v), (x, y) = (u, v).
+
+    The sphere touches z = 0 at the plate centre (normal +Z there). sag_m is the
+    height of the centre above the corners: sag_m > 0 a dome (convex toward +Z,
+    corners at z = -sag_m), sag_m < 0 a bowl (corners at z = +|sag_m|). Allowed
+    |sag_m| <= D/4 with D the half-diagonal sqrt(L^2 + W^2)/2 (checked by PlateSpec).
+    Not arc-length preserving.
+    """
+
+    sag_m: float
+    family: ClassVar[str] = "dome"
+
+    def __post_init__(self) -> None:
+        _check(self, "sag_m", -math.inf, math.inf, allowed="a finite number of metres")
+
+
+@dataclass(frozen=True)
+class Dent:
+    """Local smooth dent in -Z as a height field: z = -depth_m (1 - r^2/R^2)^3 for r < R.
+
+    r is the material distance from (centre_u_m, centre_v_m), R = radius_m; the
+    profile is C2 (zero slope and curvature at r = R) and 0 outside. depth_m in
+    (0, radius_m / 2] and at most a twentieth of the smaller plate side; the centre
+    must lie on the plate (both checked by PlateSpec, which knows the plate size).
+    """
+
+    depth_m: float
+    radius_m: float
+    centre_u_m: float = 0.0
+    centre_v_m: float = 0.0
+    family: ClassVar[str] = "dent"
+
+    def __post_init__(self) -> None:
+        _check(self, "radius_m", 0.0, math.inf, lo_open=True)
+        _check(self, "depth_m", 0.0, 0.5 * self.radius_m, lo_open=True,
+               allowed=f"> 0 to {_fmt(0.5 * self.radius_m)} m (half of radius_m)")
+        _check(self, "centre_u_m", -math.inf, math.inf, allowed="a finite number of metres")
+        _check(self, "centre_v_m", -math.inf, math.inf, allowed="a finite number of metres")
+
+
+Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent
+FAMILIES: dict[str, type] = {c.family: c for c in (Flat, CylindricalBend, Fold, Twist, Dome, Dent)}
+
+
+def bending_extent_m(length_m: float, width_m: float, axis_rad: float) -> float:
+    """Extent S (metres) of an L x W plate along the bending coordinate s = u cos a + v sin a."""
+    return length_m * abs(math.cos(axis_rad)) + width_m * abs(math.sin(axis_rad))
+
+
+def max_curvature_per_m(spec: "PlateSpec") -> float:
+    """Upper bound (1/m) on the top surface's principal curvatures; 0 for a flat plate."""
+    d, L, W = spec.deformation, spec.length_m, spec.width_m
+    if isinstance(d, CylindricalBend):
+        return d.angle_rad / bending_extent_m(L, W, d.axis_rad)
+    if isinstance(d, Fold):
+        return d.angle_rad / d.band_m
+    if isinstance(d, Twist):
+        return abs(d.angle_rad) / L
+    if isinstance(d, Dome):
+        half_diag = 0.5 * math.hypot(L, W)
+        return 2.0 * abs(d.sag_m) / (half_diag**2 + d.sag_m**2)
+    if isinstance(d, Dent):
+        return 6.0 * d.depth_m / d.radius_m**2
+    return 0.0
+
+
+@dataclass(frozen=True)
+class PlateSpec:
+    """A rectangular plate: length_m along X, width_m along Y, thickness_m (0 = sheet).
+
+    thickness_m from 0 to a tenth of the smaller side and, for a curved plate, to half
+    the smallest radius of curvature (so the bottom offset surface stays smooth).
+    deformation: one of Flat, CylindricalBend, Fold, Twist, Dome, Dent.
+    """
+
+    length_m: float
+    width_m: float
+    thickness_m: float = 0.0
+    deformation: Deformation = field(default_factory=Flat)
+
+    def __post_init__(self) -> None:
+        _check(self, "length_m", 0.0, math.inf, lo_open=True)
+        _check(self, "width_m", 0.0, math.inf, lo_open=True)
+        _check(self, "thickness_m", 0.0, math.inf)
+        if not isinstance(self.deformation, tuple(FAMILIES.values())):
+            raise PlateSpecError(
+                f"PlateSpec.deformation = {self.deformation!r} is not a deformation: allowed "
+                + ", ".join(c.__name__ for c in FAMILIES.values()))
+        self._check_fit()
+        limit = 0.1 * min(self.length_m, self.width_m)
+        why = "a tenth of the smaller plate side"
+        kappa = max_curvature_per_m(self)
+        if kappa > 0 and 0.5 / kappa < limit:
+            limit, why = 0.5 / kappa, "half the smallest radius of curvature of this deformation"
+        if self.thickness_m > limit:
+            raise PlateSpecError(
+                f"PlateSpec.thickness_m = {_fmt(self.thickness_m)} is out of range: allowed 0 to "
+                f"{_fmt(limit)} m ({why})")
+
+    def _check_fit(self) -> None:
+        """Cross-field checks: the deformation must fit this plate size."""
+        d, L, W = self.deformation, self.length_m, self.width_m
+        size = f"a {_fmt(L)} m x {_fmt(W)} m plate"
+        if isinstance(d, Fold):
+            S = bending_extent_m(L, W, d.axis_rad)
+            if d.band_m > S:
+                raise PlateSpecError(
+                    f"Fold.band_m = {_fmt(d.band_m)} is out of range for {size}: allowed > 0 to "
+                    f"{_fmt(S)} m (the plate's extent along the bending direction)")
+            lim = 0.5 * (S - d.band_m)
+            if abs(d.position_m) > lim:
+                raise PlateSpecError(
+                    f"Fold.position_m = {_fmt(d.position_m)} is out of range for band_m = "
+                    f"{_fmt(d.band_m)} on {size}: allowed {_fmt(-lim)} to {_fmt(lim)} m")
+        elif isinstance(d, Dome):
+            lim = 0.125 * math.hypot(L, W)
+            if abs(d.sag_m) > lim:
+                raise PlateSpecError(
+                    f"Dome.sag_m = {_fmt(d.sag_m)} is out of range for {size}: allowed "
+                    f"{_fmt(-lim)} to {_fmt(lim)} m (a quarter of the half-diagonal)")
+        elif isinstance(d, Dent):
+            lim = 0.05 * min(L, W)
+            if d.depth_m > lim:
+                raise PlateSpecError(
+                    f"Dent.depth_m = {_fmt(d.depth_m)} is out of range for {size}: allowed > 0 to "
+                    f"{_fmt(lim)} m (a twentieth of the smaller side)")
+            for name, half in (("centre_u_m", L / 2), ("centre_v_m", W / 2)):
+                value = getattr(d, name)
+                if abs(value) > half:
+                    raise PlateSpecError(
+                        f"Dent.{name} = {_fmt(value)} is out of range for {size}: allowed "
+                        f"{_fmt(-half)} to {_fmt(half)} m")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict; the deformation is a nested dict with a "family" key."""
+        deformation = {"family": self.deformation.family}
+        deformation.update({f.name: getattr(self.deformation, f.name) for f in fields(self.deformation)})
+        return {"length_m": self.length_m, "width_m": self.width_m,
+                "thickness_m": self.thickness_m, "deformation": deformation}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "PlateSpec":
+        """Inverse of to_dict; unknown or missing keys and unknown families raise PlateSpecError."""
+        if not isinstance(d, Mapping):
+            raise PlateSpecError(f"PlateSpec dict = {d!r} is not a mapping")
+        _check_keys("PlateSpec", d, {"length_m", "width_m", "thickness_m", "deformation"},
+                    required={"length_m", "width_m"})
+        deformation = _deformation_from_dict(d.get("deformation", {"family": "flat"}))
+        return cls(d["length_m"], d["width_m"], d.get("thickness_m", 0.0), deformation)
+
+
+def _check_keys(owner: str, d: Mapping[str, Any], allowed: set[str], required: set[str]) -> None:
+    for key in d:
+        if key not in allowed:
+            raise PlateSpecError(
+                f"{owner} key {key!r} is unknown: allowed keys " + ", ".join(sorted(allowed)))
+    for key in sorted(required):
+        if key not in d:
+            raise PlateSpecError(f"{owner} key {key!r} is missing: required keys " + ", ".join(sorted(required)))
+
+
+def _deformation_from_dict(d: Any) -> Deformation:
+    if not isinstance(d, Mapping):
+        raise PlateSpecError(f"PlateSpec.deformation = {d!r} is not a mapping")
+    family = d.get("family")
+    if family not in FAMILIES:
+        raise PlateSpecError(
+            f"deformation family = {family!r} is unknown: allowed families " + ", ".join(FAMILIES))
+    cls = FAMILIES[family]
+    names = {f.name for f in fields(cls)}
+    required = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
+    _check_keys(cls.__name__, d, names | {"family"}, required)
+    return cls(**{k: v for k, v in d.items() if k != "family"})
+
+
+def reference_spec() -> PlateSpec:
+    """The paper's plate (section V): 116.5 mm x 73.5 mm sheet bent 10 deg up along its length."""
+    return PlateSpec(0.1165, 0.0735, 0.0, CylindricalBend(math.radians(10.0), "up", 0.0))
