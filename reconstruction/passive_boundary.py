@@ -1,0 +1,164 @@
+"""Passive boundary stereo (paper sections II, IV-B): the plate outline matched along rows.
+
+In conventional geometry a boundary point has the same row v in both images, so each
+*side* edge (running across the rows) is matched row by row: disparity
+d = u_left - u_right, triangulated with the left camera. Edges running *along* the
+rows (the top and bottom of the outline) cannot be matched by position along a row.
+For them we use the corners: each corner is the intersection of straight-line fits to
+the side edge and to the top/bottom edge near it, matched between the images, and the
+disparity along a top/bottom edge is interpolated linearly in u between its two corner
+disparities. That is exact for a straight 3D edge (inverse depth, hence disparity, is
+affine along the image of a 3D line) and first-order for a gently curved one.
+
+Pixel coordinates: OpenCV, pixel centres at integers. Output points: world frame, metres.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from reconstruction.plate_region import PlateRegion, ReconstructionError
+from reconstruction.subpixel_edges import column_edges, row_edges
+from scenes.camera import triangulate_rectified
+from scenes.rig import StereoRig
+
+SMOOTH_PX = 21  # Savitzky-Golay window (quadratic) along each edge: the outline of a smooth plate is smooth
+CORNER_MARGIN_PX = 6  # edge samples this close to a corner are dropped (the area method needs a clean edge)
+CORNER_FIT_PX = 30  # edge length used to fit the lines that meet at a corner
+SEARCH_PX = 10
+
+
+@dataclass(frozen=True)
+class ImageOutline:
+    """Sub-pixel outline of the plate in one image, as four edges and four corners."""
+
+    corners: np.ndarray  # (4,2) TL, TR, BR, BL (u, v)
+    left: tuple[np.ndarray, np.ndarray]  # rows v, u  (TL -> BL)
+    right: tuple[np.ndarray, np.ndarray]  # rows v, u  (TR -> BR)
+    top: tuple[np.ndarray, np.ndarray]  # cols u, v  (TL -> TR)
+    bottom: tuple[np.ndarray, np.ndarray]  # cols u, v  (BL -> BR)
+
+
+@dataclass(frozen=True)
+class BoundaryStereo:
+    """The matched 3D boundary: a closed polygon TL -> top -> TR -> right -> BR -> bottom -> BL -> left."""
+
+    points: np.ndarray  # (N,3) world, metres, first point not repeated
+    image_points_left: np.ndarray  # (N,2) left-image pixels of each 3D point
+    disparity: np.ndarray  # (N,)
+    source: np.ndarray  # (N,) str: corner / side / top-bottom
+    corner_row_mismatch_px: np.ndarray  # (4,) |v_left - v_right| of the matched corners
+
+
+def _first_last(mask_line: np.ndarray) -> tuple[int, int]:
+    nz = np.nonzero(mask_line)[0]
+    return (int(nz[0]), int(nz[-1])) if nz.size else (-1, -1)
+
+
+def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
+    """Sub-pixel samples of the four edges and refined corners of the plate outline."""
+    img = np.asarray(image, np.float64)
+    H, W = img.shape
+    tl, tr, br, bl = region.corners
+    m = CORNER_MARGIN_PX
+    thr, bg = region.threshold, region.background_level
+
+    def side(rows, from_left: bool):
+        ext = np.array([_first_last(region.mask[v]) for v in rows])
+        base = ext[:, 0] if from_left else ext[:, 1]
+        start = base - SEARCH_PX if from_left else base + SEARCH_PX
+        stop = base + SEARCH_PX if from_left else base - SEARCH_PX
+        u = row_edges(img, rows, thr, bg, np.clip(start, 0, W - 1), np.clip(stop, 0, W - 1))
+        ok = np.isfinite(u) & (base >= 0)
+        return rows[ok], u[ok]
+
+    def tb(cols, from_top: bool):
+        ext = np.array([_first_last(region.mask[:, u]) for u in cols])
+        base = ext[:, 0] if from_top else ext[:, 1]
+        start = base - SEARCH_PX if from_top else base + SEARCH_PX
+        stop = base + SEARCH_PX if from_top else base - SEARCH_PX
+        v = column_edges(img, cols, thr, bg, np.clip(start, 0, H - 1), np.clip(stop, 0, H - 1))
+        ok = np.isfinite(v) & (base >= 0)
+        return cols[ok], v[ok]
+
+    left = side(np.arange(int(np.ceil(tl[1])) + m, int(np.floor(bl[1])) - m + 1), True)
+    right = side(np.arange(int(np.ceil(tr[1])) + m, int(np.floor(br[1])) - m + 1), False)
+    top = tb(np.arange(int(np.ceil(tl[0])) + m, int(np.floor(tr[0])) - m + 1), True)
+    bottom = tb(np.arange(int(np.ceil(bl[0])) + m, int(np.floor(br[0])) - m + 1), False)
+    for name, (a, _) in (("left", left), ("right", right), ("top", top), ("bottom", bottom)):
+        if a.size < 4:
+            raise ReconstructionError(f"plate outline: too few sub-pixel samples on its {name} edge ({a.size})")
+    left, right, top, bottom = (_smooth(e) for e in (left, right, top, bottom))
+    corners = np.array([
+        _corner(left, top, near_start_side=True, near_start_tb=True),
+        _corner(right, top, near_start_side=True, near_start_tb=False),
+        _corner(right, bottom, near_start_side=False, near_start_tb=False),
+        _corner(left, bottom, near_start_side=False, near_start_tb=True),
+    ])
+    return ImageOutline(corners, left, right, top, bottom)
+
+
+def _smooth(edge):
+    """Quadratic Savitzky-Golay smoothing of an edge's sub-pixel positions (Monte Carlo/pixel noise)."""
+    a, b = edge
+    win = min(SMOOTH_PX, a.size - (1 - a.size % 2))
+    if win < 5 or np.any(np.diff(a) != 1):
+        return a, b  # too short, or samples missing: keep raw
+    return a, savgol_filter(b, win, 2)
+
+
+def _corner(side, tb, near_start_side: bool, near_start_tb: bool) -> np.ndarray:
+    """Intersect u = a + b v (side edge near the corner) with v = c + d u (top/bottom edge)."""
+    rows, us = side
+    cols, vs = tb
+    k = CORNER_FIT_PX
+    rs, uu = (rows[:k], us[:k]) if near_start_side else (rows[-k:], us[-k:])
+    cs, vv = (cols[:k], vs[:k]) if near_start_tb else (cols[-k:], vs[-k:])
+    b, a = np.polyfit(rs, uu, 1)
+    d, c = np.polyfit(cs, vv, 1)
+    # u = a + b v, v = c + d u  ->  u = a + b (c + d u)
+    u = (a + b * c) / (1.0 - b * d)
+    return np.array([u, c + d * u])
+
+
+def match_boundary(left: ImageOutline, right: ImageOutline, rig: StereoRig) -> BoundaryStereo:
+    """Match the two outlines row by row (sides) and through the corners (top/bottom)."""
+    pts_uv, disp, src = [], [], []
+
+    def add(u, v, d, kind):
+        pts_uv.append(np.column_stack([u, v]))
+        disp.append(np.asarray(d, float))
+        src.extend([kind] * len(np.atleast_1d(u)))
+
+    cl, cr = left.corners, right.corners
+    cd = cl[:, 0] - cr[:, 0]
+    if np.any(cd <= 0):
+        raise ReconstructionError("passive stereo: a plate corner has non-positive disparity (images swapped?)")
+
+    def side(ledge, redge, reverse):
+        rows, ia, ib = np.intersect1d(ledge[0], redge[0], return_indices=True)
+        u_l, u_r = ledge[1][ia], redge[1][ib]
+        order = np.argsort(rows)[::-1] if reverse else np.argsort(rows)
+        return u_l[order], rows[order].astype(float), (u_l - u_r)[order]
+
+    def top_bottom(edge, c0, c1, d0, d1, reverse):
+        u, v = edge
+        d = d0 + (d1 - d0) * (u - c0[0]) / (c1[0] - c0[0])
+        order = np.argsort(u)[::-1] if reverse else np.argsort(u)
+        return u[order], v[order], d[order]
+
+    add(cl[0, 0], cl[0, 1], cd[0], "corner")
+    add(*top_bottom(left.top, cl[0], cl[1], cd[0], cd[1], False), "top-bottom")
+    add(cl[1, 0], cl[1, 1], cd[1], "corner")
+    add(*side(left.right, right.right, False), "side")
+    add(cl[2, 0], cl[2, 1], cd[2], "corner")
+    add(*top_bottom(left.bottom, cl[3], cl[2], cd[3], cd[2], True), "top-bottom")
+    add(cl[3, 0], cl[3, 1], cd[3], "corner")
+    add(*side(left.left, right.left, True), "side")
+    uv = np.vstack(pts_uv)
+    d = np.concatenate([np.atleast_1d(x) for x in disp])
+    P = triangulate_rectified(uv[:, 0], uv[:, 1], uv[:, 0] - d, rig.left, rig.baseline_m)
+    ok = np.all(np.isfinite(P), axis=1)
+    return BoundaryStereo(P[ok], uv[ok], d[ok], np.array(src)[ok], np.abs(cl[:, 1] - cr[:, 1]))
