@@ -7,7 +7,8 @@ import numpy as np
 
 from bench.recon_io import image_checksums, write_reconstruction
 from bench.sample import load_inputs
-from reconstruction.pipeline import PipelineOptions, projector_feature_rays, reconstruct
+from reconstruction.pipeline import IMAGE_NAMES, PipelineOptions, projector_feature_rays, reconstruct
+from reconstruction.plate_region import ReconstructionError
 
 
 def add_parser(sub) -> None:
@@ -29,11 +30,22 @@ def run(args) -> int:
         raise ValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
     inputs = load_inputs(args.sample_dir)
     rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
-    r = reconstruct(inputs.images, inputs.calibration.rig, rays, inputs.pattern,
-                    PipelineOptions(grid_step_m=args.grid_mm * 1e-3))
+    try:
+        r = reconstruct(inputs.images, inputs.calibration.rig, rays, inputs.pattern,
+                        PipelineOptions(grid_step_m=args.grid_mm * 1e-3))
+    except ReconstructionError as e:
+        raise ReconstructionError(name_the_file(str(e), args.sample_dir)) from None
     write_reconstruction(args.out, r, args.sample_dir, image_checksums(inputs.images), overwrite=args.overwrite)
     print_summary(r, args.out)
     return 0
+
+
+def name_the_file(message: str, sample_dir: Path) -> str:
+    """Turn 'left_active: ...' into 'SAMPLE/images/left_active.png: ...'."""
+    for name in IMAGE_NAMES:
+        if message.startswith(name + ":"):
+            return f"{Path(sample_dir) / 'images' / (name + '.png')}{message[len(name):]}"
+    return message
 
 
 def print_summary(r, out) -> None:

@@ -38,12 +38,12 @@ def check_image(image: np.ndarray, name: str) -> np.ndarray:
     if img.ndim != 2:
         raise ReconstructionError(f"{name}: expected a grey image, got shape {img.shape}")
     f = img.astype(np.float64)
-    if f.max() - f.min() <= 0:
-        raise ReconstructionError(f"{name}: image is blank (every pixel = {f.max():g})")
     if np.issubdtype(img.dtype, np.integer):
         full = np.iinfo(img.dtype).max
         if np.mean(f >= full) > 0.5:
             raise ReconstructionError(f"{name}: image is saturated ({np.mean(f >= full) * 100:.0f} % of pixels at {full})")
+    if f.max() - f.min() <= 0:
+        raise ReconstructionError(f"{name}: image is blank (every pixel = {f.max():g})")
     return f
 
 

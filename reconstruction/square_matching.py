@@ -11,7 +11,7 @@ Algorithm, as the paper states it:
 Fig. 6 conditions are checked on the detected squares, and a violation is reported
 (with where it happens) instead of becoming a silent wrong match:
 * condition 1: squares adjacent in x within a horizontal array overlap in y (and the
-  array has no gap wider than 1.6 times its median pitch, which signals a lost square);
+  array has no gap wider than 1.6 times the image's median pitch, which signals a lost square);
 * condition 2: no square is x-adjacent (y-overlapping) to a square of another array.
 """
 from __future__ import annotations
@@ -69,15 +69,16 @@ class Fig6Check:
 def check_fig6(squares: tuple[Square, ...], groups: list[list[int]], image_name: str) -> Fig6Check:
     """Check the two Fig. 6 conditions on detected squares; describe each violation."""
     v1, v2 = [], []
+    pitches = [np.diff([squares[k].centroid[0] for k in g]) for g in groups if len(g) > 1]
+    med = float(np.median(np.concatenate(pitches))) if pitches else np.inf  # image-wide median pitch
     for gi, g in enumerate(groups):
         xs = np.array([squares[k].centroid[0] for k in g])
         for a, b in zip(g, g[1:]):
             if _overlap(squares[a].v_extent, squares[b].v_extent) <= 0:
                 v1.append(f"{image_name}: array {gi}: squares at {np.round(squares[a].centroid, 1).tolist()} and "
                           f"{np.round(squares[b].centroid, 1).tolist()} are x-adjacent but do not overlap in y")
-        if len(xs) >= 3:
+        if len(xs) >= 2:
             pitch = np.diff(xs)
-            med = np.median(pitch)
             for k in np.nonzero(pitch > GAP_FACTOR * med)[0]:
                 v1.append(f"{image_name}: array {gi}: gap of {pitch[k]:.1f} px (median pitch {med:.1f} px) after "
                           f"square at {np.round(squares[g[k]].centroid, 1).tolist()}: a square is missing")
