@@ -20,6 +20,7 @@ COMMANDS = {
     "evaluate": "bench.cmd_evaluate",
     "perf": "bench.cmd_perf",
     "info": "bench.cmd_info",
+    "compare": "bench.cmd_compare",
 }
 
 

@@ -356,7 +356,7 @@ def error_figure(cmp: Comparison) -> bytes:
         a = np.abs(err[np.isfinite(err)])
         lim = float(np.percentile(a, 95)) if a.size else 1.0
         lim = max(lim, 1e-3)
-        back = np.where(mask, 0.75, 0.15)[v0:v1, u0:u1]
+        back = np.where(mask, 0.45, 0.05)[v0:v1, u0:u1]
         ax.imshow(back, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
         im = ax.imshow(err[v0:v1, u0:u1], cmap="coolwarm", vmin=-lim, vmax=lim, interpolation="nearest")
         s = r.scores
@@ -365,7 +365,7 @@ def error_figure(cmp: Comparison) -> bytes:
         ax.set_xticks([])
         ax.set_yticks([])
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="Z_est - Z_gt (mm)")
-    fig.suptitle(f"{cmp.sample_dir}: left-camera depth error (grey: plate without estimate)", fontsize=9)
+    fig.suptitle(f"{cmp.sample_dir}: left-camera depth error (dark grey: plate pixel without estimate)", fontsize=9)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)

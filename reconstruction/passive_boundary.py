@@ -52,11 +52,6 @@ class BoundaryStereo:
     corner_row_mismatch_px: np.ndarray  # (4,) |v_left - v_right| of the matched corners
 
 
-def _first_last(mask_line: np.ndarray) -> tuple[int, int]:
-    nz = np.nonzero(mask_line)[0]
-    return (int(nz[0]), int(nz[-1])) if nz.size else (-1, -1)
-
-
 def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
     """Sub-pixel samples of the four edges and refined corners of the plate outline."""
     img = np.asarray(image, np.float64)
@@ -65,9 +60,17 @@ def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
     m = CORNER_MARGIN_PX
     thr, bg = region.threshold, region.background_level
 
+    def extents(mask2d):
+        has = mask2d.any(axis=1)
+        first = np.argmax(mask2d, axis=1)
+        last = mask2d.shape[1] - 1 - np.argmax(mask2d[:, ::-1], axis=1)
+        return np.where(has, first, -1), np.where(has, last, -1)
+
+    row_first, row_last = extents(region.mask)
+    col_first, col_last = extents(region.mask.T)
+
     def side(rows, from_left: bool):
-        ext = np.array([_first_last(region.mask[v]) for v in rows])
-        base = ext[:, 0] if from_left else ext[:, 1]
+        base = (row_first if from_left else row_last)[rows]
         start = base - SEARCH_PX if from_left else base + SEARCH_PX
         stop = base + SEARCH_PX if from_left else base - SEARCH_PX
         u = row_edges(img, rows, thr, bg, np.clip(start, 0, W - 1), np.clip(stop, 0, W - 1))
@@ -75,8 +78,7 @@ def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
         return rows[ok], u[ok]
 
     def tb(cols, from_top: bool):
-        ext = np.array([_first_last(region.mask[:, u]) for u in cols])
-        base = ext[:, 0] if from_top else ext[:, 1]
+        base = (col_first if from_top else col_last)[cols]
         start = base - SEARCH_PX if from_top else base + SEARCH_PX
         stop = base + SEARCH_PX if from_top else base - SEARCH_PX
         v = column_edges(img, cols, thr, bg, np.clip(start, 0, H - 1), np.clip(stop, 0, H - 1))

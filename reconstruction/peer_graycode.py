@@ -25,13 +25,19 @@ rows already rectified, ``d = u_left - u_right = f B / Z``):
   are dropped, so the code counts blocks of 2^m columns. The decoded code is then
   made continuous along each row: between two neighbouring pixels whose codes
   differ, the stripe edge that separates them (a known projector column boundary)
-  is placed at the sub-pixel zero crossing of pattern - inverse of the bit plane
+  is located to sub-pixel precision from pattern - inverse (D) of the bit plane
   that flips there. Column as a function of u is piecewise linear through these
   edge "knots". For each left pixel, its column is read at the pixel centre, and
   the right image's row is searched for the sub-pixel position with the same
-  column (linear interpolation between neighbouring right knots). With
-  ``edge_subpixel=False`` the knots sit halfway between the two pixels (pure
-  code-based interpolation, for comparison).
+  column (linear interpolation between neighbouring right knots).
+  ``edge_model``: "area" (default) assumes box pixels and a sharp edge, so the
+  straddled pixel's D = A (2 f - 1) with A = white - black gives the covered
+  fraction f (exact for the renderer's box filter; half the error of "linear" at
+  320 x 240); "linear" is the classic zero crossing of D interpolated between the
+  two pixel centres (better with optical blur); "midpoint" puts the edge halfway
+  (code-only interpolation, for comparison). Unlike OpenCV, a weak plane does not
+  invalidate a pixel by default (``white_threshold=0``): at a stripe edge the Gray
+  code can only be off by one code, which the knots absorb.
 
 Pure function of the images and the calibration (no renderer, no ground truth).
 Units: pixels for images and disparity, metres for points (world frame).
@@ -51,6 +57,9 @@ from scenes.rig import StereoRig
 __all__ = ["DenseResult", "GrayCodeSequence", "ColumnDecode", "RowProfile", "graycode_sequence",
            "decode_columns", "decode_opencv", "decode_subpixel", "dense_result", "profile_from_column_map",
            "match_columns_along_rows", "consistent_columns", "column_knots", "column_map_from_knots"]
+
+
+EDGE_MODELS = ("area", "linear", "midpoint")
 
 
 # ----------------------------------------------------------------------------- result type
@@ -301,8 +310,9 @@ def column_knots(dec: ColumnDecode, max_jump: int = 4, edge_model: str = "area")
     K = bit_length(a ^ b) - 1 and n = (b >> K) << K; that plane flips exactly once between
     a and b, and its pattern - inverse crosses zero at the edge.
     """
+    if edge_model not in EDGE_MODELS:
+        raise ValueError(f"edge_model = {edge_model!r} is not allowed: choose one of {EDGE_MODELS}")
     code, valid = dec.code, dec.valid
-    H, W = code.shape
     seg = _segments(valid)
     a, b = code[:, :-1], code[:, 1:]
     pair = valid[:, :-1] & valid[:, 1:] & (b > a) & (b - a <= max_jump)
@@ -447,7 +457,7 @@ def decode_subpixel(left, right, seq: GrayCodeSequence, rig: StereoRig, min_plan
         notes.append("plane contrast (median |pattern - inverse| / (white - black)), MSB first: left "
                      + " ".join(f"{c:.2f}" for c in cl) + "; right " + " ".join(f"{c:.2f}" for c in cr))
     notes.append(f"{len(seq.col_pairs) - dropped} of {len(seq.col_pairs)} column planes used "
-                 f"(code resolution {1 << dropped} projector columns)")
+                 f"(code resolution {1 << dropped} projector columns), stripe edges by the {edge_model!r} model")
     dl = decode_columns(left, seq, dropped, black_threshold, white_threshold)
     dr = decode_columns(right, seq, dropped, black_threshold, white_threshold)
     t_dec = time.perf_counter()

@@ -119,10 +119,12 @@ class Camera:
     def rays(self, pixels) -> tuple[np.ndarray, np.ndarray]:
         """Unit world-frame ray directions through (N,2) pixels; origin is ``center``."""
         px = np.atleast_2d(np.asarray(pixels, float))
-        homog = np.column_stack([px, np.ones(len(px))])
-        d_cam = homog @ np.linalg.inv(self.K).T
-        d = d_cam @ self.R
-        return self.center, d / np.linalg.norm(d, axis=1, keepdims=True)
+        K = self.K
+        y = (px[:, 1] - K[1, 2]) / K[1, 1]
+        x = (px[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
+        d = np.outer(x, self.R[0]) + np.outer(y, self.R[1]) + self.R[2]
+        d /= np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+        return self.center, d
 
     def in_image(self, uv, margin: float = 0.0) -> np.ndarray:
         """True where pixel coordinates lie inside the image (pixel edges at -0.5, W-0.5)."""

@@ -144,18 +144,18 @@ class GroundTruthCaster:
         origin, dirs = cam.rays(np.column_stack([uu, vv]).astype(float))
         t, p, bary = _triangle_hits(origin, dirs, verts[faces])
         depth64 = np.full((H, W), np.inf)
-        depth64[mask] = cam.depth(p)
-        points = np.full((H, W, 3), np.nan)
+        depth64[mask] = t * (dirs @ cam.R[2])  # z-depth = ray length x cos(angle to the axis)
+        points = np.full((H, W, 3), np.nan, np.float32)
         points[mask] = p
-        normals = np.full((H, W, 3), np.nan)
-        normals[mask] = self._normals(plate, prim[mask], faces, bary)
-        proj_uv, feature = self._projector_maps(p, normals[mask])
+        normals = np.full((H, W, 3), np.nan, np.float32)
+        n = self._normals(plate, prim[mask], faces, bary)
+        normals[mask] = n
+        proj_uv, feature = self._projector_maps(p, n)
         puv = np.full((H, W, 2), np.nan, np.float32)
         puv[mask] = proj_uv
         feat = np.full((H, W), -1, np.int32)
         feat[mask] = feature
-        return CameraGroundTruth(depth64.astype(np.float32), points.astype(np.float32),
-                                 normals.astype(np.float32), mask, puv, feat, depth64)
+        return CameraGroundTruth(depth64.astype(np.float32), points, normals, mask, puv, feat, depth64)
 
     def _normals(self, plate, prims, faces, bary):
         """Analytic top-surface normals at the hits' material coordinates (face normals elsewhere)."""
