@@ -20,6 +20,8 @@ COMMANDS = {
     "evaluate": "bench.cmd_evaluate",
     "perf": "bench.cmd_perf",
     "info": "bench.cmd_info",
+    "demo": "bench.cmd_demo",
+    "compare": "bench.cmd_compare",
     "compare": "bench.cmd_compare",
 }
 
