@@ -70,18 +70,20 @@ class RenderedSample:
     variant: str
 
 
-def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, progress=None) -> tuple[RenderedSample, PlateRenderer]:
+def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, progress=None,
+                  scene=None) -> tuple[RenderedSample, PlateRenderer]:
     """Build the plate and scene, render the four images and cast all ground truth.
 
     Pass the ``renderer`` of a previous sample to reuse its compiled kernels (plate and
     scene are swapped by parameter update). ``progress(step_name)`` is called per step.
+    ``scene`` (a SceneSpec) replaces ``cfg.scene.build()``: a rig placed by the sensing loop.
     """
     step = progress or (lambda name: None)
     t0 = time.perf_counter()
     timings = {}
     step("plate")
     plate = build_plate(cfg.plate)
-    scene = cfg.scene.build()
+    scene = scene if scene is not None else cfg.scene.build()
     timings["plate_s"] = time.perf_counter() - t0
     t = time.perf_counter()
     if renderer is None:

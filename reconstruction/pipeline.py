@@ -109,19 +109,10 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
         t = now
 
     # -- passive stereo: boundary ------------------------------------------------
-    regions = {c: extract_plate_region(images[f"{c}_passive"], f"{c}_passive") for c in ("left", "right")}
-    lap("plate_regions_s")
-    outlines = {c: outline_edges(images[f"{c}_passive"], regions[c]) for c in ("left", "right")}
-    lap("outline_edges_s")
-    stereo = match_boundary(outlines["left"], outlines["right"], rig)
-    lap("boundary_stereo_s")
-    toward = rig.center - stereo.points.mean(axis=0)
-    # The plane's contour integral on the boundary resampled every PLANE_SAMPLE_M of arc
-    # (the measured polyline has ~0.2 mm vertex spacing; the plane moves < 1 um).
-    loop = _resample_closed(stereo.points, PLANE_SAMPLE_M)
-    plane = fit_boundary_plane(loop, toward=toward)
-    ls_plane = least_squares_plane(loop, toward=toward)
-    lap("boundary_plane_s")
+    passive = passive_stereo(images["left_passive"], images["right_passive"], rig)
+    timings.update(passive.timings_s)
+    t = time.perf_counter()
+    regions, stereo, plane, ls_plane = passive.regions, passive.stereo, passive.plane, passive.least_squares_plane
 
     # -- active stereo: squares ---------------------------------------------------
     dets = {c: extract_squares(images[f"{c}_active"], regions[c].mask, f"{c}_active") for c in ("left", "right")}
@@ -142,8 +133,9 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
     cols = np.array([feats[i].col if i in feats else -1 for i in labels], int)
     lap("triangulation_s")
 
-    fb = false_boundary_test({f"{c}_active": len(dets[c].squares) for c in ("left", "right")}, rays, plane,
-                             stereo.points)
+    fb = false_boundary_test({f"{c}_active": complete_square_count(dets[c].squares) for c in ("left", "right")},
+                             rays, plane, stereo.points,
+                             arrays_disagree=matches.count_mismatch)
     lap("false_boundary_test_s")
 
     # -- surface -------------------------------------------------------------------
@@ -158,6 +150,56 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
     return Reconstruction(pts, uvl, uvr, labels, rows, cols, stereo.points, stereo.source, plane, ls_plane,
                           verts, faces, fb, fig6, matches.unmatched, stereo.corner_row_mismatch_px, thresholds,
                           timings)
+
+
+@dataclass(frozen=True)
+class PassiveResult:
+    """Passive stereo alone (sensing stages 1 and 2): regions, matched boundary, boundary planes."""
+
+    regions: dict
+    stereo: object  # BoundaryStereo
+    plane: BoundaryPlane
+    least_squares_plane: BoundaryPlane
+    timings_s: dict
+
+    @property
+    def boundary(self) -> np.ndarray:
+        return self.stereo.points
+
+
+def passive_stereo(left_passive: np.ndarray, right_passive: np.ndarray, rig: StereoRig) -> PassiveResult:
+    """Plate regions, sub-pixel outlines, boundary stereo and the boundary plane (world, metres)."""
+    timings = {}
+    t = time.perf_counter()
+    images = {"left": left_passive, "right": right_passive}
+    regions = {c: extract_plate_region(images[c], f"{c}_passive") for c in ("left", "right")}
+    timings["plate_regions_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    outlines = {c: outline_edges(images[c], regions[c]) for c in ("left", "right")}
+    timings["outline_edges_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    stereo = match_boundary(outlines["left"], outlines["right"], rig)
+    timings["boundary_stereo_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    toward = rig.center - stereo.points.mean(axis=0)
+    # The plane's contour integral on the boundary resampled every PLANE_SAMPLE_M of arc
+    # (the measured polyline has ~0.2 mm vertex spacing; the plane moves < 1 um).
+    loop = _resample_closed(stereo.points, PLANE_SAMPLE_M)
+    plane = fit_boundary_plane(loop, toward=toward)
+    ls_plane = least_squares_plane(loop, toward=toward)
+    timings["boundary_plane_s"] = time.perf_counter() - t
+    return PassiveResult(regions, stereo, plane, ls_plane, timings)
+
+
+def complete_square_count(squares) -> int:
+    """Squares counted by the false-boundary test: whole ones (area >= half the median area).
+
+    A square cut by the plate's edge is seen but its centre ray may fall outside the boundary;
+    counting it would hide a missing whole square elsewhere."""
+    if not squares:
+        return 0
+    areas = np.array([s.area_px for s in squares])
+    return int(np.sum(areas >= 0.5 * np.median(areas)))
 
 
 def _resample_closed(poly: np.ndarray, step: float) -> np.ndarray:

@@ -100,6 +100,7 @@ class SquareMatches:
     pairs: tuple[tuple[int, int], ...]
     group_pairs: tuple[tuple[int, int], ...]
     unmatched: tuple[str, ...] = field(default_factory=tuple)
+    count_mismatch: bool = False  # some matched arrays hold different numbers of squares (Fig. 2)
 
 
 def match_squares(left: tuple[Square, ...], right: tuple[Square, ...], left_groups: list[list[int]],
@@ -109,6 +110,7 @@ def match_squares(left: tuple[Square, ...], right: tuple[Square, ...], left_grou
     ry = np.array([right[g[0]].centroid[1] for g in right_groups])
     pairs, gpairs, notes = [], [], []
     used_r = set()
+    mismatch = False
     for gi, y in enumerate(ly):
         if ry.size == 0:
             notes.append(f"left array {gi} (y {y:.1f}) has no partner in the right image")
@@ -120,6 +122,7 @@ def match_squares(left: tuple[Square, ...], right: tuple[Square, ...], left_grou
         used_r.add(j)
         gl, gr = left_groups[gi], right_groups[j]
         if len(gl) != len(gr):
+            mismatch = True
             notes.append(f"array at y {y:.1f} px: {len(gl)} squares in the left image, {len(gr)} in the right: "
                          "x order is ambiguous, not matched (false boundary suspected)")
             continue
@@ -127,4 +130,4 @@ def match_squares(left: tuple[Square, ...], right: tuple[Square, ...], left_grou
         pairs.extend(zip(gl, gr))
     for j in set(range(len(right_groups))) - used_r:
         notes.append(f"right array {j} (leftmost y {ry[j]:.1f} px) has no partner in the left image")
-    return SquareMatches(tuple(pairs), tuple(gpairs), tuple(notes))
+    return SquareMatches(tuple(pairs), tuple(gpairs), tuple(notes), mismatch)

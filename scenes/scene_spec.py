@@ -85,6 +85,43 @@ def default_pattern(width=1024, height=768):
     return square_grid(width, height, rows=4, cols=4, square_px=40, gap_x_px=24, gap_y_px=80)
 
 
+def up_for_baseline(view_dir, baseline_dir) -> np.ndarray:
+    """The look-at ``up`` that puts the image x axis (hence the baseline) along ``baseline_dir``.
+
+    With OpenCV look-at axes x = forward x up, choosing up = baseline x forward gives
+    x = baseline (for a baseline perpendicular to the viewing direction).
+    """
+    f = np.asarray(view_dir, float)
+    f = f / np.linalg.norm(f)
+    b = np.asarray(baseline_dir, float)
+    b = b - f * (b @ f)
+    nb = np.linalg.norm(b)
+    if nb < 1e-9:
+        raise ValueError("baseline direction is parallel to the viewing direction")
+    return np.cross(b / nb, f)
+
+
+def scene_for_pose(center, target, baseline_dir, base: SceneSpec, baseline_m: float | None = None,
+                   projector_center=None) -> SceneSpec:
+    """``base`` with the rig re-placed: mid-baseline at ``center`` looking at ``target``, baseline
+    along ``baseline_dir``; the projector sits on the centre line (between the cameras, or at
+    ``projector_center``), aimed at ``target``, keeping its K and pattern. Intrinsics and image
+    sizes are kept."""
+    center = np.asarray(center, float)
+    target = np.asarray(target, float)
+    pc = center if projector_center is None else np.asarray(projector_center, float)
+    up = up_for_baseline(target - center, baseline_dir)
+    left = base.rig.left
+    rig = StereoRig.conventional(center, target, baseline_m or base.rig.baseline_m, left.f_px,
+                                 left.width, left.height, up=up)
+    p = base.projector
+    if p.kind == "spot":
+        proj = Projector.look_at(pc, target, p.pattern, kind="spot", cutoff_rad=p.cutoff_rad, up=up)
+    else:
+        proj = Projector.look_at(pc, target, p.pattern, f_px=p.camera.f_px, kind=p.kind, up=up)
+    return replace(base, rig=rig, projector=proj)
+
+
 def reference_scene(distance_m: float = REFERENCE["distance_m"], width: int = REFERENCE["width"],
                     height: int = REFERENCE["height"], f_px: float = REFERENCE["f_px"],
                     baseline_m: float = REFERENCE["baseline_m"], target=(0.0, 0.0, 0.0),

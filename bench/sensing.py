@@ -1,0 +1,158 @@
+"""The paper's closed sensing loop (sections II, IV-B, V-B) with a simulated robot.
+
+Decisions (poses, the false-boundary test, the cures) are the pure functions of
+``reconstruction.exploring`` and ``reconstruction.pipeline``; this module renders at
+each chosen pose, runs the method, and records every pose, decision and reason in
+``sensing.json``. Each stage's sample (with ground truth, for scoring only) and
+reconstruction are written under DIR/stageN[_k]/.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from bench.atomic import write_json
+from bench.config import SampleConfig
+from bench.recon_io import image_checksums, write_reconstruction
+from bench.sample import render_sample, write_sample
+from reconstruction.exploring import (PoseError, SensorPose, cure_move_back, cure_orient, most_bending_curves,
+                                      most_bent_direction, stage1_pose, stage2_pose, tangent_intersection_distance,
+                                      validate_pose)
+from reconstruction.pipeline import passive_stereo, projector_feature_rays, reconstruct
+from scenes.scene_spec import scene_for_pose
+
+
+@dataclass(frozen=True)
+class SensingOptions:
+    workspace_radius_m: float = 0.15  # stage 1 covers a disc of this radius around the workspace centre
+    working_distance_m: float = 0.40  # cameras focused here: stage 2 comes no closer
+    max_cures: int = 4
+    write_stages: bool = True
+
+
+@dataclass
+class SensingLog:
+    """Everything the loop did, in order (becomes sensing.json)."""
+
+    steps: list = field(default_factory=list)
+
+    def add(self, **kw) -> None:
+        self.steps.append(kw)
+
+
+def _visibility(sample) -> dict:
+    return {c: {"visible_fraction": v.visible_fraction, "false_boundary": v.false_boundary}
+            for c, v in sample.visibility.items()}
+
+
+def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = SensingOptions(),
+                feature_rays=None, progress=None) -> dict:
+    """Run stages 1-3 and the cures on the plate of ``cfg``; returns the sensing summary.
+
+    ``feature_rays``: a function scene -> FeatureRays (default: the projector's true K, R, t;
+    the calibration module supplies estimated rays).
+    """
+    step = progress or (lambda name: None)
+    base = cfg.scene.build()
+    cam = base.rig.left
+    B = base.rig.baseline_m
+    rays_for = feature_rays or (lambda scene: projector_feature_rays(scene.projector.camera, scene.projector.pattern))
+    log = SensingLog()
+    renderer = None
+    t0 = time.perf_counter()
+
+    def render_at(pose: SensorPose, name: str):
+        nonlocal renderer
+        scene = scene_for_pose(pose.center, pose.target, pose.baseline_dir, base)
+        step(f"{name}: render")
+        sample, renderer = render_sample(cfg, renderer, scene=scene)
+        if out is not None and options.write_stages:
+            write_sample(Path(out) / name / "sample", sample, overwrite=True)
+        return sample
+
+    # -- stage 1: far pose, rough boundary -----------------------------------------
+    pose = stage1_pose(np.zeros(3), options.workspace_radius_m, cam, B)
+    s1 = render_at(pose, "stage1")
+    step("stage1: passive stereo")
+    p1 = passive_stereo(s1.digital["left_passive"], s1.digital["right_passive"], s1.scene.rig)
+    log.add(stage=1, pose=pose.to_dict(), boundary_points=len(p1.boundary),
+            boundary_plane={"normal": p1.plane.normal.tolist(), "point_m": p1.plane.point.tolist()},
+            gt_visibility=_visibility(s1))
+
+    # -- stage 2: pose from the rough boundary, precise boundary ------------------------
+    pose = stage2_pose(p1.boundary, p1.plane, cam, B, options.working_distance_m)
+    validate_pose(pose, p1.boundary, p1.plane, cam, B)
+    cures = 0
+    final = None
+    while True:
+        tag = "" if cures == 0 else f"_cure{cures}"
+        s2 = render_at(pose, f"stage2{tag}")
+        step("stage2: passive stereo")
+        p2 = passive_stereo(s2.digital["left_passive"], s2.digital["right_passive"], s2.scene.rig)
+        log.add(stage=2, cure=cures, pose=pose.to_dict(), boundary_points=len(p2.boundary),
+                gt_visibility=_visibility(s2))
+        # -- stage 3: projector on the centre line, active stereo, counting test ----------
+        # The projector sits on the sensor's centre line (between the cameras), so stage 3 moves the
+        # sensor head; after a cure it keeps the cured pose instead of undoing it.
+        if cures == 0:
+            proj_pose = SensorPose(p2.plane.point + p2.plane.normal * pose.distance_m, p2.plane.point.copy(),
+                                   pose.baseline_dir, "stage 3: projector centre ray through the boundary "
+                                                      "centre, perpendicular to the boundary plane")
+        else:
+            proj_pose = replace(pose, reason="stage 3 at the cured pose")
+        validate_pose(proj_pose, p2.boundary, p2.plane, cam, B)
+        s3 = render_at(proj_pose, f"stage3{tag}")
+        step("stage3: active stereo")
+        rays = rays_for(s3.scene)
+        rec = reconstruct(s3.digital, s3.scene.rig, rays, s3.scene.projector.pattern)
+        if out is not None and options.write_stages:
+            write_reconstruction(Path(out) / f"stage3{tag}" / "recon", rec, Path(out) / f"stage3{tag}" / "sample",
+                                 image_checksums(s3.digital), overwrite=True)
+        fb = rec.false_boundary
+        log.add(stage=3, cure=cures, pose=proj_pose.to_dict(), false_boundary=fb.to_dict(),
+                matched=len(rec.points), unmatched=list(rec.unmatched), gt_visibility=_visibility(s3))
+        final = (s3, rec, proj_pose)
+        if not fb.false_boundary_detected:
+            break
+        if cures >= options.max_cures:
+            log.add(decision="stop", reason=f"false boundary still detected after {cures} cures")
+            break
+        # -- a cure ------------------------------------------------------------------------
+        bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
+        curves = most_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent)
+        curve = max(curves, key=tangent_intersection_distance)
+        missing = fb.expected - min(fb.detected.values())
+        oriented = cure_orient(curve, pose)
+        off_axis = np.degrees(np.arccos(np.clip(oriented.view_dir @ pose.view_dir, -1, 1)))
+        if cures == 0 and off_axis > 2.0:
+            new = oriented
+        else:
+            new = cure_move_back(curve, pose, missing, fb.expected)
+        try:
+            validate_pose(new, rec.boundary, rec.boundary_plane, cam, B)
+        except PoseError as e:
+            log.add(decision="stop", reason=f"cure refused: {e}")
+            break
+        log.add(decision="cure", method=1 if new is oriented else 2, reason=new.reason, curve=curve.to_dict(),
+                L_m=tangent_intersection_distance(curve), missing_squares=int(missing),
+                centre_line_change_deg=float(off_axis))
+        pose = proj_pose = new
+        cures += 1
+    s3, rec, proj_pose = final
+    summary = {"config": cfg.to_dict(), "steps": log.steps, "cures": cures,
+               "final": {"pose": proj_pose.to_dict(), "false_boundary": rec.false_boundary.to_dict(),
+                         "matched": int(len(rec.points)), "gt_visibility": _visibility(s3),
+                         "stage_dir": f"stage3{'' if cures == 0 else f'_cure{cures}'}"},
+               "time_s": time.perf_counter() - t0}
+    if out is not None:
+        write_json(Path(out) / "sensing.json", summary)
+    return summary
+
+
+def with_bend(cfg: SampleConfig, bend_deg: float, direction: str) -> SampleConfig:
+    """``cfg`` with a cylindrical bend (degrees, 'up' or 'down')."""
+    from plates import CylindricalBend  # noqa: PLC0415
+    return replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(np.radians(bend_deg), direction)))
