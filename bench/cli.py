@@ -21,8 +21,11 @@ COMMANDS = {
     "perf": "bench.cmd_perf",
     "info": "bench.cmd_info",
     "demo": "bench.cmd_demo",
+    "sense": "bench.cmd_sense",
+    "study": "bench.cmd_study",
+    "sweep": "bench.cmd_sweep",
     "compare": "bench.cmd_compare",
-    "compare": "bench.cmd_compare",
+    "report": "bench.cmd_report",
 }
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
 import math
 import time
@@ -239,7 +240,12 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
 
     def sequence(frames, name):
         say(f"render {name} ({len(frames)} frames x 2 cameras)")
-        return render_pattern_sequence(renderer, frames, settings, cfg.sensor, name=name)
+        cap = render_pattern_sequence(renderer, frames, settings, cfg.sensor, name=name)
+        if cfg.sensor.bit_depth != 8:  # the structured-light decoders (and OpenCV's) take 8-bit DN
+            cap = dataclasses.replace(cap, images={c: (a >> 8).astype(np.uint8) for c, a in cap.images.items()})
+            if "8-bit" not in " ".join(notes):
+                notes.append(f"{cfg.sensor.bit_depth}-bit captures reduced to 8-bit for the structured-light decoders")
+        return cap
 
     # Gray code: one 42-frame sequence serves both decoders (the sub-pixel one uses 22 of them).
     gray_seq = gray_cap = None
@@ -251,7 +257,8 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     for name in methods:
         if name == "paper":
             continue
-        say(f"method {name}")
+        if name not in ("phase", "phase-opencv"):
+            say(f"method {name}")
         if name == "graycode":
             res = peer_graycode.decode_opencv(gray_cap["left"], gray_cap["right"], gray_seq, rig)
             render_s = gray_cap.timings_s["render_s"]
@@ -268,6 +275,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
             backend = "numpy" if name == "phase" else "opencv"
             seq = peer_phase_shift.phase_shift_sequence(pw, ph, backend=backend)
             cap = sequence(seq.images, name)
+            say(f"method {name}")
             res = peer_phase_shift.decode_phase_shift(cap["left"], cap["right"], seq, rig)
             render_s = cap.timings_s["render_s"]
         elif name == "sgbm":

@@ -221,7 +221,7 @@ def cure_orient(curve: BendingCurve, current: SensorPose) -> SensorPose:
 
 
 def cure_move_back(curve: BendingCurve, current: SensorPose, missing: int, expected: int,
-                   safety: float = 1.1, step: float = 0.25) -> SensorPose:
+                   safety: float = 1.1, step: float = 0.5) -> SensorPose:
     """Cure 2: move back along the centre line beyond C (distance from AB > L, times ``safety``);
     at least by the empirical rule: distance x (1 + step x missing/expected)."""
     L = tangent_intersection_distance(curve)

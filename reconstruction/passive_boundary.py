@@ -26,7 +26,7 @@ from scenes.rig import StereoRig
 
 SMOOTH_PX = 21  # Savitzky-Golay window (quadratic) along each edge: the outline of a smooth plate is smooth
 CORNER_MARGIN_PX = 6  # edge samples this close to a corner are dropped (the area method needs a clean edge)
-CORNER_FIT_PX = 30  # edge length used to fit the lines that meet at a corner
+CORNER_FIT_PX = 30  # edge length used to fit the curves that meet at a corner
 SEARCH_PX = 10
 
 
@@ -112,17 +112,27 @@ def _smooth(edge):
 
 
 def _corner(side, tb, near_start_side: bool, near_start_tb: bool) -> np.ndarray:
-    """Intersect u = a + b v (side edge near the corner) with v = c + d u (top/bottom edge)."""
+    """Intersect quadratic fits u(v) of the side edge and v(u) of the top/bottom edge near a corner.
+
+    Quadratic, because a bent plate's edges curve in the image close to its corners (perspective of
+    an edge that recedes in depth); straight-line fits put the corner off by pixels there.
+    """
     rows, us = side
     cols, vs = tb
     k = CORNER_FIT_PX
     rs, uu = (rows[:k], us[:k]) if near_start_side else (rows[-k:], us[-k:])
     cs, vv = (cols[:k], vs[:k]) if near_start_tb else (cols[-k:], vs[-k:])
-    b, a = np.polyfit(rs, uu, 1)
-    d, c = np.polyfit(cs, vv, 1)
-    # u = a + b v, v = c + d u  ->  u = a + b (c + d u)
-    u = (a + b * c) / (1.0 - b * d)
-    return np.array([u, c + d * u])
+    ps = np.polyfit(rs, uu, 2 if len(rs) > 5 else 1)
+    pt = np.polyfit(cs, vv, 2 if len(cs) > 5 else 1)
+    # Fixed point: start at the ends of the two fitted stretches, alternate the two curves.
+    v = float(rs[0] if near_start_side else rs[-1])
+    for _ in range(50):
+        u = float(np.polyval(ps, v))
+        v_new = float(np.polyval(pt, u))
+        if abs(v_new - v) < 1e-9:
+            break
+        v = v_new
+    return np.array([float(np.polyval(ps, v)), v])
 
 
 def match_boundary(left: ImageOutline, right: ImageOutline, rig: StereoRig) -> BoundaryStereo:

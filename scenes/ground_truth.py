@@ -189,13 +189,16 @@ class GroundTruthCaster:
         return uv, feature
 
     # -- boundary -------------------------------------------------------------
-    def boundary_visibility(self, camera_name: str) -> BoundaryVisibility:
-        """Which points of the true boundary this camera sees (in view, unoccluded, front-facing)."""
+    def boundary_visibility(self, camera_name: str, require_in_view: bool = True) -> BoundaryVisibility:
+        """Which points of the true boundary this camera sees (in view, unoccluded, front-facing).
+
+        ``require_in_view=False`` ignores the image borders (an infinitely wide sensor): the
+        geometric visibility the paper's L formula speaks about."""
         plate = self.r.plate
         cam = self.r.spec.rig.cameras[camera_name]
         P = np.asarray(plate.boundary, np.float64)
         uv = cam.project(P)
-        in_view = cam.in_image(uv) & np.isfinite(uv[:, 0])
+        in_view = np.isfinite(uv[:, 0]) & (cam.in_image(uv) if require_in_view else True)
         n = np.asarray(plate.surface_normal(np.asarray(plate.boundary_uv, np.float64)))
         facing = np.einsum("ij,ij->i", n, cam.center - P) > 0
         occluded = self._occluded(np.repeat(cam.center[None], len(P), 0), P, _OCCLUSION_SLACK_M)
