@@ -1,0 +1,117 @@
+"""The exploring strategy and the sensing loop: poses, pose refusal, the L formula, the study geometry."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bench.config import SampleConfig, SceneParams
+from bench.false_boundary_study import VisibilityProbe, analytic_L, bent_plate, smallest_hiding_bend, visibility_distance
+from bench.sensing import run_sensing
+from reconstruction.boundary_plane import fit_boundary_plane
+from reconstruction.exploring import (PoseError, SensorPose, bending_curve, cure_move_back, stage2_pose,
+                                      tangent_intersection_distance, validate_pose)
+from scenes.camera import intrinsics, Camera
+from scenes.renderer import RenderSettings
+from tests.conftest import run_cli
+
+SMALL = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2))
+
+
+def _arc(theta_deg, direction, L=0.1165, n=600):
+    th = math.radians(theta_deg)
+    R = L / th
+    phi = np.linspace(-th / 2, th / 2, n)
+    s = 1.0 if direction == "up" else -1.0
+    return np.column_stack([R * np.sin(phi), np.zeros(n), s * R * (1 - np.cos(phi))]), R
+
+
+@pytest.mark.parametrize("theta", [30.0, 120.0, 165.0])
+def test_L_formula_of_a_convex_arc_is_half_chord_times_tan_half_angle(theta):
+    P, R = _arc(theta, "down")
+    c = bending_curve(P, np.array([0, 0, 1.0]))
+    half_chord = R * math.sin(math.radians(theta) / 2)
+    assert np.degrees(c.a_rad) == pytest.approx(theta / 2, abs=0.15)  # quadratic end fit
+    assert tangent_intersection_distance(c) == pytest.approx(half_chord * math.tan(math.radians(theta) / 2), rel=0.02)
+
+
+def test_concave_arc_needs_no_distance_and_curled_plate_cannot_be_cured_by_distance():
+    assert tangent_intersection_distance(bending_curve(_arc(120, "up")[0], np.array([0, 0, 1.0]))) < 0
+    assert math.isinf(tangent_intersection_distance(bending_curve(_arc(220, "up")[0], np.array([0, 0, 1.0]))))
+
+
+def test_cure_move_back_goes_beyond_the_tangent_intersection():
+    P, _ = _arc(160, "down")
+    c = bending_curve(P, np.array([0, 0, 1.0]))
+    pose = SensorPose(np.array([0, 0, 0.2]), np.zeros(3), np.array([0, 1.0, 0]))
+    new = cure_move_back(c, pose, missing=2, expected=8)
+    height_above_ab = new.center[2] - P[0, 2]
+    assert height_above_ab > tangent_intersection_distance(c)
+    assert new.distance_m > pose.distance_m and "beyond C" in new.reason
+
+
+def _plate_boundary():
+    L, W = 0.1165, 0.0735
+    return np.array([[-L / 2, -W / 2, 0], [L / 2, -W / 2, 0], [L / 2, W / 2, 0], [-L / 2, W / 2, 0.0]])
+
+
+def test_stage2_looks_along_the_plane_normal_with_baseline_across_the_bend():
+    P, _ = _arc(40, "up")
+    boundary = np.vstack([P + [0, -0.03675, 0], (P + [0, 0.03675, 0])[::-1]])
+    plane = fit_boundary_plane(boundary, toward=np.array([0, 0, 1.0]))
+    cam = Camera(intrinsics(2000, 1280, 960), np.eye(3), np.zeros(3), 1280, 960)
+    pose = stage2_pose(boundary, plane, cam, 0.1, 0.4)
+    assert pose.view_dir @ np.array([0, 0, -1.0]) > 0.9999
+    assert abs(pose.baseline_dir @ np.array([1.0, 0, 0])) < 1e-6  # bend along X, baseline along Y
+    assert pose.distance_m == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize("center, message", [
+    ((0.0, 0.0, -0.4), "behind the plate"),
+    ((0.0, 0.0, 0.005), "inside the plate's extent"),
+    ((0.0, 0.0, 0.05), "outside the field of view"),
+])
+def test_poses_that_cannot_work_are_refused(center, message):
+    boundary = _plate_boundary()
+    plane = fit_boundary_plane(boundary, toward=np.array([0, 0, 1.0]))
+    cam = Camera(intrinsics(2000, 1280, 960), np.eye(3), np.zeros(3), 1280, 960)
+    target = np.zeros(3) if center[2] > 0 else np.array([0, 0, -1.0])
+    pose = SensorPose(np.array(center), target, np.array([0, 1.0, 0]))
+    with pytest.raises(PoseError, match=message):
+        validate_pose(pose, boundary, plane, cam, 0.1)
+
+
+def test_reference_plate_passes_all_stages_without_false_boundary(tmp_path):
+    s = run_sensing(SMALL, tmp_path)
+    stages = [st["stage"] for st in s["steps"] if "stage" in st]
+    assert stages == [1, 2, 3] and s["cures"] == 0
+    assert s["final"]["matched"] == 16 and not s["final"]["false_boundary"]["false_boundary_detected"]
+    assert s["steps"][0]["pose"]["distance_m"] > s["steps"][1]["pose"]["distance_m"]  # stage 1 is far
+    on_disk = json.loads((tmp_path / "sensing.json").read_text())
+    assert on_disk["final"]["matched"] == 16
+    assert (tmp_path / "stage3" / "recon" / "recon.json").is_file()
+
+
+def test_smallest_hiding_bend_of_the_default_rig_matches_the_tangent_analysis():
+    probe = VisibilityProbe(SMALL)
+    convex = smallest_hiding_bend(probe, SMALL, "down", 0.4, step_deg=20.0, tol_deg=1.0)
+    # A convex end is seen while the camera is beyond the tangents' crossing: L + AB height = 0.4 m
+    # happens near 169.5 degrees for this plate.
+    assert 166.0 <= convex <= 172.0
+
+
+def test_L_formula_predicts_ground_truth_visibility_distance():
+    probe = VisibilityProbe(SMALL)
+    plate = bent_plate(SMALL, 165.0, "down")
+    L, ab_height = analytic_L(plate.spec)
+    gt = visibility_distance(probe, plate, (0.0, 1.0, 0.0), tol=2e-3)
+    assert gt / (L + ab_height) == pytest.approx(1.0, abs=0.05)
+
+
+def test_sense_cli_refuses_bad_flags(tmp_path):
+    p = run_cli("sense", "--out", tmp_path / "s", "--workspace-mm", "0")
+    assert p.returncode == 2 and "--workspace-mm = 0.0 is out of range" in p.stderr
+    p = run_cli("study", "false-boundary", "--out", tmp_path / "t", "--bend", "0:400:10")
+    assert p.returncode == 2 and "--bend value 360 is out of range: allowed 0 to 350" in p.stderr
