@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bench.config import load_config, with_overrides
+from bench.config import load_config, with_camera_preset, with_overrides
 from bench.progress import bar, step_callback
 from bench.sample import render_sample, write_sample
 
@@ -20,10 +20,15 @@ def add_sample_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--spp", type=int, help="Monte Carlo samples per pixel (default 16)")
     p.add_argument("--seed", type=int, help="random seed; same seed, same bytes (default 0)")
     p.add_argument("--variant", help="Mitsuba variant (default: cuda_ad_rgb with a GPU, else llvm_ad_rgb)")
+    p.add_argument("--camera", choices=("ideal", "1995", "modern"),
+                   help="camera preset: resolution + sensor noise/bit depth (1995: 512x480 8-bit noisy CCD; "
+                        "modern: 2048x1536 16-bit); default ideal (noise-free 8-bit)")
 
 
 def config_from_args(args):
     cfg = load_config(args.config)
+    if getattr(args, "camera", None):
+        cfg = with_camera_preset(cfg, args.camera)
     return with_overrides(cfg, bend_deg=args.bend_deg, width=args.width, height=args.height, spp=args.spp,
                           seed=args.seed, variant=args.variant, distance_m=args.distance_m)
 

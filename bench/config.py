@@ -48,7 +48,7 @@ class ConfigError(ValueError):
 
 
 _SCENE_KEYS = {"distance_m", "width", "height", "f_px", "baseline_m", "projector_kind", "ambient",
-               "material", "pattern"}
+               "material", "pattern", "aperture_radius_m", "focus_distance_m"}
 _PATTERN_KEYS = {"rows", "cols", "square_px", "gap_x_px", "gap_y_px"}
 _MATERIAL_KEYS = {"kind", "albedo", "metal", "alpha"}
 _RENDER_KEYS = {"spp", "seed", "variant"}
@@ -75,6 +75,8 @@ class SceneParams:
     ambient: float = 0.0
     material: dict = field(default_factory=dict)
     pattern: dict = field(default_factory=dict)
+    aperture_radius_m: float = 0.0  # thin-lens aperture radius; 0: pinhole (no defocus)
+    focus_distance_m: float | None = None  # None: focused on the plate centre
 
     def __post_init__(self):
         checks = (("distance_m", 0.05, 5.0), ("width", 16, 8192), ("height", 16, 8192),
@@ -96,10 +98,11 @@ class SceneParams:
             pattern = None
             if self.pattern:
                 pattern = square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **self.pattern)
-            return reference_scene(distance_m=self.distance_m, width=int(self.width), height=int(self.height),
-                                   f_px=self.focal_px, baseline_m=self.baseline_m,
-                                   projector_kind=self.projector_kind, pattern=pattern, material=material,
-                                   lighting=Lighting(ambient=self.ambient))
+            scene = reference_scene(distance_m=self.distance_m, width=int(self.width), height=int(self.height),
+                                    f_px=self.focal_px, baseline_m=self.baseline_m,
+                                    projector_kind=self.projector_kind, pattern=pattern, material=material,
+                                    lighting=Lighting(ambient=self.ambient))
+            return replace(scene, aperture_radius_m=self.aperture_radius_m, focus_distance_m=self.focus_distance_m)
         except ValueError as e:
             raise ConfigError(str(e)) from None
 
@@ -110,7 +113,8 @@ class SceneParams:
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("distance_m", "width", "height", "f_px", "baseline_m",
-                                              "projector_kind", "ambient", "material", "pattern")}
+                                              "projector_kind", "ambient", "material", "pattern",
+                                              "aperture_radius_m", "focus_distance_m")}
 
 
 @dataclass(frozen=True)
@@ -148,6 +152,25 @@ class SampleConfig:
         except (ValueError, TypeError) as e:
             raise ConfigError(str(e).splitlines()[0]) from None
         return cls(plate, scene, render, sensor, variant)
+
+
+# Camera presets: resolution and what the sensor gives. "1995" is a PULNiX TM-540-like CCD
+# (512 x 480, 8-bit, noisy); "modern" a current machine-vision camera; "ideal" is noise-free.
+CAMERA_PRESETS = {
+    "ideal": ({}, SensorModel()),
+    "1995": ({"width": 512, "height": 480},
+             SensorModel(bit_depth=8, full_well_e=4000.0, read_noise_dn=1.5, gamma=1.0)),
+    "modern": ({"width": 2048, "height": 1536},
+               SensorModel(bit_depth=16, full_well_e=20000.0, read_noise_dn=3.0, gamma=1.0)),
+}
+
+
+def with_camera_preset(cfg: SampleConfig, name: str) -> SampleConfig:
+    """``cfg`` with a camera preset's resolution (field of view kept) and sensor model."""
+    if name not in CAMERA_PRESETS:
+        raise ConfigError(f"--camera = {name!r} is not known: choose one of {', '.join(CAMERA_PRESETS)}")
+    scene_over, sensor = CAMERA_PRESETS[name]
+    return replace(cfg, scene=replace(cfg.scene, **scene_over), sensor=sensor)
 
 
 def load_config(path: Path | None) -> SampleConfig:

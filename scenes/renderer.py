@@ -49,7 +49,7 @@ def _structure(spec: SceneSpec) -> tuple:
     p = spec.projector
     m = spec.material
     return (spec.rig.left.width, spec.rig.left.height, p.kind, p.pattern.width, p.pattern.height,
-            m.kind, m.metal if m.kind == "roughconductor" else None, spec.max_depth)
+            m.kind, m.metal if m.kind == "roughconductor" else None, spec.max_depth, spec.aperture_radius_m > 0)
 
 
 class PlateRenderer:
@@ -98,7 +98,10 @@ class PlateRenderer:
         cam = spec.rig.left
         film = {"type": "hdrfilm", "width": cam.width, "height": cam.height,
                 "rfilter": {"type": "box"}, "pixel_format": "rgb", "sample_border": False}
-        sensors = {name: {"type": "perspective", "fov_axis": "x", "fov": perspective_fov_deg(c, name),
+        lens = {"type": "perspective"}
+        if spec.aperture_radius_m > 0:  # thin lens: same pinhole mapping at the focus plane, plus blur
+            lens = {"type": "thinlens", "aperture_radius": spec.aperture_radius_m, "focus_distance": spec.focus_m}
+        sensors = {name: {**lens, "fov_axis": "x", "fov": perspective_fov_deg(c, name),
                           "near_clip": 1e-3, "far_clip": 100.0,
                           "to_world": mi.ScalarTransform4f(perspective_to_world(c).tolist()),
                           "film": dict(film), "sampler": {"type": "independent"}}
@@ -154,6 +157,9 @@ class PlateRenderer:
             key = f"{name}.to_world"
             p[key] = mi.Transform4f(perspective_to_world(cam).tolist())
             p[f"{name}.x_fov"] = perspective_fov_deg(cam, name)
+            if spec.aperture_radius_m > 0:
+                p[f"{name}.aperture_radius"] = spec.aperture_radius_m
+                p[f"{name}.focus_distance"] = spec.focus_m
         proj = spec.projector
         if proj.kind == "spot":
             p["projector.to_world"] = mi.Transform4f(spot_to_world(proj.camera).tolist())

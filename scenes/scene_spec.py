@@ -69,6 +69,21 @@ class SceneSpec:
     ground_albedo: float = 0.03
     ground_z_m: float = -0.2
     max_depth: int = 3
+    aperture_radius_m: float = 0.0  # 0: pinhole; > 0: thin lens (defocus blur)
+    focus_distance_m: float | None = None  # thin lens focus; None: the rig's distance to the origin
+
+    def __post_init__(self):
+        if not (0.0 <= self.aperture_radius_m <= 0.05):
+            raise ValueError(f"aperture_radius_m = {self.aperture_radius_m} is out of range: allowed 0 to 0.05 m")
+        if self.focus_distance_m is not None and not (0.01 <= self.focus_distance_m <= 100):
+            raise ValueError(f"focus_distance_m = {self.focus_distance_m} is out of range: allowed 0.01 to 100 m")
+
+    @property
+    def focus_m(self) -> float:
+        """Thin-lens focus distance (m): given, or the left camera's depth of the world origin."""
+        if self.focus_distance_m is not None:
+            return self.focus_distance_m
+        return float(max(self.rig.left.depth(np.zeros((1, 3)))[0], 0.01))
 
     def with_rig(self, rig: StereoRig) -> "SceneSpec":
         return replace(self, rig=rig)
