@@ -20,6 +20,7 @@ import numpy as np
 from bench.config import SampleConfig
 from bench.sample import IMAGE_NAMES, render_sample
 from plates import CylindricalBend
+from scenes.runtime import KernelCounter
 
 
 def _best(fn, repeat: int) -> float:
@@ -29,28 +30,6 @@ def _best(fn, repeat: int) -> float:
         fn()
         best = min(best, time.perf_counter() - t)
     return best
-
-
-class KernelCounter:
-    """Counts drjit kernel compiles (cache misses), disk-cache loads and launches in a block."""
-
-    def __init__(self):
-        import drjit as dr  # noqa: PLC0415  (only after scenes.runtime chose libLLVM)
-        self.dr = dr
-
-    def __enter__(self):
-        self.dr.kernel_history()  # clear
-        self._old = self.dr.flag(self.dr.JitFlag.KernelHistory)
-        self.dr.set_flag(self.dr.JitFlag.KernelHistory, True)
-        return self
-
-    def __exit__(self, *exc):
-        hist = [e for e in self.dr.kernel_history() if e["type"] == self.dr.KernelType.JIT]
-        self.dr.set_flag(self.dr.JitFlag.KernelHistory, self._old)
-        self.launches = len(hist)
-        self.compiled = sum(1 for e in hist if not e.get("cache_hit"))
-        self.from_disk = sum(1 for e in hist if e.get("cache_disk"))
-        return False
 
 
 def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:

@@ -148,3 +148,26 @@ def describe() -> dict:
 
 def cache_dir() -> Path:
     return Path.home() / ".drjit"
+
+
+class KernelCounter:
+    """Counts drjit kernel compiles (cache misses), disk-cache loads and launches in a block."""
+
+    def __init__(self):
+        _prepare_llvm()
+        import drjit as dr  # noqa: PLC0415
+        self.dr = dr
+
+    def __enter__(self):
+        self.dr.kernel_history()  # clear
+        self._old = self.dr.flag(self.dr.JitFlag.KernelHistory)
+        self.dr.set_flag(self.dr.JitFlag.KernelHistory, True)
+        return self
+
+    def __exit__(self, *exc):
+        hist = [e for e in self.dr.kernel_history() if e["type"] == self.dr.KernelType.JIT]
+        self.dr.set_flag(self.dr.JitFlag.KernelHistory, self._old)
+        self.launches = len(hist)
+        self.compiled = sum(1 for e in hist if not e.get("cache_hit"))
+        self.from_disk = sum(1 for e in hist if e.get("cache_disk"))
+        return False
