@@ -25,6 +25,7 @@ COMMANDS = {
     "study": "bench.cmd_study",
     "sweep": "bench.cmd_sweep",
     "compare": "bench.cmd_compare",
+    "calibrate": "bench.cmd_calibrate",
     "report": "bench.cmd_report",
 }
 

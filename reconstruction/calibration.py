@@ -4,11 +4,12 @@ Pure functions of images, a board definition (``cv2.aruco.CharucoBoard``), the
 pattern's feature table and known target placements; no renderer, no ground truth.
 
 Camera calibration (the bench's stand-in for the paper's hand/eye + two-plane
-calibration): ChArUco corners (``cv2.aruco.CharucoDetector``, optionally re-refined
-with ``cornerSubPix``) -> ``cv2.calibrateCamera`` per camera -> ``cv2.stereoCalibrate``
-for the pose of the right camera relative to the left -> registration to the world
-frame with one board view whose world placement is known (the paper's target block
-placed parallel to the robot's x-y plane): its corners are triangulated with the
+calibration): ChArUco corners (``cv2.aruco.CharucoDetector``, re-refined with
+``cornerSubPix`` on a slightly blurred image, see ``detect_charuco``) ->
+``cv2.calibrateCamera`` per camera -> ``cv2.stereoCalibrate`` for the pose of the
+right camera relative to the left -> registration to the world frame with one board
+view whose world placement is known (the paper's target block placed parallel to the
+robot's x-y plane): its corners are triangulated with the
 stereo calibration and rigidly aligned (Kabsch) with their known world positions.
 Distortion is either fixed to zero (``fix_distortion=True``: the pinhole model the
 pipeline uses) or free with k3 fixed (k1, k2, p1, p2 estimated).
@@ -75,7 +76,7 @@ class BoardDetection:
 
 
 def detect_charuco(image: np.ndarray, board, refine: bool = True) -> BoardDetection | None:
-    """ChArUco corners of ``board`` in an 8-bit image, sorted by id (None if fewer than MIN_CORNERS).
+    """ChArUco corners of ``board`` in an 8- or 16-bit image, sorted by id (None if < MIN_CORNERS).
 
     ``refine``: re-locate each corner with ``cornerSubPix`` on the image blurred by a
     Gaussian of REFINE_SIGMA_PX, window max(3, imaged square / 12) px. On noise-free
@@ -85,8 +86,11 @@ def detect_charuco(image: np.ndarray, board, refine: bool = True) -> BoardDetect
     measured 0.10 -> 0.015 px RMS at 75 px squares, 0.16 -> 0.04 px at 37 px squares.
     """
     img = np.asarray(image)
-    if img.dtype != np.uint8:
-        raise CalibrationError(f"detect_charuco needs an 8-bit image, got {img.dtype}")
+    full = img.astype(np.float32)  # refinement works on all the bits
+    if img.dtype == np.uint16:  # the ArUco detector takes 8 bits
+        img = np.rint(img / 257.0).astype(np.uint8)
+    if img.dtype != np.uint8 or img.ndim != 2:
+        raise CalibrationError(f"detect_charuco needs a grey 8- or 16-bit image, got {img.dtype} {img.shape}")
     corners, ids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(img)
     if ids is None or len(ids) < MIN_CORNERS:
         return None
@@ -98,7 +102,7 @@ def detect_charuco(image: np.ndarray, board, refine: bool = True) -> BoardDetect
         d = np.linalg.norm(uv[:, None] - uv[None], axis=2)
         np.fill_diagonal(d, np.inf)
         win = max(3, int(np.median(d.min(axis=1)) // 12))
-        blurred = cv2.GaussianBlur(img.astype(np.float32), (0, 0), REFINE_SIGMA_PX)
+        blurred = cv2.GaussianBlur(full, (0, 0), REFINE_SIGMA_PX)
         uv = cv2.cornerSubPix(blurred, uv.astype(np.float32).reshape(-1, 1, 2), (win, win), (-1, -1),
                               (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-5))
         uv = uv.reshape(-1, 2).astype(np.float64)
@@ -224,7 +228,8 @@ class StereoCalibration:
     def triangulate_camera(self, uv_left, uv_right, model: str | None = None) -> np.ndarray:
         """(N,3) points in the LEFT camera frame from matched pixels (distortion removed first).
 
-        ``model`` (default: ``self.model``, the registration's) = "general": linear (DLT) triangulation with both K and R, T.
+        ``model`` (default ``self.model``, the registration's) = "general": linear (DLT)
+        triangulation with both K and R, T.
         ``model="conventional"``: what the pipeline computes with ``to_rig()``
         (``triangulate_rectified``): Z = fx_left |T| / (u_left - u_right), x and y from the
         left K at the mean row of the two pixels; R and the direction of T are ignored.
@@ -417,7 +422,8 @@ def calibrate_structured_light(active_pairs, stereo, pattern: Pattern) -> Struct
 
     ``active_pairs``: [(left_image, right_image), ...], one pair per depth. ``stereo``: a
     ``StereoCalibration`` (estimated; centres triangulated with its registration's model)
-    or a ``StereoRig`` (true). Rays are in the world frame of that calibration; each ray's origin is its point nearest the rays' common point
+    or a ``StereoRig`` (true). Rays are in the world frame of that calibration; each ray's
+    origin is its point nearest the rays' common point
     (the estimated projector centre) and its direction points away from the projector.
     """
     if len(active_pairs) < 2:
