@@ -29,14 +29,17 @@ Units: metres and radians in code; the report's keys name their units.
 """
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
 import trimesh
 
 from bench.config import SampleConfig
+from bench.image_io import DatasetError
 from bench.sample import render_sample
 from evaluation.score import ReconstructionData, SampleTruth, score_reconstruction
 from reconstruction.calibration import (CameraCalibration, StereoCalibration, StructuredLightCalibration,
@@ -343,3 +346,22 @@ def compare_reconstruction(cfg: SampleConfig = SampleConfig(), result: Calibrati
     out = {name: _summary(s) for name, s in scores.items()}
     out["scores"] = scores
     return out
+
+
+def load_estimated_calibration(path: Path) -> tuple[StereoRig, FeatureRays]:
+    """The estimated conventional rig and projector feature rays stored in a calibration.json
+    written by ``platebench calibrate`` (so the pipeline can run on estimated calibration)."""
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"{path}: file is missing")
+    try:
+        est = json.loads(path.read_text())["estimate"]
+        st, ry = est["stereo"], est["rays"]
+        cal = StereoCalibration(np.array(st["K_left"]), np.array(st["K_right"]), np.array(st["dist_left"]),
+                                np.array(st["dist_right"]), np.array(st["R_right_from_left"]),
+                                np.array(st["T_right_from_left_m"]), np.array(st["R_world_left"]),
+                                np.array(st["t_world_left_m"]), int(st["width"]), int(st["height"]))
+        rays = FeatureRays(np.array(ry["ray_origins_m"]), np.array(ry["ray_directions"]), np.array(ry["ids"], int))
+    except (KeyError, ValueError, TypeError, json.JSONDecodeError) as e:
+        raise DatasetError(f"{path}: not a platebench calibration ({type(e).__name__}: {e})") from None
+    return cal.to_rig(), rays
