@@ -7,15 +7,16 @@ from bench.atomic import write_json
 from bench.config import SampleConfig, SceneParams
 from scenes.renderer import RenderSettings
 
-TARGETS = ("render", "reconstruct")
+TARGETS = ("render", "reconstruct", "sweep")
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("perf", help="benchmarks: render and reconstruct timings against same-run baselines",
                        description="render: a whole sample (4 images + ground truth) vs raw mitsuba.render of the "
                                    "same images, and kernel reuse on a second sample. reconstruct: the paper's "
-                                   "pipeline vs OpenCV StereoSGBM on the same passive pair. Reference experiment "
-                                   "at 1280x960, spp 16 unless told otherwise.")
+                                   "pipeline vs OpenCV StereoSGBM on the same passive pair. sweep: samples per "
+                                   "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
+                                   "worker. Reference experiment at 1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
                    help=f"what to benchmark: {', '.join(TARGETS)} (default: all)")
     p.add_argument("--width", type=int, default=1280)
@@ -37,7 +38,11 @@ def run(args) -> int:
     out = {}
     for target in args.targets or TARGETS:
         print(f"== perf {target} ({args.width}x{args.height}, spp {args.spp})")
-        out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
+        if target == "sweep":
+            from bench.perf_sweep import perf_sweep  # noqa: PLC0415
+            out[target] = perf_sweep()
+        else:
+            out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
     if args.json:
         write_json(args.json, out)
     return 0

@@ -146,6 +146,13 @@ def describe() -> dict:
             "note": choice.note, "variant": default_variant()}
 
 
+def set_thread_count(n: int) -> None:
+    """drjit's CPU thread pool size (sweep workers split the cores between them)."""
+    _prepare_llvm()
+    import drjit as dr  # noqa: PLC0415
+    dr.set_thread_count(int(n))
+
+
 def cache_dir() -> Path:
     return Path.home() / ".drjit"
 
