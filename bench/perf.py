@@ -41,7 +41,9 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
         for name in IMAGE_NAMES:
             cam, light = name.split("_")
             renderer._set_lighting(light)  # the renderer's own parameter switch, then Mitsuba only
-            mi.render(renderer.scene, sensor=("left", "right").index(cam), spp=cfg.render.spp, seed=cfg.render.seed)
+            img = mi.render(renderer.scene, sensor=("left", "right").index(cam), spp=cfg.render.spp,
+                            seed=cfg.render.seed)
+            np.asarray(img)  # the pixels in host memory, as any caller needs them
 
     t_raw = _best(raw, repeat)
     t_sample = _best(lambda: render_sample(cfg, renderer), repeat)
