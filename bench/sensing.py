@@ -18,7 +18,8 @@ from bench.atomic import write_json
 from bench.config import SampleConfig
 from bench.recon_io import image_checksums, write_reconstruction
 from bench.sample import render_sample, write_sample
-from reconstruction.exploring import (PoseError, SensorPose, cure_move_back, cure_orient, most_bending_curves,
+from reconstruction.exploring import (PoseError, SensorPose, cure_move_back, cure_orient, ensure_in_view,
+                                      most_bending_curves,
                                       most_bent_direction, stage1_pose, stage2_pose, tangent_intersection_distance,
                                       validate_pose)
 from reconstruction.pipeline import passive_stereo, projector_feature_rays, reconstruct
@@ -128,15 +129,16 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
         oriented = cure_orient(curve, pose)
         off_axis = np.degrees(np.arccos(np.clip(oriented.view_dir @ pose.view_dir, -1, 1)))
         if cures == 0 and off_axis > 2.0:
-            new = oriented
+            method, new = 1, oriented
         else:
-            new = cure_move_back(curve, pose, missing, fb.expected)
+            method, new = 2, cure_move_back(curve, pose, missing, fb.expected)
+        new = ensure_in_view(new, rec.boundary, cam, B)
         try:
             validate_pose(new, rec.boundary, rec.boundary_plane, cam, B)
         except PoseError as e:
             log.add(decision="stop", reason=f"cure refused: {e}")
             break
-        log.add(decision="cure", method=1 if new is oriented else 2, reason=new.reason, curve=curve.to_dict(),
+        log.add(decision="cure", method=method, reason=new.reason, curve=curve.to_dict(),
                 L_m=tangent_intersection_distance(curve), missing_squares=int(missing),
                 centre_line_change_deg=float(off_axis))
         pose = proj_pose = new

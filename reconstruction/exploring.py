@@ -241,6 +241,18 @@ def cure_move_back(curve: BendingCurve, current: SensorPose, missing: int, expec
                       "cure 2: move back (" + "; ".join(reason) + f"), distance {want * 1e3:.0f} mm")
 
 
+def ensure_in_view(pose: SensorPose, boundary: np.ndarray, camera: Camera, baseline_m: float,
+                   margin: float = 1.1) -> SensorPose:
+    """``pose`` moved back along its centre line, if needed, until the boundary fits the view."""
+    hx, hy = half_fovs(camera)
+    need = cover_distance(boundary, pose.view_dir, pose.baseline_dir, pose.target, hx, hy, margin=margin,
+                          baseline_m=baseline_m)
+    if pose.distance_m >= need:
+        return pose
+    return SensorPose(pose.target - pose.view_dir * need, pose.target.copy(), pose.baseline_dir,
+                      pose.reason + f"; moved back to {need * 1e3:.0f} mm to keep the plate in view")
+
+
 def validate_pose(pose: SensorPose, boundary: np.ndarray, plane: BoundaryPlane, camera: Camera,
                   baseline_m: float) -> None:
     """Refuse poses that cannot work: plate outside the view, cameras inside the plate's extent,
