@@ -128,7 +128,8 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
         missing = fb.expected - min(fb.detected.values())
         oriented = cure_orient(curve, pose)
         off_axis = np.degrees(np.arccos(np.clip(oriented.view_dir @ pose.view_dir, -1, 1)))
-        if cures == 0 and off_axis > 2.0:
+        turn = np.degrees(np.arccos(np.clip(abs(oriented.baseline_dir @ pose.baseline_dir), -1, 1)))
+        if cures == 0 and (off_axis > 2.0 or turn > 10.0):
             method, new = 1, oriented
         else:
             method, new = 2, cure_move_back(curve, pose, missing, fb.expected)
@@ -140,7 +141,7 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
             break
         log.add(decision="cure", method=method, reason=new.reason, curve=curve.to_dict(),
                 L_m=tangent_intersection_distance(curve), missing_squares=int(missing),
-                centre_line_change_deg=float(off_axis))
+                centre_line_change_deg=float(off_axis), baseline_turn_deg=float(turn))
         pose = proj_pose = new
         cures += 1
     s3, rec, proj_pose = final

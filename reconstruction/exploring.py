@@ -103,11 +103,13 @@ def most_bent_direction(boundary: np.ndarray, plane: BoundaryPlane, extra_points
     """In-plane unit direction of largest curvature of the boundary's height field (world).
 
     Fits h = c0 + c1 x + c2 y + a x^2 + b x y + c y^2 in the boundary-plane frame; the
-    eigenvector of the Hessian with the largest |eigenvalue|. Flat plates fall back to
-    the major axis of the boundary (a plate is bent along its length by default).
+    eigenvector of the Hessian with the largest |eigenvalue|. Measured surface points
+    (``extra_points``, e.g. the squares) are used alone when there are at least 6 of them:
+    the passive boundary cannot show a bend along the image rows (those edges get their depth
+    by interpolation between corners). Flat plates fall back to the major axis of the boundary.
     """
     R, origin = plane_frame(plane)
-    pts = boundary if extra_points is None or not len(extra_points) else np.vstack([boundary, extra_points])
+    pts = boundary if extra_points is None or len(extra_points) < 6 else np.asarray(extra_points)
     loc = (pts - origin) @ R.T
     x, y, h = loc[:, 0], loc[:, 1], loc[:, 2]
     A = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
@@ -116,7 +118,8 @@ def most_bent_direction(boundary: np.ndarray, plane: BoundaryPlane, extra_points
     w, v = np.linalg.eigh(H)
     extent = np.ptp(loc[:, :2], axis=0).max()
     if np.abs(w).max() * extent ** 2 < 1e-5:  # flat within ~10 um over the plate: no bend
-        _, _, vt = np.linalg.svd(loc[:, :2] - loc[:, :2].mean(axis=0))
+        outline = (boundary - origin) @ R.T
+        _, _, vt = np.linalg.svd(outline[:, :2] - outline[:, :2].mean(axis=0))
         d2 = vt[0]
     else:
         d2 = v[:, int(np.argmax(np.abs(w)))]
@@ -210,14 +213,16 @@ def tangent_intersection_distance(curve: BendingCurve) -> float:
 
 def cure_orient(curve: BendingCurve, current: SensorPose) -> SensorPose:
     """Cure 1: centre line perpendicular to AB through its midpoint, in the bending plane, on the
-    sensor's side; distance and baseline kept (baseline re-orthogonalised)."""
+    sensor's side; the baseline perpendicular to the bending plane (both cameras then share the
+    cross-section, as stage 2 asks); distance kept."""
     mid = 0.5 * (curve.A + curve.B)
     ab = _unit(curve.B - curve.A)
     up = _unit(curve.normal - ab * (curve.normal @ ab))
     d = current.distance_m
     view = -up
-    return SensorPose(mid + up * d, mid, _perp(current.baseline_dir, view),
-                      "cure 1: centre line bisects and is perpendicular to the chord AB of the most bending curve")
+    return SensorPose(mid + up * d, mid, _perp(np.cross(ab, up), view),
+                      "cure 1: centre line bisects and is perpendicular to the chord AB of the most bending "
+                      "curve; baseline perpendicular to its plane")
 
 
 def cure_move_back(curve: BendingCurve, current: SensorPose, missing: int, expected: int,
