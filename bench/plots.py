@@ -20,7 +20,9 @@ from bench.atomic import write_bytes
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
-           "error_map_data", "bend_bins", "precision_recall_counts", "METRIC_LABELS"]
+           "plot_metric_vs_axis", "axis_levels", "axis_stats", "row_failed", "axis_label",
+           "error_map_data", "bend_bins", "precision_recall_counts", "METRIC_LABELS", "AXIS_LABELS",
+           "CATEGORY_ORDER"]
 
 DPI = 100
 METRIC_LABELS = {
@@ -28,6 +30,22 @@ METRIC_LABELS = {
     "xy_rms_mm": "x/y RMS (mm)", "err3d_rms_mm": "3D error RMS (mm)", "boundary_mean_mm": "boundary mean (mm)",
     "boundary_hausdorff_mm": "boundary Hausdorff (mm)", "surface_rms_mm": "surface RMS (mm)",
     "coverage_frac": "coverage (fraction of plate)",
+}
+AXIS_LABELS = {
+    "roughness": "roughness (GGX alpha)", "noise": "sensor noise preset", "bend_deg": "bend angle (deg)",
+    "distance_m": "sensing distance (m)", "material": "material", "spp": "samples per pixel",
+    "width_px": "camera width (px)", "height_px": "camera height (px)", "direction": "bend direction",
+    "family": "deformation family", "tilt_deg": "tilt (deg)", "azimuth_deg": "azimuth (deg)",
+    "axis_deg": "bend axis (deg)", "metal": "metal", "albedo": "albedo", "baseline_m": "baseline (m)",
+    "f_px": "focal length (px)", "full_well_e": "full well (e-)", "read_noise_dn": "read noise (DN)",
+    "bit_depth": "bit depth", "aperture_radius_m": "aperture radius (m)",
+}
+# natural order of categorical axes (anything else: alphabetical, after these)
+CATEGORY_ORDER = {
+    "noise": ("none", "low", "medium", "high", "custom"),
+    "direction": ("up", "down"),
+    "material": ("diffuse", "roughconductor"),
+    "family": ("flat", "cylinder", "fold", "twist", "dome", "dent"),
 }
 _DIRECTION_STYLE = {"up": "-", "down": "--"}
 _FLAG_LABELS = {"detected": "detected (either symptom)", "counting_test": "counting test",
@@ -545,6 +563,277 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
     fig.suptitle(title or "Method comparison", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
+
+
+# ----------------------------------------------------------------------------- metric against a swept axis
+def axis_label(axis: str) -> str:
+    return AXIS_LABELS.get(axis, axis)
+
+
+def row_failed(row, metric: str = "depth_rms_mm") -> bool:
+    """Whether a results row counts as a failure of its method: status not "ok", or no finite
+    ``metric``, or (the paper's pipeline, the one method that reports both) fewer squares matched
+    than ground truth puts on the plate (``matched_count < expected_count_gt``)."""
+    if not _ok(row):
+        return True
+    if _num(row.get(metric)) is None:
+        return True
+    matched, expected = _num(row.get("matched_count")), _num(row.get("expected_count_gt"))
+    return matched is not None and expected is not None and matched < expected
+
+
+def _axis_value(row, axis):
+    """A row's value on ``axis``: a finite float, a non-empty string, or None (unknown)."""
+    v = row.get(axis)
+    if v is None or isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, str):
+        s = v.strip()
+        if not s:
+            return None
+        x = _num(s)
+        return x if x is not None else s
+    if isinstance(v, (bool, np.bool_)):
+        return str(bool(v)).lower()
+    x = _num(v)
+    return x if x is not None else str(v)
+
+
+def axis_levels(rows, axis: str, max_levels: int = 10) -> tuple[list[dict], object, bool]:
+    """The ordered levels of ``axis`` over ``rows``: ([{"key", "label", "x"}], key_of(row), numeric).
+
+    Numeric axes: one level per distinct value (x = the value), or, with more than
+    ``max_levels`` distinct values (random draws), equal-width bins (x = bin centre, label
+    "lo to hi" joined by an en dash; empty bins left out). Categorical axes: one level per
+    value in its natural order (``CATEGORY_ORDER``: noise none < low < medium < high), x = 0,
+    1, ... ``key_of`` gives a row's level key, or None where the row has no value on the axis."""
+    vals = [_axis_value(r, axis) for r in rows]
+    known = [v for v in vals if v is not None]
+    numeric = bool(known) and all(isinstance(v, float) for v in known)
+    if not known:
+        return [], (lambda r: None), False
+    if numeric:
+        uniq = sorted({round(v, 9) for v in known})
+        if len(uniq) <= max_levels:
+            levels = [{"key": u, "label": f"{u:g}", "x": u} for u in uniq]
+
+            def key_of(r):
+                v = _axis_value(r, axis)
+                return round(v, 9) if isinstance(v, float) else None
+            return levels, key_of, True
+        edges = np.linspace(uniq[0], uniq[-1], max_levels + 1)
+
+        def key_of(r):
+            v = _axis_value(r, axis)
+            if not isinstance(v, float):
+                return None
+            return int(np.clip(np.searchsorted(edges, v, side="right") - 1, 0, max_levels - 1))
+        used = sorted({key_of(r) for r in rows} - {None})
+        levels = [{"key": i, "label": f"{edges[i]:.3g}\u2013{edges[i + 1]:.3g}",
+                   "x": float(0.5 * (edges[i] + edges[i + 1]))} for i in used]
+        return levels, key_of, True
+    def cat(v):
+        return f"{v:g}" if isinstance(v, float) else str(v)
+
+    order = CATEGORY_ORDER.get(axis, ())
+    names = sorted({cat(v) for v in known}, key=lambda s: (order.index(s) if s in order else len(order), s))
+    levels = [{"key": n, "label": n, "x": float(i)} for i, n in enumerate(names)]
+
+    def key_of(r):
+        v = _axis_value(r, axis)
+        return None if v is None else cat(v)
+    return levels, key_of, False
+
+
+def _method_order(methods) -> list[str]:
+    """The paper's pipeline first, then the peers alphabetically."""
+    return sorted(set(methods), key=lambda m: (m != "paper", m))
+
+
+def axis_stats(rows, axis: str, metric: str = "depth_rms_mm", max_levels: int = 10) -> dict:
+    """Per method and level of ``axis``: rows, failures (``row_failed``), failure rate (0..1),
+    and the median / values of ``metric`` over the rows with status ok and a finite value
+    (a paper row that matched fewer squares than expected still gives its value here).
+
+    Returns {"axis", "metric", "levels", "numeric", "methods", "cells": {(method, key): {...}},
+    "no_value": rows without a value on the axis}."""
+    rows = list(rows or [])
+    levels, key_of, numeric = axis_levels(rows, axis, max_levels)
+    cells: dict = {}
+    no_value = 0
+    for r in rows:
+        k = key_of(r)
+        if k is None:
+            no_value += 1
+            continue
+        m = str(r.get("method") or "-")
+        c = cells.setdefault((m, k), {"rows": 0, "failed": 0, "values": []})
+        c["rows"] += 1
+        c["failed"] += row_failed(r, metric)
+        v = _num(r.get(metric)) if _ok(r) else None
+        if v is not None:
+            c["values"].append(v)
+    for c in cells.values():
+        c["failure_rate"] = c["failed"] / c["rows"] if c["rows"] else None
+        c["median"] = float(np.median(c["values"])) if c["values"] else None
+    methods = _method_order(m for m, _ in cells)
+    return {"axis": axis, "metric": metric, "levels": levels, "numeric": numeric, "methods": methods,
+            "cells": cells, "no_value": no_value}
+
+
+def plot_metric_vs_axis(rows, axis: str, path, metrics=("depth_rms_mm",), title: str | None = None,
+                        pooled: dict | None = None, max_levels: int = 10) -> Path:
+    """One panel per metric: the median over samples (line) of the metric at each value of the
+    swept ``axis``, one line per method, samples as faint dots, log y when the medians and samples
+    span more than a decade; and a last panel: each method's failure rate (0..1) at each value
+    (``row_failed`` on the first metric: status failed, no value, or for the paper's pipeline
+    fewer squares matched than expected), with the count "k/n" printed where it is not zero. A
+    hollow median marker: some of the rows at that value count as failed (the median is over
+    those that gave a value); a cross on the bottom edge: none gave a value there.
+
+    Numeric axes (roughness, bend_deg, ...) are drawn on their values (log x when all are positive and
+    span more than a factor 20), categorical ones (noise none < low < medium < high, material, ...) as ordered
+    categories. ``pooled`` ({axis: [values]}) names the other axes that vary and are pooled into
+    each point; it goes under the title."""
+    rows = list(rows or [])
+    metrics = [m for m in metrics if any(_num(r.get(m)) is not None for r in rows)] or list(metrics[:1])
+    n_panels = len(metrics) + 1
+    fig = _figure(4.6 * n_panels + 0.6, 4.3)
+    axes = fig.subplots(1, n_panels, squeeze=False)[0]
+    stats = axis_stats(rows, axis, metrics[0], max_levels)
+    levels = stats["levels"]
+    label_x = axis_label(axis)
+    if not levels:
+        for ax in axes:
+            _empty(ax, f"no rows with a value of {label_x}")
+        fig.suptitle(title or f"Against {label_x}", fontsize=10)
+        fig.tight_layout()
+        return _save(fig, path)
+    numeric = stats["numeric"]
+    xs = np.array([lv["x"] for lv in levels], float)
+    logx = numeric and xs.min() > 0 and xs.max() / xs.min() > 20
+    methods = stats["methods"]
+    colors = dict(zip(methods, _colors(len(methods))))
+    markers = dict(zip(methods, "osD^v<>p*h" * 3))
+    # a small sideways offset per method so that equal values (failure rate 0) stay visible
+    if numeric and len(xs) > 1:
+        span = (np.log10(xs.max() / xs.min()) if logx else xs.max() - xs.min()) or 1.0
+        step = 0.012 * span
+    else:
+        step = 0.06 if not numeric else 0.01 * (abs(xs[0]) or 1.0)
+
+    def shifted(x, j):
+        d = (j - (len(methods) - 1) / 2) * step
+        return x * 10 ** d if logx else x + d
+
+    for ax, metric in zip(axes[:-1], metrics):
+        st = stats if metric == metrics[0] else axis_stats(rows, axis, metric, max_levels)
+        allv, drawn = [], False
+        for j, m in enumerate(methods):
+            if not any(c["values"] for (mm, _), c in st["cells"].items() if mm == m):
+                continue  # the method never gives this metric: nothing to draw, no "no value" marks
+            xm, med, bad, dots_x, dots_y, none_x = [], [], [], [], [], []
+            for lv in levels:
+                c = st["cells"].get((m, lv["key"]))
+                if c is None:
+                    continue
+                x = shifted(lv["x"], j)
+                if c["median"] is None:
+                    none_x.append(x)
+                    continue
+                xm.append(x)
+                med.append(c["median"])
+                bad.append(c["failed"] > 0)
+                dots_x += [x] * len(c["values"])
+                dots_y += c["values"]
+            allv += dots_y
+            if dots_y and len(dots_y) > len(med):
+                ax.plot(dots_x, dots_y, markers[m], color=colors[m], ms=3, alpha=0.35, mfc="none")
+            if med:
+                ax.plot(xm, med, "-", marker=markers[m], color=colors[m], ms=6, lw=1.7, label=m)
+                hollow = [(x, y) for x, y, f in zip(xm, med, bad) if f]
+                if hollow:  # a median over rows some of which count as failed (e.g. squares missing)
+                    ax.plot(*zip(*hollow), markers[m], color=colors[m], ms=6, mfc="white", mew=1.5)
+                drawn = True
+            if none_x:
+                ax.plot(none_x, [0.0] * len(none_x), "x", color=colors[m], ms=9, mew=2, clip_on=False,
+                        transform=ax.get_xaxis_transform(), label=f"{m}: no value")
+                drawn = True
+        if not drawn:
+            _empty(ax, f"no {_label_of(metric)} values")
+            continue
+        pos = [v for v in allv if v > 0]
+        if len(pos) >= 2 and max(pos) / min(pos) > 10:
+            ax.set_yscale("log")
+        ax.set_ylabel(_label_of(metric) + ", median")
+        ax.set_title(f"{_label_of(metric)} (line: median, dots: samples)", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        if ax.get_yscale() == "log":
+            ax.grid(True, which="minor", axis="y", alpha=0.1)
+        ax.legend(fontsize=7, loc="best")
+    axf = axes[-1]
+    stacked: dict = {}  # labels at the same point go one above the other
+    for j, m in enumerate(methods):
+        pts = [(shifted(lv["x"], j), lv["key"], stats["cells"][(m, lv["key"])]) for lv in levels
+               if (m, lv["key"]) in stats["cells"]]
+        if not pts:
+            continue
+        axf.plot([p[0] for p in pts], [p[2]["failure_rate"] for p in pts], "-", marker=markers[m],
+                 color=colors[m], ms=6, lw=1.5, label=m)
+        for xx, key, c in pts:
+            if c["failed"]:
+                at = (key, round(c["failure_rate"], 6))
+                k = stacked[at] = stacked.get(at, -1) + 1
+                axf.annotate(f"{c['failed']}/{c['rows']}", (xx, c["failure_rate"]), xytext=(4, 3 + 9 * k),
+                             textcoords="offset points", fontsize=7, color=colors[m])
+    axf.set_ylim(-0.05, 1.08)
+    axf.set_ylabel("failure rate (0..1)")
+    axf.set_title("failure rate: failed, no value, or squares missing", fontsize=9)
+    axf.grid(True, alpha=0.3)
+    axf.legend(fontsize=7, loc="best")
+    for ax in axes:
+        if logx:
+            ax.set_xscale("log")
+        if not numeric or len(levels) <= 12:
+            ax.set_xticks(xs)
+            ax.set_xticklabels([lv["label"] for lv in levels], fontsize=8,
+                               rotation=30 if any(len(lv["label"]) > 6 for lv in levels) else 0)
+            if logx:
+                ax.xaxis.set_minor_formatter(_null_formatter())
+        if not numeric:
+            ax.set_xlim(xs.min() - 0.5, xs.max() + 0.5)
+        else:
+            _pad_x(ax, xs, logx)
+        ax.set_xlabel(label_x)
+    sub = ""
+    if pooled:
+        sub = "pooled over " + "; ".join(f"{axis_label(k)}: {', '.join(_short(v) for v in vals)}"
+                                          for k, vals in pooled.items())
+    head = title or f"Depth error and failure rate against {label_x}"
+    fig.suptitle(head + (f"\n({sub})" if sub else ""), fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _short(v) -> str:
+    x = _num(v) if not isinstance(v, str) else None
+    return f"{x:g}" if x is not None else str(v)
+
+
+def _null_formatter():
+    from matplotlib.ticker import NullFormatter  # noqa: PLC0415
+    return NullFormatter()
+
+
+def _pad_x(ax, xs, logx: bool) -> None:
+    lo, hi = float(xs.min()), float(xs.max())
+    if logx:
+        f = (hi / lo) ** 0.06
+        ax.set_xlim(lo / f, hi * f)
+    else:
+        pad = 0.06 * (hi - lo) if hi > lo else 0.1 * (abs(lo) or 1.0)
+        ax.set_xlim(lo - pad, hi + pad)
+
 
 
 # ----------------------------------------------------------------------------- error map

@@ -37,8 +37,8 @@ from pathlib import Path
 
 from bench.atomic import staged_directory, sweep_stale, write_text
 
-__all__ = ["write_report", "detect_inputs", "load_results", "load_study", "method_summary", "ReportInputError",
-           "GENERATOR"]
+__all__ = ["write_report", "detect_inputs", "load_results", "load_study", "method_summary", "swept_axes",
+           "ReportInputError", "GENERATOR"]
 
 GENERATOR = "platebench report"
 MAX_ERROR_MAPS = 4
@@ -353,6 +353,7 @@ main{max-width:1180px;margin:0 auto;padding:20px 28px 60px;background:#fff;box-s
 header{border-bottom:3px solid #2f5d8a;margin-bottom:12px}
 h1{font-size:24px;margin:8px 0 4px;color:#1f3f60} h2{font-size:19px;margin:28px 0 8px;color:#1f3f60;
  border-bottom:1px solid #d5dbe3;padding-bottom:3px} h3{font-size:15px;margin:18px 0 6px;color:#2f4a66}
+h4{font-size:13.5px;margin:16px 0 4px;color:#2f4a66}
 p.meta{color:#5b6675;margin:2px 0 10px;font-size:13px} p.note{color:#7a5a00;background:#fff8e1;padding:4px 8px;
  border-left:3px solid #e0b000;font-size:13px}
 nav{font-size:13px;background:#f0f3f7;padding:6px 10px;border-radius:4px} nav a{margin-right:14px;color:#2f5d8a}
@@ -484,7 +485,9 @@ def _dataset_section(ds: Path, root: Path, plots: _Plots, prefix: str, anchor: s
                                 "table above gives the means too). Bars: "
                                 "errors in millimetres (log scale when they span decades); right panel: coverage "
                                 "as a fraction of the plate (0..1), where the method reports it."))
-    if any(_num(r.get("bend_deg")) is not None for r in rows):
+    bends = {round(b, 6) for b in (_num(r.get("bend_deg")) for r in rows) if b is not None}
+    det_rows = [r for r in rows if r.get("false_boundary_detected") is not None]
+    if len(bends) > 1:  # (one bend for every sample: the per-bend plots would be one column of dots)
         h.append(plots.make(f"{prefix}error_vs_bend", P.plot_error_vs_bend, rows,
                             title=f"{name}: error against bend angle",
                             caption="Depth RMS error of the square centres / dense depth (mm, left) and mean "
@@ -492,7 +495,6 @@ def _dataset_section(ds: Path, root: Path, plots: _Plots, prefix: str, anchor: s
                                     "one colour per method, solid = bend up, dashed = bend down; dots are samples, "
                                     "lines join the median per bend; red crosses on the bottom edge mark failed "
                                     "rows at that bend."))
-        det_rows = [r for r in rows if r.get("false_boundary_detected") is not None]
         if det_rows:
             h.append(plots.make(f"{prefix}detection_vs_bend", P.plot_detection_vs_bend, det_rows,
                                 flags=("false_boundary_detected",),
@@ -502,10 +504,14 @@ def _dataset_section(ds: Path, root: Path, plots: _Plots, prefix: str, anchor: s
                                         "n = cases in the bin); grey bars: fraction of cases in the bin with a "
                                         "ground-truth false boundary. A gap means undefined (no positive verdict, "
                                         "or no ground-truth positive, in that bin)."))
-            pr = P.precision_recall_counts(det_rows, "false_boundary_detected")
-            h.append("<p>False-boundary detection over the whole sweep: " + ", ".join(
-                f"{k.replace('_', ' ')} {_fmt(v, 3)}" for k, v in pr.items()) + ".</p>")
+    if bends and det_rows:
+        pr = P.precision_recall_counts(det_rows, "false_boundary_detected")
+        h.append("<p>False-boundary detection over the whole sweep: " + ", ".join(
+            f"{k.replace('_', ' ')} {_fmt(v, 3)}" for k, v in pr.items()) + ".</p>")
+    if len(bends) > 1:
         h.append(_by_bend_table(rows, metrics))
+    # -- each swept axis: depth RMS and failure rate per method ------------------
+    h.append(_axes_section(rows, manifest, plots, prefix, name))
     # -- error maps -----------------------------------------------------------
     maps = _pick_error_maps(ds, rows)
     if maps:
@@ -513,7 +519,8 @@ def _dataset_section(ds: Path, root: Path, plots: _Plots, prefix: str, anchor: s
         for r, recon in maps:
             sid, meth = str(r.get("sample_id")), str(r.get("method"))
             desc = ", ".join(f"{k} {_fmt(r.get(k))}" for k in ("bend_deg", "direction", "family", "material",
-                                                                "distance_m", "noise") if r.get(k) is not None)
+                                                                "roughness", "distance_m", "noise")
+                             if r.get(k) is not None)
             h.append(plots.make(f"{prefix}error_map_{_safe(sid)}_{_safe(meth)}", P.plot_error_map,
                                 recon.parent.parent / "sample", recon,
                                 title=f"sample {sid}, {meth}: {desc}",
@@ -566,6 +573,117 @@ def _by_bend_table(rows: list[dict], metrics: list[str]) -> str:
         body.append(line)
     return ("<h3>By bend angle</h3><p class=\"meta\">Median per bend angle (degrees) and method, over rows with "
             "status ok; errors in mm.</p>" + _table(sub, body, "", header_rows=[top]))
+
+
+# ----------------------------------------------------------------------------- swept axes
+# result columns a sweep may vary, looked at even when the manifest names no axis
+_AXIS_CANDIDATES = ("roughness", "noise", "bend_deg", "distance_m", "material", "spp", "resolution", "width_px")
+# spec axis (or last part of a dotted path) -> result columns that carry it, first varying one wins
+_SPEC_AXIS_COLUMNS = {"resolution": ("width_px", "height_px"), "alpha": ("roughness",), "angle_rad": ("bend_deg",),
+                      "axis_rad": ("axis_deg",), "width": ("width_px",), "height": ("height_px",),
+                      "noise": ("noise", "read_noise_dn", "full_well_e"), "kind": ("material",)}
+_REPLICATE_AXES = ("seed",)  # varied to repeat a measurement: pooled, never plotted against
+MAX_AXIS_PLOTS = 8
+
+
+def _levels(rows: list[dict], col: str) -> list[str]:
+    from bench.plots import axis_levels  # noqa: PLC0415
+    if not any(col in r for r in rows):
+        return []
+    return [lv["label"] for lv in axis_levels(rows, col)[0]]
+
+
+def swept_axes(manifest: dict, rows: list[dict]) -> tuple[list[str], dict]:
+    """The results columns a sweep varies: its spec's axes (as results columns: ``resolution`` is
+    width_px, ``scene.material.alpha`` is roughness, a custom ``noise`` table its sensor keys), then
+    those of ``_AXIS_CANDIDATES`` that take more than one value. Returns (axes to plot in that
+    order, {column: level labels} of every varying column, replicate axes such as seed included)."""
+    spec_axes = list(((manifest or {}).get("spec") or {}).get("axes") or {})
+    varying: dict = {}
+    order: list[str] = []
+    for k in spec_axes:
+        leaf = str(k).split(".")[-1]
+        for col in _SPEC_AXIS_COLUMNS.get(leaf, (leaf,)):
+            lv = _levels(rows, col)
+            if len(lv) > 1:
+                varying.setdefault(col, lv)
+                order.append(col)
+                break
+    for col in _AXIS_CANDIDATES:
+        col = _SPEC_AXIS_COLUMNS.get(col, (col,))[0]
+        lv = _levels(rows, col)
+        if len(lv) > 1:
+            varying.setdefault(col, lv)
+            order.append(col)
+    if "width_px" in varying and "height_px" in varying:  # one resolution axis, not two
+        order = [c for c in order if c != "height_px"]
+    plotted = [c for c in dict.fromkeys(order) if c not in _REPLICATE_AXES]
+    return plotted, varying
+
+
+def _axes_section(rows: list[dict], manifest: dict, plots: _Plots, prefix: str, name: str) -> str:
+    """Per swept axis: depth RMS (median) and failure rate per method, a plot and a table."""
+    from bench import plots as P  # noqa: PLC0415
+    axes, varying = swept_axes(manifest, rows)
+    if not axes:
+        return ""
+    metric = "depth_rms_mm"
+    h = ["<h3>Against the swept axes</h3>",
+         "<p class=\"meta\">For each swept axis: the median depth RMS error (mm) over the samples at each value, "
+         "per method, and the failure rate (fraction 0..1 of the method's rows at that value, with the count): a "
+         "row counts as failed when its status is failed, when it gives no depth RMS, or, for the paper's "
+         "pipeline, when it matched fewer squares than ground truth puts on the plate. Medians are over the rows "
+         "with status ok and a value (an incomplete paper row included).</p>"]
+    if not any(_num(r.get(metric)) is not None for r in rows):
+        h.append('<p class="note">no row has a depth RMS: nothing to plot against the swept axes.</p>')
+        return "\n".join(h)
+    for axis in axes[:MAX_AXIS_PLOTS]:
+        label = P.axis_label(axis)
+        others = {k: v for k, v in varying.items() if k != axis and not (axis == "width_px" and k == "height_px")}
+        pooled_txt = ("Other swept axes vary too, and every point pools their samples: "
+                      + "; ".join(f"{_esc(P.axis_label(k))} ({_esc(', '.join(v))})" for k, v in others.items()) + "."
+                      if others else "No other swept axis varies.")
+        st = P.axis_stats(rows, axis, metric)
+        h.append(f"<h4>{_esc(label)}</h4>")
+        h.append(plots.make(f"{prefix}vs_{_safe(axis)}", P.plot_metric_vs_axis, rows, axis,
+                            metrics=(metric,), pooled=others or None,
+                            title=f"{name}: depth RMS and failure rate against {label}",
+                            caption=f"Left: median depth RMS error (mm) against {_esc(label)}, one line per method "
+                                    "(small hollow dots: the samples; log scale when they span more than a decade; a "
+                                    "hollow median marker: some rows at that value count as failed, see the right "
+                                    "panel; a cross on the bottom edge: no row of the method gave a value "
+                                    "there). Right: failure rate "
+                                    "(0..1) per method, with k/n printed where some failed: status failed, no "
+                                    "depth RMS, or for the paper's pipeline fewer squares matched than ground "
+                                    "truth puts on the plate. Methods are offset sideways a little so that equal "
+                                    f"values stay visible. {pooled_txt}"))
+        h.append(_axis_table(st, label))
+        if st["no_value"]:
+            h.append(f'<p class="note">{st["no_value"]} rows have no {_esc(label)} (the axis does not apply '
+                     "to them) and are left out here.</p>")
+    if len(axes) > MAX_AXIS_PLOTS:
+        h.append(f'<p class="note">{len(axes) - MAX_AXIS_PLOTS} more swept axes not shown: '
+                 f'{_esc(", ".join(axes[MAX_AXIS_PLOTS:]))}</p>')
+    return "\n".join(h)
+
+
+def _axis_table(st: dict, label: str) -> str:
+    """Median depth RMS (mm) and failure rate (k/n) per method and value of the axis."""
+    mlist = st["methods"]
+    top = [f'<th rowspan="2">{_esc(label)}</th>'] + [f'<th colspan="2">{_esc(m)}</th>' for m in mlist]
+    sub = sum((["median depth RMS (mm)", "failure rate"] for _ in mlist), [])
+    body = []
+    for lv in st["levels"]:
+        line = [_esc(lv["label"])]
+        for m in mlist:
+            c = st["cells"].get((m, lv["key"]))
+            if c is None:
+                line += ["&ndash;", "&ndash;"]
+                continue
+            line.append(_fmt(c["median"]))
+            line.append(f"{c['failure_rate']:.2f} ({c['failed']}/{c['rows']})")
+        body.append(line)
+    return _table(sub, body, "axis", header_rows=[top])
 
 
 def _recon_dir(ds: Path, r: dict) -> Path:

@@ -11,6 +11,7 @@ import math
 import os
 import re
 import shutil
+import statistics
 import subprocess
 from pathlib import Path
 
@@ -374,3 +375,142 @@ def test_error_map_on_a_real_tiny_sample(tmp_path):
     _check_self_contained(text)
     assert "Per-sample error maps" in text
     _check_png(ds / "report" / "plots" / "dataset_error_map_0000_paper.png")
+
+
+# ----------------------------------------------------------------------------- swept axes (realism study)
+_DEPTH = {"paper": 0.2, "graycode-subpx": 0.5, "sgbm": 3.0}
+
+
+def make_realism_dataset(root: Path, with_manifest: bool = True) -> Path:
+    """A fake realism sweep: roughness (0.05, 0.2, 0.5) x noise (none, high), bend 10 deg throughout,
+    3 methods. Failures, each of another kind:
+
+    * paper, roughness 0.05, noise high: status ok but 12 of 16 squares matched (incomplete);
+    * sgbm, roughness 0.05, noise high: status failed;
+    * graycode-subpx, roughness 0.5: noise none status failed, noise high ok but no depth RMS.
+    Depth RMS (mm): the method's base x (1 + 10 x roughness) x (2 with noise high)."""
+    root.mkdir(parents=True, exist_ok=True)
+    rows = []
+    i = 0
+    for rough in (0.05, 0.2, 0.5):
+        for noise in ("none", "high"):
+            sid = f"{i:04d}"
+            for m in ("paper", "graycode-subpx", "sgbm"):
+                depth = _DEPTH[m] * (1 + 10 * rough) * (2 if noise == "high" else 1)
+                r = {"sample_id": sid, "index": i, "method": m, "status": "ok", "error": None, "family": "cylinder",
+                     "bend_deg": 10.0, "direction": "up", "material": "roughconductor", "metal": "Al",
+                     "roughness": rough, "distance_m": 0.4, "noise": noise, "width_px": 320, "height_px": 240,
+                     "spp": 4, "seed": 0, "depth_rms_mm": depth}
+                if m == "paper":
+                    r.update(matched_count=12 if (rough, noise) == (0.05, "high") else 16, expected_count_gt=16,
+                             boundary_mean_mm=0.3)
+                if m == "sgbm" and (rough, noise) == (0.05, "high"):
+                    r.update(status="failed", error="RuntimeError: SGBM found no disparity", depth_rms_mm=None)
+                if m == "graycode-subpx" and rough == 0.5:
+                    if noise == "none":
+                        r.update(status="failed", error="ValueError: decode failed", depth_rms_mm=None)
+                    else:
+                        r.update(depth_rms_mm=None)
+                rows.append(r)
+            i += 1
+    _write_csv(root / "results.csv", rows, list(dict.fromkeys(k for r in rows for k in r)))
+    if with_manifest:
+        manifest = {"format": "platebench-sweep", "version": 1, "state": "complete",
+                    "spec": {"name": "fake_realism", "mode": "grid", "methods": ["paper", "graycode-subpx", "sgbm"],
+                             "axes": {"roughness": [0.05, 0.2, 0.5], "noise": ["none", "high"]}},
+                    "counts": {"total": 6, "ok": 4, "failed": 2, "pending": 0}}
+        (root / "manifest.json").write_text(json.dumps(manifest))
+    return root
+
+
+def test_axis_stats_failure_rates_by_hand(tmp_path):
+    rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
+    st = P.axis_stats(rows, "roughness")
+    assert st["numeric"] and [lv["key"] for lv in st["levels"]] == [0.05, 0.2, 0.5]
+    assert st["methods"] == ["paper", "graycode-subpx", "sgbm"]  # the paper's pipeline first
+    c = st["cells"][("paper", 0.05)]
+    # by hand: 2 rows (noise none, high); the high one matched 12 < 16 squares -> 1 failure of 2 = 0.5;
+    # its depth RMS still counts in the median: median(0.2 x 1.5, 0.2 x 1.5 x 2) = (0.3 + 0.6) / 2 = 0.45 mm
+    assert (c["rows"], c["failed"], c["failure_rate"]) == (2, 1, 0.5)
+    assert c["median"] == pytest.approx(0.45)
+    c = st["cells"][("graycode-subpx", 0.5)]  # one failed, one ok without a depth RMS: both count, no value
+    assert (c["failed"], c["rows"], c["failure_rate"], c["median"]) == (2, 2, 1.0, None)
+    assert st["cells"][("sgbm", 0.2)]["failure_rate"] == 0.0
+    sn = P.axis_stats(rows, "noise")
+    assert not sn["numeric"] and [lv["key"] for lv in sn["levels"]] == ["none", "high"]
+    c = sn["cells"][("sgbm", "high")]  # failed at 0.05; ok at 0.2 and 0.5 -> 1/3
+    assert (c["failed"], c["rows"]) == (1, 3) and c["failure_rate"] == pytest.approx(1 / 3)
+    assert c["median"] == pytest.approx(statistics.median([3.0 * 3 * 2, 3.0 * 6 * 2]))
+    assert sn["cells"][("paper", "high")]["failure_rate"] == pytest.approx(1 / 3)
+    assert sn["cells"][("paper", "none")]["failure_rate"] == 0.0
+    # row_failed on its own
+    assert P.row_failed({"status": "ok", "depth_rms_mm": 0.1, "matched_count": 16, "expected_count_gt": 16}) is False
+    assert P.row_failed({"status": "ok", "depth_rms_mm": float("nan")}) is True
+    assert P.row_failed({"status": "failed", "depth_rms_mm": 0.1}) is True
+
+
+def test_axis_levels_order_and_bins():
+    levels, key_of, numeric = P.axis_levels([{"noise": n} for n in ("high", "none", "medium", "low", None)], "noise")
+    assert not numeric and [lv["label"] for lv in levels] == ["none", "low", "medium", "high"]
+    assert key_of({"noise": None}) is None and key_of({"noise": "low"}) == "low"
+    rows = [{"bend_deg": float(b)} for b in range(0, 100, 4)]  # 25 distinct values (random draws): binned
+    levels, key_of, numeric = P.axis_levels(rows, "bend_deg", max_levels=5)
+    assert numeric and len(levels) == 5 and levels[0]["label"] == "0\u201319.2"
+    assert key_of({"bend_deg": 0.0}) == 0 and key_of({"bend_deg": 96.0}) == 4
+
+
+def test_swept_axes_from_manifest_and_columns(tmp_path):
+    from bench.report import swept_axes
+    rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
+    axes, varying = swept_axes({"spec": {"axes": {"noise": ["none", "high"], "roughness": [0.05, 0.2, 0.5]}}}, rows)
+    assert axes == ["noise", "roughness"]  # spec order; bend_deg, spp, width_px take one value: not swept
+    assert varying["roughness"] == ["0.05", "0.2", "0.5"]
+    assert swept_axes({}, rows)[0] == ["roughness", "noise"]  # no manifest: the candidate columns that vary
+    more = [dict(r, seed=s, width_px=w, height_px=w * 3 // 4) for r in rows for s in (0, 1) for w in (320, 640)]
+    axes, varying = swept_axes({"spec": {"axes": {"scene.material.alpha": [0.05], "resolution": ["320x240"],
+                                                  "seed": [0, 1]}}}, more)
+    assert axes == ["roughness", "width_px", "noise"]  # seed varies (pooled) but is never plotted against
+    assert "seed" in varying and "height_px" not in varying  # resolution: its width stands for it
+
+
+def test_dataset_report_swept_axes(tmp_path):
+    ds = make_realism_dataset(tmp_path / "ds")
+    text = write_report(ds).read_text()
+    srcs = _check_self_contained(text)
+    assert "Against the swept axes" in text
+    assert "<h4>roughness (GGX alpha)</h4>" in text and "<h4>sensor noise preset</h4>" in text
+    names = {p.stem for p in (ds / "report" / "plots").glob("*.png")}
+    assert {"dataset_vs_roughness", "dataset_vs_noise"} <= names
+    assert "dataset_vs_bend_deg" not in names and "dataset_error_vs_bend" not in names  # one bend: not swept
+    assert "By bend angle" not in text
+    assert len(srcs) == len(names)
+    for n in ("dataset_vs_roughness", "dataset_vs_noise"):
+        w, h = _check_png(ds / "report" / "plots" / f"{n}.png")
+        assert w >= 800 and h >= 350
+    # the tables: failure rates with their counts, medians in mm
+    rough = text[text.index("<h4>roughness (GGX alpha)</h4>"):text.index("<h4>sensor noise preset</h4>")]
+    assert "0.50 (1/2)" in rough and "1.00 (2/2)" in rough and "<td>0.45</td>" in rough
+    noise = text[text.index("<h4>sensor noise preset</h4>"):]
+    assert "0.33 (1/3)" in noise
+    assert noise.index("<td>none</td>") < noise.index("<td>high</td>")  # natural order, not alphabetical
+    # each caption says what else is pooled into a point
+    assert "every point pools their samples: sensor noise preset (none, high)" in rough
+    assert "every point pools their samples: roughness (GGX alpha) (0.05, 0.2, 0.5)" in noise
+    # without a manifest the same axes are found from the columns
+    ds2 = make_realism_dataset(tmp_path / "ds2", with_manifest=False)
+    write_report(ds2)
+    assert {"dataset_vs_roughness", "dataset_vs_noise"} <= {p.stem for p in (ds2 / "report" / "plots").glob("*.png")}
+
+
+def test_plot_metric_vs_axis_edge_cases(tmp_path):
+    rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
+    # every row of one method failed: drawn (a cross, failure rate 1), no exception; two metrics: three panels
+    out = P.plot_metric_vs_axis([r for r in rows if r["method"] != "paper" or r["roughness"] == 0.05], "roughness",
+                                tmp_path / "a.png", metrics=("depth_rms_mm", "boundary_mean_mm"),
+                                pooled={"noise": ["none", "high"]})
+    w, _ = _check_png(out)
+    assert w > 1200
+    _check_png(P.plot_metric_vs_axis(rows, "noise", tmp_path / "b.png", title="t"))
+    # an axis no row has: a note, not an exception
+    assert P.plot_metric_vs_axis(rows, "distance_mm", tmp_path / "c.png").read_bytes()[:8] == PNG_SIG
+    assert P.plot_metric_vs_axis([], "noise", tmp_path / "d.png").read_bytes()[:8] == PNG_SIG
