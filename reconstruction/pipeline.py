@@ -23,7 +23,7 @@ from reconstruction.boundary_plane import BoundaryPlane, fit_boundary_plane, lea
 from reconstruction.false_boundary import FalseBoundaryTest, FeatureRays, false_boundary_test, rays_on_plane
 from reconstruction.passive_boundary import match_boundary, outline_edges
 from reconstruction.plate_region import ReconstructionError, extract_plate_region
-from reconstruction.square_matching import Fig6Check, check_fig6, group_squares, match_squares
+from reconstruction.square_matching import check_fig6, group_squares, match_squares
 from reconstruction.squares import extract_squares
 from reconstruction.surface_interpolation import interpolate_surface, surface_grid_to_mesh
 from reconstruction.threshold import otsu_threshold, tsai_moment_threshold

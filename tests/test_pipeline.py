@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bench.config import SampleConfig, SceneParams
-from bench.sample import load_inputs, render_sample, write_sample
+from bench.sample import render_sample
 from evaluation.boundary_metrics import polyline_distance
 from evaluation.truth import feature_at_pixels
 from plates import Flat, PlateSpec
