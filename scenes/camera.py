@@ -30,13 +30,18 @@ def _as_matrix(a, shape, name):
     return arr
 
 
-def intrinsics(f_px: float, width: int, height: int) -> np.ndarray:
-    """K for square pixels and a centred principal point (OpenCV pixel centres)."""
-    if not (np.isfinite(f_px) and f_px > 0):
-        raise ValueError(f"focal length f_px = {f_px} is out of range: allowed > 0")
-    return np.array([[f_px, 0.0, width / 2.0 - 0.5],
-                     [0.0, f_px, height / 2.0 - 0.5],
-                     [0.0, 0.0, 1.0]])
+def centred_principal_point(width: int, height: int) -> tuple[float, float]:
+    """(cx, cy) of an image centre with pixel centres at integers: (W/2 - 0.5, H/2 - 0.5)."""
+    return width / 2.0 - 0.5, height / 2.0 - 0.5
+
+
+def intrinsics(f_px: float, width: int, height: int, fy_px: float | None = None) -> np.ndarray:
+    """K for a centred principal point (OpenCV pixel centres); square pixels unless ``fy_px``."""
+    fy = f_px if fy_px is None else fy_px
+    if not (np.isfinite(f_px) and f_px > 0 and np.isfinite(fy) and fy > 0):
+        raise ValueError(f"focal length f_px = {f_px} (fy {fy}) is out of range: allowed > 0")
+    cx, cy = centred_principal_point(width, height)
+    return np.array([[f_px, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
 
 
 def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:

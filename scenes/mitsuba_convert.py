@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.camera import Camera
+from scenes.camera import Camera, centred_principal_point
 
 
 def _check_centred_square(cam: Camera, what: str, square: bool = True) -> None:
     K = cam.K
-    cx, cy = cam.width / 2.0 - 0.5, cam.height / 2.0 - 0.5
+    cx, cy = centred_principal_point(cam.width, cam.height)
     if abs(K[0, 2] - cx) > 1e-9 or abs(K[1, 2] - cy) > 1e-9 or K[0, 1] != 0:
         raise ValueError(f"{what}: Mitsuba needs a centred principal point (cx={cx}, cy={cy}) and no skew, "
                          f"got cx={K[0, 2]}, cy={K[1, 2]}")

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from scenes.camera import centred_principal_point
+
 
 @dataclass(frozen=True)
 class Feature:
@@ -100,7 +102,7 @@ def square_grid(width: int, height: int, rows: int = 4, cols: int = 4, square_px
     span_x = cols * square_px + (cols - 1) * gap_x_px
     span_y = rows * square_px + (rows - 1) * gap_y_px
     if center is None:
-        center = (width / 2.0 - 0.5, height / 2.0 - 0.5)
+        center = centred_principal_point(width, height)
     x0 = int(round(center[0] - (span_x - 1) / 2.0))
     y0 = int(round(center[1] - (span_y - 1) / 2.0))
     if x0 < 0 or y0 < 0 or x0 + span_x > width or y0 + span_y > height:

@@ -55,7 +55,7 @@ class Projector:
             if cutoff_rad is None:
                 raise ValueError("a spot projector needs cutoff_rad")
             tc = np.tan(cutoff_rad)
-            K = np.array([[w / (2 * tc), 0, w / 2 - 0.5], [0, h / (2 * tc), h / 2 - 0.5], [0, 0, 1]])
+            K = intrinsics(w / (2 * tc), w, h, fy_px=h / (2 * tc))
         else:
             if f_px is None:
                 raise ValueError("a pinhole projector needs f_px")
