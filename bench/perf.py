@@ -40,7 +40,7 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
     def raw():
         for name in IMAGE_NAMES:
             cam, light = name.split("_")
-            renderer._set_lighting(light)  # the renderer's own parameter switch, then Mitsuba only
+            renderer.set_lighting(light)  # the renderer's own parameter switch, then Mitsuba only
             img = mi.render(renderer.scene, sensor=("left", "right").index(cam), spp=cfg.render.spp,
                             seed=cfg.render.seed)
             np.asarray(img)  # the pixels in host memory, as any caller needs them

@@ -69,21 +69,19 @@ def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
     row_first, row_last = extents(region.mask)
     col_first, col_last = extents(region.mask.T)
 
+    def samples(lines, first, last, size, from_start: bool, edges):
+        """Sub-pixel edge along each line (row or column), scanning inward from the mask's extent."""
+        base = (first if from_start else last)[lines]
+        step = SEARCH_PX if from_start else -SEARCH_PX
+        pos = edges(img, lines, thr, bg, np.clip(base - step, 0, size - 1), np.clip(base + step, 0, size - 1))
+        ok = np.isfinite(pos) & (base >= 0)
+        return lines[ok], pos[ok]
+
     def side(rows, from_left: bool):
-        base = (row_first if from_left else row_last)[rows]
-        start = base - SEARCH_PX if from_left else base + SEARCH_PX
-        stop = base + SEARCH_PX if from_left else base - SEARCH_PX
-        u = row_edges(img, rows, thr, bg, np.clip(start, 0, W - 1), np.clip(stop, 0, W - 1))
-        ok = np.isfinite(u) & (base >= 0)
-        return rows[ok], u[ok]
+        return samples(rows, row_first, row_last, W, from_left, row_edges)
 
     def tb(cols, from_top: bool):
-        base = (col_first if from_top else col_last)[cols]
-        start = base - SEARCH_PX if from_top else base + SEARCH_PX
-        stop = base + SEARCH_PX if from_top else base - SEARCH_PX
-        v = column_edges(img, cols, thr, bg, np.clip(start, 0, H - 1), np.clip(stop, 0, H - 1))
-        ok = np.isfinite(v) & (base >= 0)
-        return cols[ok], v[ok]
+        return samples(cols, col_first, col_last, H, from_top, column_edges)
 
     left = side(np.arange(int(np.ceil(tl[1])) + m, int(np.floor(bl[1])) - m + 1), True)
     right = side(np.arange(int(np.ceil(tr[1])) + m, int(np.floor(br[1])) - m + 1), False)

@@ -23,6 +23,7 @@ import numpy as np
 
 from scenes.camera import Camera, intrinsics, look_at_rotation
 from scenes.pattern import Pattern
+from scenes.rig import DEFAULT_UP
 
 PROJECTOR_KINDS = ("pinhole", "spot")
 
@@ -46,7 +47,7 @@ class Projector:
 
     @classmethod
     def look_at(cls, eye, target, pattern: Pattern, f_px: float | None = None, kind: str = "pinhole",
-                cutoff_rad: float | None = None, up=(-1.0, 0.0, 0.0)) -> "Projector":
+                cutoff_rad: float | None = None, up=DEFAULT_UP) -> "Projector":
         """Place a projector at ``eye`` aiming its centre ray at ``target``."""
         R = look_at_rotation(eye, target, up)
         t = -R @ np.asarray(eye, float)

@@ -213,7 +213,8 @@ class PlateRenderer:
             params["plate.faces"] = type(params["plate.faces"])(f)
             params.update()
 
-    def _set_lighting(self, lighting: str) -> None:
+    def set_lighting(self, lighting: str) -> None:
+        """Switch the lights for ``lighting`` (passive: area light; active: projector + ambient)."""
         p = self.params
         mi = self.mi
         amb = self._spec.lighting.ambient
@@ -240,7 +241,7 @@ class PlateRenderer:
             raise ValueError(f"camera = {camera!r} is not allowed: choose one of {CAMERAS}")
         if lighting not in LIGHTINGS:
             raise ValueError(f"lighting = {lighting!r} is not allowed: choose one of {LIGHTINGS}")
-        self._set_lighting(lighting)
+        self.set_lighting(lighting)
         img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
                              seed=image_seed(settings.seed, camera, lighting))
         return np.asarray(img, dtype=np.float32).mean(axis=2)

@@ -14,6 +14,11 @@ import numpy as np
 from scenes.camera import Camera, intrinsics, look_at_rotation
 
 
+# World -X appears up in the image, so image x (and the baseline) runs along world +Y:
+# across the reference plate's bend, as the paper's exploring strategy asks.
+DEFAULT_UP = (-1.0, 0.0, 0.0)
+
+
 @dataclass(frozen=True)
 class StereoRig:
     """A conventional stereo pair: ``left``, ``right`` and the baseline in metres."""
@@ -33,7 +38,7 @@ class StereoRig:
 
     @classmethod
     def conventional(cls, center, target, baseline_m, f_px, width, height,
-                     up=(-1.0, 0.0, 0.0)) -> "StereoRig":
+                     up=DEFAULT_UP) -> "StereoRig":
         """Place the rig with its mid-baseline point at ``center`` looking at ``target``.
 
         The default ``up`` (world -X appears up in the image) puts the image x axis,

@@ -21,7 +21,6 @@ import glob
 import os
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 _MIN_LLVM = 16
 _NO_LLVM = "/nonexistent/platebench-found-no-libLLVM-16-or-newer"
@@ -151,10 +150,6 @@ def set_thread_count(n: int) -> None:
     _prepare_llvm()
     import drjit as dr  # noqa: PLC0415
     dr.set_thread_count(int(n))
-
-
-def cache_dir() -> Path:
-    return Path.home() / ".drjit"
 
 
 class KernelCounter:
