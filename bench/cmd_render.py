@@ -14,6 +14,15 @@ def add_sample_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", type=Path, help="TOML file with [plate], [scene], [render], [sensor] tables "
                    "(SI units); flags below override it")
     p.add_argument("--bend-deg", type=float, help="cylindrical bend angle in DEGREES, 0 to 350 (default 10)")
+    p.add_argument("--bend-direction", choices=("down", "up"),
+                   help="down: convex (the ends fall away from the cameras); up: concave (default up, the paper's plate)")
+    p.add_argument("--bend-axis-deg", type=float,
+                   help="bend axis in DEGREES from the plate's width direction: 0 bends it along its length, "
+                        "90 across its width; 0 to 180 (default 0)")
+    p.add_argument("--grid", metavar="ROWSxCOLS@PX",
+                   help="projected square grid: ROWS arrays of COLS squares of PX projector pixels "
+                        "(default 4x4@40, the paper's 16 squares; 6x12@12 is fine enough for the "
+                        "false-boundary counting test, see README)")
     p.add_argument("--distance-m", type=float, help="rig height above the plate in metres (default 0.40)")
     p.add_argument("--width", type=int, help="image width in pixels (default 1280)")
     p.add_argument("--height", type=int, help="image height in pixels (default 960)")
@@ -30,7 +39,8 @@ def config_from_args(args):
     if getattr(args, "camera", None):
         cfg = with_camera_preset(cfg, args.camera)
     return with_overrides(cfg, bend_deg=args.bend_deg, width=args.width, height=args.height, spp=args.spp,
-                          seed=args.seed, variant=args.variant, distance_m=args.distance_m)
+                          seed=args.seed, variant=args.variant, distance_m=args.distance_m,
+                          bend_direction=args.bend_direction, bend_axis_deg=args.bend_axis_deg, grid=args.grid)
 
 
 def add_parser(sub) -> None:

@@ -43,8 +43,11 @@ def run(args) -> int:
             extra = ""
             if st["stage"] == 3:
                 fb = st["false_boundary"]
+                why = [name for k, name in (("counting_test", "counting test"), ("arrays_disagree", "arrays disagree"))
+                       if fb[k]]
                 extra = (f"squares L/R {fb['detected']['left_active']}/{fb['detected']['right_active']} of "
-                         f"{fb['expected']} expected; false boundary {'DETECTED' if fb['false_boundary_detected'] else 'not detected'}")
+                         f"{fb['expected']} expected; false boundary "
+                         f"{'DETECTED (' + ', '.join(why) + ')' if why else 'not detected'}")
             gv = st["gt_visibility"]
             print(f"stage {st['stage']}{' cure ' + str(st.get('cure')) if st.get('cure') else ''}: distance "
                   f"{st['pose']['distance_m'] * 1e3:.0f} mm; GT boundary visible L/R "
@@ -52,7 +55,15 @@ def run(args) -> int:
         else:
             print(f"decision: {st.get('decision')}: {st.get('reason')}")
     f = s["final"]
+    a = f["accuracy"]
+    gv = f["gt_visibility"]
+
+    def mm(v):
+        return "-" if v is None else f"{v:.3f} mm"
     print(f"final: {f['stage_dir']}, {f['matched']} points, false boundary "
-          f"{'detected' if f['false_boundary']['false_boundary_detected'] else 'not detected'}; "
-          f"{args.out / 'sensing.json'}")
+          f"{'detected' if f['false_boundary']['false_boundary_detected'] else 'not detected'}; ground truth: "
+          f"boundary visible L/R {gv['left']['visible_fraction'] * 100:.0f}/{gv['right']['visible_fraction'] * 100:.0f} %, "
+          f"depth RMS {mm(a['depth_rms_mm'])}, boundary mean {mm(a['boundary_mean_mm'])}, "
+          f"surface RMS {mm(a['surface_rms_mm'])}")
+    print(f"written: {args.out / 'sensing.json'}")
     return 0

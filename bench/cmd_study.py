@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.atomic import write_json, write_text
-from bench.config import SampleConfig, SceneParams
+from bench.config import SampleConfig, SceneParams, parse_grid
 from bench.false_boundary_study import (VisibilityProbe, cure_case, l_formula_table, precision_recall,
                                         smallest_hiding_bend)
 from bench.progress import bar
@@ -51,6 +51,11 @@ def add_parser(sub) -> None:
     p.add_argument("--directions", default="down,up", help="bend directions: down (convex), up (concave)")
     p.add_argument("--aspects", default="1.585", help="plate length/width ratios (default 1.585, the paper's)")
     p.add_argument("--distances-m", default="0.4", help="rig distances in metres (default 0.4)")
+    p.add_argument("--axes-deg", default="0", help="bend axes in DEGREES from the plate's width direction "
+                   "(0: bent along its length, baseline across the axis; 90: across its width, baseline along "
+                   "the bend); default 0")
+    p.add_argument("--grid", metavar="ROWSxCOLS@PX", help="projected square grid (default 4x4@40, the paper's; "
+                   "6x12@12 lets the counting test see false boundaries off the surface)")
     p.add_argument("--l-bends", default="120,150,165,172", help="convex bends (deg) for the L-formula check")
     p.add_argument("--width", type=int, default=640, help="image width in px (default 640; f scales with it)")
     p.add_argument("--spp", type=int, default=4)
@@ -65,21 +70,24 @@ def run(args) -> int:
     aspects = parse_range(args.aspects, "--aspects", 0.2, 5.0)
     distances = parse_range(args.distances_m, "--distances-m", 0.1, 3.0)
     l_bends = parse_range(args.l_bends, "--l-bends", 1.0, 179.0)
+    axes = parse_range(args.axes_deg, "--axes-deg", 0.0, 179.99)
+    pattern = parse_grid(args.grid) if args.grid else {}
     if args.out.exists():
         if not args.overwrite:
             raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
         shutil.rmtree(args.out)
-    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4),
+    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
+                                          pattern=pattern),
                         render=RenderSettings(spp=args.spp))
     area = base.plate.length_m * base.plate.width_m
     rows, renderer = [], None
-    cases = [(b, d, a, dist) for a in aspects for dist in distances for d in dirs for b in bends]
+    cases = [(b, d, a, dist, ax) for a in aspects for dist in distances for ax in axes for d in dirs for b in bends]
     with bar(len(cases) + len(l_bends) + 2, "study false-boundary", unit="case") as pbar:
-        for b, d, a, dist in cases:
+        for b, d, a, dist, ax in cases:
             cfg = replace(base, plate=replace(base.plate, length_m=float(np.sqrt(area * a)),
                                               width_m=float(np.sqrt(area / a))))
-            pbar.set_postfix_str(f"{d} {b:g} deg, aspect {a:g}, {dist:g} m")
-            row, renderer = cure_case(cfg, b, d, renderer, distance_m=dist)
+            pbar.set_postfix_str(f"{d} {b:g} deg, axis {ax:g} deg, aspect {a:g}, {dist:g} m")
+            row, renderer = cure_case(cfg, b, d, renderer, axis_rad=float(np.radians(ax)), distance_m=dist)
             row["aspect"] = a
             rows.append(row)
             pbar.update(1)
@@ -96,7 +104,8 @@ def run(args) -> int:
                                        if hidden else None) for i in (1, 2)}
     study = {"rows": rows, "l_formula": l_rows, "smallest_hiding_bend_deg": smallest, "precision_recall": pr,
              "cures": cures, "settings": {"bends_deg": bends, "directions": dirs, "aspects": aspects,
-                                          "distances_m": distances, "width_px": args.width, "spp": args.spp}}
+                                          "distances_m": distances, "axes_deg": axes, "grid": args.grid or "4x4@40",
+                                          "width_px": args.width, "spp": args.spp}}
     args.out.mkdir(parents=True, exist_ok=True)
     write_json(args.out / "study.json", study)
     write_text(args.out / "study.csv", _csv(rows))
@@ -119,10 +128,10 @@ def _fmt(v, spec=".3f"):
 
 
 def _print(study: dict) -> None:
-    print(f"{'dir':5s} {'bend':>6s} {'hidden L/R %':>13s} {'GT':>3s} {'count':>5s} {'arrays':>6s} "
+    print(f"{'dir':5s} {'axis':>4s} {'bend':>6s} {'hidden L/R %':>13s} {'GT':>3s} {'count':>5s} {'arrays':>6s} "
           f"{'cure1':>5s} {'cure2':>5s} {'depth RMS mm':>12s} {'bnd mean mm':>11s}")
     for r in study["rows"]:
-        print(f"{r['direction']:5s} {r['bend_deg']:6.1f} {r['hidden_frac_left'] * 100:6.1f}/{r['hidden_frac_right'] * 100:5.1f} "
+        print(f"{r['direction']:5s} {r['axis_deg']:4.0f} {r['bend_deg']:6.1f} {r['hidden_frac_left'] * 100:6.1f}/{r['hidden_frac_right'] * 100:5.1f} "
               f"{'yes' if r['false_boundary_gt'] else 'no':>3s} {str(r.get('counting_test')):>5s} "
               f"{str(r.get('arrays_disagree')):>6s} {str(r.get('cure1_removed', '-')):>5s} "
               f"{str(r.get('cure2_removed', '-')):>5s} {_fmt(r.get('depth_rms_mm'), '12.4f')} "

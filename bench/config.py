@@ -187,24 +187,51 @@ def load_config(path: Path | None) -> SampleConfig:
     return SampleConfig.from_dict(d)
 
 
+def parse_grid(text: str) -> dict:
+    """'ROWSxCOLS@SQUARE_PX' (e.g. '6x12@12') -> square_grid keywords: ROWS arrays of COLS squares
+    of SQUARE_PX projector pixels, x gap SQUARE_PX/2, row gap 4 x SQUARE_PX (the Fig. 6 spacing)."""
+    import re  # noqa: PLC0415
+    m = re.fullmatch(r"\s*(\d+)\s*x\s*(\d+)\s*@\s*(\d+)\s*", text or "")
+    if not m:
+        raise ConfigError(f"--grid = {text!r} is not ROWSxCOLS@SQUARE_PX (e.g. 4x4@40, the paper's; 6x12@12)")
+    rows, cols, sq = (int(g) for g in m.groups())
+    for name, v, lo, hi in (("ROWS", rows, 1, 40), ("COLS", cols, 1, 80), ("SQUARE_PX", sq, 4, 200)):
+        if not lo <= v <= hi:
+            raise ConfigError(f"--grid {name} = {v} is out of range: allowed {lo} to {hi}")
+    return {"rows": rows, "cols": cols, "square_px": sq, "gap_x_px": max(1, sq // 2), "gap_y_px": 4 * sq}
+
+
 def with_overrides(cfg: SampleConfig, bend_deg=None, width=None, height=None, spp=None, seed=None,
-                   variant=None, distance_m=None) -> SampleConfig:
-    """Apply CLI flags on top of a configuration (bend in degrees, as the flag says)."""
+                   variant=None, distance_m=None, bend_direction=None, bend_axis_deg=None,
+                   grid=None) -> SampleConfig:
+    """Apply CLI flags on top of a configuration (angles in degrees, as the flags say).
+
+    ``bend_direction`` 'down' (convex) or 'up' (concave); ``bend_axis_deg`` the bend axis's angle
+    from the plate's width direction, 0 to 180 (0: bent along its length; 90: across its width);
+    ``grid`` 'ROWSxCOLS@SQUARE_PX' (see ``parse_grid``)."""
     plate = cfg.plate
-    if bend_deg is not None:
-        if not math.isfinite(bend_deg) or not (0.0 <= bend_deg <= 350.0):
+    if bend_deg is not None or bend_direction is not None or bend_axis_deg is not None:
+        if bend_deg is not None and (not math.isfinite(bend_deg) or not (0.0 <= bend_deg <= 350.0)):
             raise ConfigError(f"--bend-deg = {bend_deg} is out of range: allowed 0 to 350 degrees")
+        if bend_direction is not None and bend_direction not in ("up", "down"):
+            raise ConfigError(f"--bend-direction = {bend_direction!r}: allowed 'down' (convex) or 'up' (concave)")
+        if bend_axis_deg is not None and (not math.isfinite(bend_axis_deg) or not (0.0 <= bend_axis_deg < 180.0)):
+            raise ConfigError(f"--bend-axis-deg = {bend_axis_deg} is out of range: allowed 0 to 180 (exclusive) degrees")
         dfm = plate.deformation
-        if isinstance(dfm, CylindricalBend):
-            dfm = replace(dfm, angle_rad=math.radians(bend_deg))
-        else:
-            dfm = CylindricalBend(angle_rad=math.radians(bend_deg))
+        if not isinstance(dfm, CylindricalBend):
+            dfm = CylindricalBend(angle_rad=math.radians(10.0))
+        changes = {k: v for k, v in (("angle_rad", None if bend_deg is None else math.radians(bend_deg)),
+                                      ("direction", bend_direction),
+                                      ("axis_rad", None if bend_axis_deg is None else math.radians(bend_axis_deg)))
+                   if v is not None}
         try:
-            plate = replace(plate, deformation=dfm)
+            plate = replace(plate, deformation=replace(dfm, **changes))
         except ValueError as e:
             raise ConfigError(str(e)) from None
     scene_over = {k: v for k, v in (("width", width), ("height", height), ("distance_m", distance_m))
                   if v is not None}
+    if grid is not None:
+        scene_over["pattern"] = parse_grid(grid)
     scene = replace(cfg.scene, **scene_over) if scene_over else cfg.scene
     try:
         render = RenderSettings(spp=spp if spp is not None else cfg.render.spp,

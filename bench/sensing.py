@@ -18,6 +18,7 @@ from bench.atomic import write_json
 from bench.config import SampleConfig
 from bench.recon_io import image_checksums, write_reconstruction
 from bench.sample import render_sample, write_sample
+from bench.scoring import score_in_memory
 from reconstruction.exploring import (PoseError, SensorPose, cure_move_back, cure_orient, ensure_in_view,
                                       most_bending_curves,
                                       most_bent_direction, stage1_pose, stage2_pose, tangent_intersection_distance,
@@ -30,6 +31,11 @@ from scenes.scene_spec import scene_for_pose
 class SensingOptions:
     workspace_radius_m: float = 0.15  # stage 1 covers a disc of this radius around the workspace centre
     working_distance_m: float = 0.40  # cameras focused here: stage 2 comes no closer
+    # Stage 3 places the projector (a separate device: the paper's overhead projector) on its centre
+    # line at this distance from the boundary centre; None: at the cameras' distance. A fixed
+    # projector shrinks its squares in the images when a cure moves the cameras back (5 px at
+    # 0.59 m, 640 px images: too small to extract), so None is the default.
+    projector_distance_m: float | None = None
     max_cures: int = 4
     write_stages: bool = True
 
@@ -49,6 +55,17 @@ def _visibility(sample) -> dict:
             for c, v in sample.visibility.items()}
 
 
+def _accuracy(sample, rec) -> dict:
+    """The final reconstruction scored against ground truth (millimetres)."""
+    score = score_in_memory(sample, rec)
+    p = score.get("points", {})
+    return {"depth_rms_mm": p.get("depth_rms_mm"), "points_scored": p.get("count"),
+            "boundary_mean_mm": score.get("boundary_3d", {}).get("mean_sym_mm"),
+            "surface_rms_mm": score.get("surface", {}).get("dist_rms_mm"),
+            "surface_coverage": score.get("surface", {}).get("coverage_frac"),
+            "paper_bound_met": score.get("paper_bound", {}).get("met"), "goals_met": score.get("goals", {}).get("met")}
+
+
 def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = SensingOptions(),
                 feature_rays=None, progress=None) -> dict:
     """Run stages 1-3 and the cures on the plate of ``cfg``; returns the sensing summary.
@@ -59,15 +76,19 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     step = progress or (lambda name: None)
     base = cfg.scene.build()
     cam = base.rig.left
+    pcam = base.projector.camera
     B = base.rig.baseline_m
     rays_for = feature_rays or (lambda scene: projector_feature_rays(scene.projector.camera, scene.projector.pattern))
     log = SensingLog()
     renderer = None
     t0 = time.perf_counter()
 
-    def render_at(pose: SensorPose, name: str):
+    def render_at(pose: SensorPose, name: str, projector: SensorPose | None = None):
         nonlocal renderer
-        scene = scene_for_pose(pose.center, pose.target, pose.baseline_dir, base)
+        pc = None if projector is None else projector.center
+        pt = None if projector is None else projector.target
+        scene = scene_for_pose(pose.center, pose.target, pose.baseline_dir, base, projector_center=pc,
+                               projector_target=pt)
         step(f"{name}: render")
         sample, renderer = render_sample(cfg, renderer, scene=scene)
         if out is not None and options.write_stages:
@@ -95,17 +116,15 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
         p2 = passive_stereo(s2.digital["left_passive"], s2.digital["right_passive"], s2.scene.rig)
         log.add(stage=2, cure=cures, pose=pose.to_dict(), boundary_points=len(p2.boundary),
                 gt_visibility=_visibility(s2))
-        # -- stage 3: projector on the centre line, active stereo, counting test ----------
-        # The projector sits on the sensor's centre line (between the cameras), so stage 3 moves the
-        # sensor head; after a cure it keeps the cured pose instead of undoing it.
-        if cures == 0:
-            proj_pose = SensorPose(p2.plane.point + p2.plane.normal * pose.distance_m, p2.plane.point.copy(),
-                                   pose.baseline_dir, "stage 3: projector centre ray through the boundary "
-                                                      "centre, perpendicular to the boundary plane")
-        else:
-            proj_pose = replace(pose, reason="stage 3 at the cured pose")
-        validate_pose(proj_pose, p2.boundary, p2.plane, cam, B)
-        s3 = render_at(proj_pose, f"stage3{tag}")
+        # -- stage 3: the projector's centre ray through the boundary centre, perpendicular to the
+        # boundary plane (paper V-B); the cameras stay where stage 2 (or the cure) put them.
+        pd = options.projector_distance_m or pose.distance_m
+        proj_pose = SensorPose(p2.plane.point + p2.plane.normal * pd, p2.plane.point.copy(), pose.baseline_dir,
+                               "stage 3: projector centre ray through the boundary centre, perpendicular to "
+                               "the boundary plane")
+        proj_pose = ensure_in_view(proj_pose, p2.boundary, pcam, 0.0)
+        validate_pose(proj_pose, p2.boundary, p2.plane, pcam, 0.0)
+        s3 = render_at(pose, f"stage3{tag}", projector=proj_pose)
         step("stage3: active stereo")
         rays = rays_for(s3.scene)
         rec = reconstruct(s3.digital, s3.scene.rig, rays, s3.scene.projector.pattern)
@@ -113,9 +132,10 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
             write_reconstruction(Path(out) / f"stage3{tag}" / "recon", rec, Path(out) / f"stage3{tag}" / "sample",
                                  image_checksums(s3.digital), overwrite=True)
         fb = rec.false_boundary
-        log.add(stage=3, cure=cures, pose=proj_pose.to_dict(), false_boundary=fb.to_dict(),
-                matched=len(rec.points), unmatched=list(rec.unmatched), gt_visibility=_visibility(s3))
-        final = (s3, rec, proj_pose)
+        log.add(stage=3, cure=cures, pose=pose.to_dict(), projector_pose=proj_pose.to_dict(),
+                false_boundary=fb.to_dict(), matched=len(rec.points), unmatched=list(rec.unmatched),
+                gt_visibility=_visibility(s3))
+        final = (s3, rec, pose)
         if not fb.false_boundary_detected:
             break
         if cures >= options.max_cures:
@@ -125,10 +145,23 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
         bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
         curves = most_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent)
         curve = max(curves, key=tangent_intersection_distance)
+        L = tangent_intersection_distance(curve)
         missing = fb.expected - min(fb.detected.values())
         oriented = cure_orient(curve, pose)
         off_axis = np.degrees(np.arccos(np.clip(oriented.view_dir @ pose.view_dir, -1, 1)))
         turn = np.degrees(np.arccos(np.clip(abs(oriented.baseline_dir @ pose.baseline_dir), -1, 1)))
+        if not np.isfinite(L):
+            log.add(decision="stop", curve=curve.to_dict(), L_m=L,
+                    reason=f"no cure: an end tangent of the most bending curve turns past 90 deg from its chord "
+                           f"(a = {np.degrees(curve.a_rad):.0f}, b = {np.degrees(curve.b_rad):.0f} deg): the "
+                           f"plate curls over itself and no pose on the chord's side sees both ends")
+            break
+        if L <= 0:
+            log.add(decision="stop", curve=curve.to_dict(), L_m=L,
+                    reason=f"no cure: the most bending curve is concave (L = {L * 1e3:.0f} mm <= 0); both cures "
+                           f"reveal the falling ends of a convex bend, and a concave bend hides its boundary "
+                           f"under its own rims (past 180 deg) from every pose on the chord's side")
+            break
         if cures == 0 and (off_axis > 2.0 or turn > 10.0):
             method, new = 1, oriented
         else:
@@ -140,14 +173,15 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
             log.add(decision="stop", reason=f"cure refused: {e}")
             break
         log.add(decision="cure", method=method, reason=new.reason, curve=curve.to_dict(),
-                L_m=tangent_intersection_distance(curve), missing_squares=int(missing),
+                L_m=L, missing_squares=int(missing),
                 centre_line_change_deg=float(off_axis), baseline_turn_deg=float(turn))
-        pose = proj_pose = new
+        pose = new
         cures += 1
-    s3, rec, proj_pose = final
+    s3, rec, final_pose = final
     summary = {"config": cfg.to_dict(), "steps": log.steps, "cures": cures,
-               "final": {"pose": proj_pose.to_dict(), "false_boundary": rec.false_boundary.to_dict(),
+               "final": {"pose": final_pose.to_dict(), "false_boundary": rec.false_boundary.to_dict(),
                          "matched": int(len(rec.points)), "gt_visibility": _visibility(s3),
+                         "accuracy": _accuracy(s3, rec),
                          "stage_dir": f"stage3{'' if cures == 0 else f'_cure{cures}'}"},
                "time_s": time.perf_counter() - t0}
     if out is not None:

@@ -117,23 +117,25 @@ def up_for_baseline(view_dir, baseline_dir) -> np.ndarray:
 
 
 def scene_for_pose(center, target, baseline_dir, base: SceneSpec, baseline_m: float | None = None,
-                   projector_center=None) -> SceneSpec:
+                   projector_center=None, projector_target=None) -> SceneSpec:
     """``base`` with the rig re-placed: mid-baseline at ``center`` looking at ``target``, baseline
-    along ``baseline_dir``; the projector sits on the centre line (between the cameras, or at
-    ``projector_center``), aimed at ``target``, keeping its K and pattern. Intrinsics and image
-    sizes are kept."""
+    along ``baseline_dir``; the projector sits between the cameras aimed at ``target``, or at
+    ``projector_center`` aimed at ``projector_target`` (default ``target``), its image x axis
+    along the baseline. K and pattern of both are kept. World frame, metres."""
     center = np.asarray(center, float)
     target = np.asarray(target, float)
     pc = center if projector_center is None else np.asarray(projector_center, float)
+    pt = target if projector_target is None else np.asarray(projector_target, float)
     up = up_for_baseline(target - center, baseline_dir)
+    p_up = up_for_baseline(pt - pc, baseline_dir)
     left = base.rig.left
     rig = StereoRig.conventional(center, target, baseline_m or base.rig.baseline_m, left.f_px,
                                  left.width, left.height, up=up)
     p = base.projector
     if p.kind == "spot":
-        proj = Projector.look_at(pc, target, p.pattern, kind="spot", cutoff_rad=p.cutoff_rad, up=up)
+        proj = Projector.look_at(pc, pt, p.pattern, kind="spot", cutoff_rad=p.cutoff_rad, up=p_up)
     else:
-        proj = Projector.look_at(pc, target, p.pattern, f_px=p.camera.f_px, kind=p.kind, up=up)
+        proj = Projector.look_at(pc, pt, p.pattern, f_px=p.camera.f_px, kind=p.kind, up=p_up)
     return replace(base, rig=rig, projector=proj)
 
 
