@@ -167,7 +167,7 @@ def test_concave_bend_past_180_degrees_is_detected_and_declared_incurable():
     assert s["cures"] == 0 and len(stop) == 1 and "no cure" in stop[0]["reason"]
 
 
-def test_sample_flags_set_bend_direction_axis_and_grid():
+def test_sample_flags_set_bend_direction_axis_and_grid(tmp_path):
     from bench.config import ConfigError, parse_grid, with_overrides
     cfg = with_overrides(SampleConfig(), bend_deg=170, bend_direction="down", bend_axis_deg=90, grid="6x12@12")
     d = cfg.plate.deformation
@@ -177,5 +177,6 @@ def test_sample_flags_set_bend_direction_axis_and_grid():
     for bad, msg in (("4x4", "is not ROWSxCOLS@SQUARE_PX"), ("4x4@2", "SQUARE_PX = 2 is out of range")):
         with pytest.raises(ConfigError, match=msg):
             parse_grid(bad)
-    p = run_cli("render", "--out", "unused", "--bend-axis-deg", "200")
+    p = run_cli("render", "--out", tmp_path / "s", "--bend-axis-deg", "200")
     assert p.returncode == 2 and "--bend-axis-deg = 200.0 is out of range" in p.stderr
+    assert not (tmp_path / "s").exists()
