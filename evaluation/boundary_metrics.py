@@ -44,7 +44,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from .point_metrics import pruned_min_distance

@@ -10,10 +10,12 @@ Point errors are split in the LEFT camera's frame, as the paper reports them
     e_cam   = R_left @ e                           (only the rotation matters)
     depth   = |e_cam_z|   error along the left optical axis (z-depth error)
     x, y    = |e_cam_x|, |e_cam_y|                 lateral errors in the image axes
-    xy      = sqrt(e_cam_x^2 + e_cam_y^2)          lateral error norm
+    xy_radial = sqrt(e_cam_x^2 + e_cam_y^2)        lateral error norm (radial, in the image plane)
     err3d   = |e|                                  full 3D error norm
 
-Each gets mean / RMS / max / p95 of the ABSOLUTE value. Signed means are
+Each gets mean / RMS / max / p95 of the ABSOLUTE value. The per-axis x/y figures
+(``x_*``, ``y_*``) and the radial one (``xy_radial_*``) are different numbers: for
+equal independent axis errors the radial RMS is sqrt(2) times the per-axis RMS. Signed means are
 reported separately (``*_mean_signed_mm``); a positive depth bias means the
 estimate lies farther from the left camera than the truth.
 """
@@ -50,7 +52,7 @@ class PointScore:
     depth: ErrorStats
     x: ErrorStats
     y: ErrorStats
-    xy: ErrorStats
+    xy_radial: ErrorStats
     err3d: ErrorStats
     depth_bias_signed: float
     x_bias_signed: float
@@ -60,9 +62,9 @@ class PointScore:
     errors_cam: np.ndarray = field(repr=False, compare=False)
 
     def to_dict(self) -> dict:
-        """Keys: ``{depth,x,y,xy,err3d}_{mean,rms,max,p95}_mm``, ``{depth,x,y}_mean_signed_mm``, ``count``."""
+        """Keys: ``{depth,x,y,xy_radial,err3d}_{mean,rms,max,p95}_mm``, ``{depth,x,y}_mean_signed_mm``, ``count``."""
         out: dict = {}
-        for name in ("depth", "x", "y", "xy", "err3d"):
+        for name in ("depth", "x", "y", "xy_radial", "err3d"):
             d = getattr(self, name).to_dict(name, "mm", M_TO_MM)
             d.pop(f"{name}_count")
             out.update(d)
@@ -108,7 +110,7 @@ def score_points(estimated, truth, R_left) -> PointScore:
         depth=ErrorStats.from_abs(np.abs(ez), name="depth error"),
         x=ErrorStats.from_abs(np.abs(ex), name="x error"),
         y=ErrorStats.from_abs(np.abs(ey), name="y error"),
-        xy=ErrorStats.from_abs(np.hypot(ex, ey), name="xy error"),
+        xy_radial=ErrorStats.from_abs(np.hypot(ex, ey), name="xy radial error"),
         err3d=ErrorStats.from_abs(np.linalg.norm(e, axis=1), name="3D error"),
         depth_bias_signed=float(ez.mean()),
         x_bias_signed=float(ex.mean()),

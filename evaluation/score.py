@@ -19,23 +19,43 @@ carries its unit. Sections:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
 
-from evaluation.boundary_metrics import contour_pixels_distance, polyline_distance
-from evaluation.point_metrics import point_to_surface_distance, score_points
-from evaluation.surface_metrics import score_surface
-from evaluation.truth import feature_at_pixels, feature_visibility, true_feature_points
-from scenes.camera import Camera
-from scenes.rig import StereoRig
+from platebench.errors import UserValueError
+from platebench.evaluation.boundary_metrics import (
+    BoundaryScore,
+    contour_pixels_distance,
+    polyline_distance,
+)
+from platebench.evaluation.point_metrics import (
+    PointScore,
+    point_to_surface_distance,
+    score_points,
+)
+from platebench.evaluation.surface_metrics import SurfaceScore, score_surface
+from platebench.evaluation.truth import (
+    feature_at_pixels,
+    feature_visibility,
+    true_feature_points,
+)
+from platebench.scenes.camera import Camera
+from platebench.scenes.rig import StereoRig
 
+__all__ = ["ScoreError", "SampleTruth", "ReconstructionData", "PointErrors", "Matching", "FalseBoundaryVerdict",
+           "PaperBound", "Goals", "Score", "score_reconstruction", "format_table",
+           "PAPER_DEPTH_MM", "PAPER_XY_MM", "GOAL_DEPTH_RMS_MM", "GOAL_XY_RMS_MM", "GOAL_BOUNDARY_MEAN_MM"]
+
+# The paper's bound (section V-D: depth within 2 mm, x and y within 1 mm each) and the bench's goals.
 PAPER_DEPTH_MM, PAPER_XY_MM = 2.0, 1.0
 GOAL_DEPTH_RMS_MM, GOAL_XY_RMS_MM, GOAL_BOUNDARY_MEAN_MM = 0.03, 0.05, 0.2
+SURFACE_SAMPLE_SPACING_M = 1e-3
 
 
-class ScoreError(ValueError):
+class ScoreError(UserValueError):
     """Sample and reconstruction cannot be scored together."""
 
 
@@ -63,8 +83,163 @@ class ReconstructionData:
     false_boundary: dict  # recon.json's false_boundary section
 
 
-def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> dict:
-    """All metrics of one reconstruction, as a JSON-ready dict (units in the keys)."""
+def _mm(x: float | None) -> float | None:
+    return None if x is None else float(x) * 1e3
+
+
+@dataclass(frozen=True)
+class PointErrors:
+    """Triangulated square centres against the true centres (``stats``, metres), and the distance
+    of every reconstructed point to the true surface (metres)."""
+
+    stats: PointScore
+    to_surface_rms_m: float
+    to_surface_max_m: float
+
+    @property
+    def count(self) -> int:
+        return self.stats.count
+
+    @property
+    def xy_per_axis_rms_m(self) -> float:
+        """sqrt((x_rms^2 + y_rms^2) / 2): the RMS of the lateral error per image axis."""
+        return math.sqrt((self.stats.x.rms ** 2 + self.stats.y.rms ** 2) / 2.0)
+
+    @property
+    def xy_per_axis_max_m(self) -> float:
+        """max(x_max, y_max): the largest lateral error along either image axis (the paper's x/y)."""
+        return max(self.stats.x.max, self.stats.y.max)
+
+    def to_dict(self) -> dict:
+        d = self.stats.to_dict()
+        d["to_surface_rms_mm"] = _mm(self.to_surface_rms_m)
+        d["to_surface_max_mm"] = _mm(self.to_surface_max_m)
+        return d
+
+
+@dataclass(frozen=True)
+class Matching:
+    """Counts of the active stereo: detected, matched (and correctly), seen by ground truth, expected."""
+
+    matched_count: int
+    correct_match_count: int
+    label_correct_rate_frac: float
+    detected_count: dict = field(default_factory=dict)  # image name -> whole squares the method counted
+    visible_count: dict = field(default_factory=dict)  # camera -> features ground truth says it sees
+    visible_in_both_count: int = 0
+    expected_count_gt: int = 0  # features whose ray hits the plate
+    expected_count_method: int = -1  # features the method expected inside its boundary (-1: unknown)
+
+    @property
+    def correct_match_rate_frac(self) -> float:
+        return self.correct_match_count / self.matched_count if self.matched_count else 0.0
+
+    def to_dict(self) -> dict:
+        return {"matched_count": self.matched_count, "correct_match_count": self.correct_match_count,
+                "correct_match_rate_frac": self.correct_match_rate_frac,
+                "label_correct_rate_frac": self.label_correct_rate_frac,
+                "detected_count": dict(self.detected_count), "visible_count": dict(self.visible_count),
+                "visible_in_both_count": self.visible_in_both_count, "expected_count_gt": self.expected_count_gt,
+                "expected_count_method": self.expected_count_method}
+
+
+@dataclass(frozen=True)
+class FalseBoundaryVerdict:
+    """Ground truth (per camera: is part of the true boundary hidden?) against the method's flag."""
+
+    ground_truth: dict  # camera -> bool
+    detected: bool
+
+    @property
+    def ground_truth_any(self) -> bool:
+        return any(self.ground_truth.values())
+
+    @property
+    def agrees(self) -> bool:
+        return self.detected == self.ground_truth_any
+
+    def to_dict(self) -> dict:
+        return {"ground_truth": dict(self.ground_truth), "ground_truth_any": self.ground_truth_any,
+                "detected": self.detected, "agrees": self.agrees}
+
+
+@dataclass(frozen=True)
+class PaperBound:
+    """The paper's bound (V-D): every expected point found, depth error within 2 mm and the error along
+    each image axis within 1 mm (maxima, millimetres)."""
+
+    depth_max_mm: float
+    xy_per_axis_max_mm: float
+    all_points: bool
+    depth_limit_mm: float = PAPER_DEPTH_MM
+    xy_limit_mm: float = PAPER_XY_MM
+
+    @property
+    def met(self) -> bool:
+        return bool(self.depth_max_mm <= self.depth_limit_mm and self.xy_per_axis_max_mm <= self.xy_limit_mm
+                    and self.all_points)
+
+    def to_dict(self) -> dict:
+        return {"depth_max_mm": self.depth_max_mm, "xy_per_axis_max_mm": self.xy_per_axis_max_mm,
+                "all_points": self.all_points, "met": self.met}
+
+
+@dataclass(frozen=True)
+class Goals:
+    """The bench's accuracy goals (millimetres): depth RMS, per-axis lateral RMS, boundary mean."""
+
+    depth_rms_mm: float
+    xy_per_axis_rms_mm: float
+    boundary_mean_mm: float
+    depth_rms_goal_mm: float = GOAL_DEPTH_RMS_MM
+    xy_per_axis_rms_goal_mm: float = GOAL_XY_RMS_MM
+    boundary_mean_goal_mm: float = GOAL_BOUNDARY_MEAN_MM
+
+    @property
+    def met(self) -> bool:
+        return bool(self.depth_rms_mm <= self.depth_rms_goal_mm and self.xy_per_axis_rms_mm <= self.xy_per_axis_rms_goal_mm
+                    and self.boundary_mean_mm <= self.boundary_mean_goal_mm)
+
+    def to_dict(self) -> dict:
+        return {"depth_rms_mm": self.depth_rms_mm, "depth_rms_goal_mm": self.depth_rms_goal_mm,
+                "xy_per_axis_rms_mm": self.xy_per_axis_rms_mm,
+                "xy_per_axis_rms_goal_mm": self.xy_per_axis_rms_goal_mm,
+                "boundary_mean_mm": self.boundary_mean_mm, "boundary_mean_goal_mm": self.boundary_mean_goal_mm,
+                "met": self.met}
+
+
+@dataclass(frozen=True)
+class Score:
+    """Every metric of one reconstruction against the truth. Parts are None where the reconstruction
+    has nothing to score (no point with a known true feature, no boundary, no surface). ``to_dict``
+    gives score.json's layout (units in every key)."""
+
+    points: PointErrors | None
+    matching: Matching
+    boundary_3d: BoundaryScore | None
+    boundary_image: BoundaryScore | None
+    surface: SurfaceScore | None
+    false_boundary: FalseBoundaryVerdict
+    paper_bound: PaperBound | None
+    goals: Goals | None
+
+    def to_dict(self) -> dict:
+        out: dict = {"points": self.points.to_dict() if self.points else {"count": 0},
+                     "matching": self.matching.to_dict()}
+        for name in ("boundary_3d", "boundary_image", "surface"):
+            part = getattr(self, name)
+            if part is not None:
+                out[name] = part.to_dict()
+        out["false_boundary"] = self.false_boundary.to_dict()
+        if self.paper_bound is not None:
+            out["paper_bound"] = self.paper_bound.to_dict()
+        if self.goals is not None:
+            out["goals"] = self.goals.to_dict()
+        return out
+
+
+def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
+    """All metrics of one reconstruction (``Score``; ``to_dict()`` for score.json)."""
     for name, arr in (("points", rec.points), ("boundary", rec.boundary)):
         if arr.size and not np.all(np.isfinite(arr)):
             raise ScoreError(f"reconstruction {name} hold NaN or inf")
@@ -74,91 +249,69 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> dict:
     gid_l = feature_at_pixels(truth.feature_maps["left"], rec.uv_left)
     gid_r = feature_at_pixels(truth.feature_maps["right"], rec.uv_right)
     correct = (gid_l == gid_r) & (gid_l >= 0)
-    out: dict = {}
-    # -- points ---------------------------------------------------------------
+
+    points = None
     known = np.array([g in id_index and np.all(np.isfinite(true_pts[id_index[g]])) for g in gid_l], bool)
     if known.any():
-        est = rec.points[known]
-        tru = true_pts[[id_index[g] for g in gid_l[known]]]
-        ps = score_points(est, tru, truth.rig.left.R).to_dict()
+        stats = score_points(rec.points[known], true_pts[[id_index[g] for g in gid_l[known]]], truth.rig.left.R)
         d_surf = point_to_surface_distance(rec.points, truth.mesh)  # exact; trimesh's is off in metres
-        ps["to_surface_rms_mm"] = float(np.sqrt(np.mean(d_surf ** 2)) * 1e3)
-        ps["to_surface_max_mm"] = float(d_surf.max() * 1e3)
-        out["points"] = ps
-    else:
-        out["points"] = {"count": 0}
-    out["matching"] = {
-        "matched_count": int(len(rec.points)),
-        "correct_match_count": int(correct.sum()),
-        "correct_match_rate_frac": float(correct.mean()) if len(correct) else 0.0,
-        "label_correct_rate_frac": float(np.mean(rec.feature_id == gid_l)) if len(gid_l) else 0.0,
-        "detected_count": {k: int(v) for k, v in rec.false_boundary.get("detected", {}).items()},
-        "visible_count": {cam: len(ids) for cam, ids in vis.seen.items()},
-        "visible_in_both_count": len(vis.visible_in_both()),
-        "expected_count_gt": len(vis.on_plate),
-        "expected_count_method": int(rec.false_boundary.get("expected", -1)),
-    }
-    # -- boundary ---------------------------------------------------------------
+        points = PointErrors(stats, float(np.sqrt(np.mean(d_surf ** 2))), float(d_surf.max()))
+    fb = rec.false_boundary
+    matching = Matching(
+        matched_count=int(len(rec.points)), correct_match_count=int(correct.sum()),
+        label_correct_rate_frac=float(np.mean(rec.feature_id == gid_l)) if len(gid_l) else 0.0,
+        detected_count={k: int(v) for k, v in fb.get("detected", {}).items()},
+        visible_count={cam: len(ids) for cam, ids in vis.seen.items()},
+        visible_in_both_count=len(vis.visible_in_both()), expected_count_gt=len(vis.on_plate),
+        expected_count_method=int(fb.get("expected", -1)))
+    boundary_3d = boundary_image = None
     if len(rec.boundary) >= 3:
-        out["boundary_3d"] = polyline_distance(rec.boundary, truth.boundary).to_dict()
-        uv = truth.rig.left.project(rec.boundary)
-        out["boundary_image"] = contour_pixels_distance(truth.masks["left"], uv).to_dict()
-    # -- surface ----------------------------------------------------------------
+        boundary_3d = polyline_distance(rec.boundary, truth.boundary)
+        boundary_image = contour_pixels_distance(truth.masks["left"], truth.rig.left.project(rec.boundary))
+    surface = None
     if rec.surface_vertices is not None and len(rec.surface_vertices):
-        out["surface"] = score_surface(rec.surface_vertices, truth.mesh, sample_spacing_m=1e-3).to_dict()
-    # -- false boundary ---------------------------------------------------------
-    gt_fb = {cam: bool(v["false_boundary"]) for cam, v in truth.visibility.items()}
-    detected = bool(rec.false_boundary.get("false_boundary_detected", False))
-    out["false_boundary"] = {"ground_truth": gt_fb, "ground_truth_any": any(gt_fb.values()),
-                             "detected": detected, "agrees": detected == any(gt_fb.values())}
-    # -- bounds and goals --------------------------------------------------------
-    p = out["points"]
-    n_expected = out["matching"]["expected_count_gt"]
-    if p.get("count", 0):
-        out["paper_bound"] = {"depth_max_mm": p["depth_max_mm"], "xy_max_mm": max(p["x_max_mm"], p["y_max_mm"]),
-                              "all_points": p["count"] == n_expected,
-                              "met": bool(p["depth_max_mm"] <= PAPER_DEPTH_MM and
-                                          max(p["x_max_mm"], p["y_max_mm"]) <= PAPER_XY_MM and
-                                          p["count"] == n_expected)}
-        xy_rms = float(np.sqrt((p["x_rms_mm"] ** 2 + p["y_rms_mm"] ** 2) / 2))
-        out["goals"] = {"depth_rms_mm": p["depth_rms_mm"], "depth_rms_goal_mm": GOAL_DEPTH_RMS_MM,
-                        "xy_rms_mm": xy_rms, "xy_rms_goal_mm": GOAL_XY_RMS_MM,
-                        "boundary_mean_mm": out.get("boundary_3d", {}).get("mean_sym_mm", float("nan")),
-                        "boundary_mean_goal_mm": GOAL_BOUNDARY_MEAN_MM}
-        out["goals"]["met"] = bool(p["depth_rms_mm"] <= GOAL_DEPTH_RMS_MM and xy_rms <= GOAL_XY_RMS_MM and
-                                   out["goals"]["boundary_mean_mm"] <= GOAL_BOUNDARY_MEAN_MM)
-    return out
+        surface = score_surface(rec.surface_vertices, truth.mesh, sample_spacing_m=SURFACE_SAMPLE_SPACING_M)
+    verdict = FalseBoundaryVerdict({cam: bool(v["false_boundary"]) for cam, v in truth.visibility.items()},
+                                   bool(fb.get("false_boundary_detected", False)))
+    paper_bound = goals = None
+    if points is not None:
+        paper_bound = PaperBound(_mm(points.stats.depth.max), _mm(points.xy_per_axis_max_m),
+                                 points.count == matching.expected_count_gt)
+        goals = Goals(_mm(points.stats.depth.rms), _mm(points.xy_per_axis_rms_m),
+                      _mm(boundary_3d.mean_sym) if boundary_3d is not None else float("nan"))
+    return Score(points, matching, boundary_3d, boundary_image, surface, verdict, paper_bound, goals)
 
 
-def format_table(score: dict) -> str:
-    """A readable summary of a score dict."""
+def format_table(score: Score) -> str:
+    """A readable summary of a Score (millimetres and pixels)."""
     lines = []
-    p, m = score.get("points", {}), score["matching"]
-    if p.get("count"):
-        lines.append(f"{'points':16s} {p['count']} matched; depth RMS {p['depth_rms_mm']:.4f} mm, max "
-                     f"{p['depth_max_mm']:.4f} mm; x/y RMS {p['x_rms_mm']:.4f}/{p['y_rms_mm']:.4f} mm; "
-                     f"3D RMS {p['err3d_rms_mm']:.4f} mm")
-    lines.append(f"{'matching':16s} correct {m['correct_match_count']}/{m['matched_count']}; visible L/R "
-                 f"{m['visible_count'].get('left')}/{m['visible_count'].get('right')}; expected (truth) "
-                 f"{m['expected_count_gt']}, expected (method) {m['expected_count_method']}")
-    if "boundary_3d" in score:
-        b = score["boundary_3d"]
-        lines.append(f"{'boundary 3D':16s} mean {b['mean_sym_mm']:.4f} mm, RMS {b['rms_sym_mm']:.4f} mm, "
-                     f"Hausdorff {b['hausdorff_mm']:.4f} mm")
-        bi = score["boundary_image"]
-        lines.append(f"{'boundary image':16s} mean {bi['mean_sym_px']:.3f} px, Hausdorff {bi['hausdorff_px']:.3f} px")
-    if "surface" in score:
-        s = score["surface"]
-        keys = {k: v for k, v in s.items() if k.endswith(("rms_mm", "max_mm", "_frac")) and v is not None}
-        lines.append(f"{'surface':16s} " + ", ".join(f"{k} {v:.4g}" for k, v in keys.items()))
-    fb = score["false_boundary"]
-    lines.append(f"{'false boundary':16s} truth {fb['ground_truth_any']}, detected {fb['detected']}, "
-                 f"{'agree' if fb['agrees'] else 'DISAGREE'}")
-    if "paper_bound" in score:
-        pb, g = score["paper_bound"], score["goals"]
-        lines.append(f"{'paper bound':16s} depth <= 2 mm, x/y <= 1 mm, all points: {'MET' if pb['met'] else 'NOT MET'} "
-                     f"(depth max {pb['depth_max_mm']:.4f}, x/y max {pb['xy_max_mm']:.4f})")
-        lines.append(f"{'goal':16s} depth RMS {g['depth_rms_mm']:.4f} <= {g['depth_rms_goal_mm']}, x/y RMS "
-                     f"{g['xy_rms_mm']:.4f} <= {g['xy_rms_goal_mm']}, boundary mean {g['boundary_mean_mm']:.4f} <= "
-                     f"{g['boundary_mean_goal_mm']}: {'MET' if g['met'] else 'NOT MET'}")
+    m = score.matching
+    if score.points is not None:
+        s = score.points.stats
+        lines.append(f"{'points':16s} {s.count} matched; depth RMS {_mm(s.depth.rms):.4f} mm, max "
+                     f"{_mm(s.depth.max):.4f} mm; x/y RMS {_mm(s.x.rms):.4f}/{_mm(s.y.rms):.4f} mm "
+                     f"(radial {_mm(s.xy_radial.rms):.4f} mm); 3D RMS {_mm(s.err3d.rms):.4f} mm")
+    lines.append(f"{'matching':16s} correct {m.correct_match_count}/{m.matched_count}; visible L/R "
+                 f"{m.visible_count.get('left')}/{m.visible_count.get('right')}; expected (truth) "
+                 f"{m.expected_count_gt}, expected (method) {m.expected_count_method}")
+    if score.boundary_3d is not None:
+        b, bi = score.boundary_3d, score.boundary_image
+        lines.append(f"{'boundary 3D':16s} mean {_mm(b.mean_sym):.4f} mm, RMS {_mm(b.rms_sym):.4f} mm, "
+                     f"Hausdorff {_mm(b.hausdorff):.4f} mm")
+        lines.append(f"{'boundary image':16s} mean {bi.mean_sym:.3f} px, Hausdorff {bi.hausdorff:.3f} px")
+    if score.surface is not None:
+        s = score.surface
+        lines.append(f"{'surface':16s} RMS {_mm(s.dist.rms):.4g} mm, max {_mm(s.dist.max):.4g} mm, "
+                     f"coverage {s.coverage_frac:.4g}")
+    fb = score.false_boundary
+    lines.append(f"{'false boundary':16s} truth {fb.ground_truth_any}, detected {fb.detected}, "
+                 f"{'agree' if fb.agrees else 'DISAGREE'}")
+    if score.paper_bound is not None:
+        pb, g = score.paper_bound, score.goals
+        lines.append(f"{'paper bound':16s} depth <= {pb.depth_limit_mm:g} mm, x/y <= {pb.xy_limit_mm:g} mm, all "
+                     f"points: {'MET' if pb.met else 'NOT MET'} (depth max {pb.depth_max_mm:.4f}, x/y max "
+                     f"{pb.xy_per_axis_max_mm:.4f})")
+        lines.append(f"{'goal':16s} depth RMS {g.depth_rms_mm:.4f} <= {g.depth_rms_goal_mm}, x/y RMS per axis "
+                     f"{g.xy_per_axis_rms_mm:.4f} <= {g.xy_per_axis_rms_goal_mm}, boundary mean "
+                     f"{g.boundary_mean_mm:.4f} <= {g.boundary_mean_goal_mm}: {'MET' if g.met else 'NOT MET'}")
     return "\n".join(lines)

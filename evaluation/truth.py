@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from scenes.camera import Camera
+from platebench.scenes.camera import Camera
 
 
 def true_feature_points(mesh: trimesh.Trimesh, projector: Camera, feature_centers: np.ndarray) -> np.ndarray:

@@ -7,8 +7,17 @@ Conventions of each deformation family are documented in plates/spec.py.
 """
 
 from .plate import Plate, build_plate
-from .spec import (CylindricalBend, Dent, Dome, Flat, Fold, PlateSpec, PlateSpecError, Twist,
-                   reference_spec)
+from .spec import (
+                   CylindricalBend,
+                   Dent,
+                   Dome,
+                   Flat,
+                   Fold,
+                   PlateSpec,
+                   PlateSpecError,
+                   Twist,
+                   reference_spec,
+)
 
 __all__ = ["PlateSpec", "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome",
            "Dent", "Plate", "build_plate", "reference_spec"]

@@ -22,8 +22,16 @@ import math
 
 import numpy as np
 
-from .spec import (CylindricalBend, Dent, Dome, Flat, Fold, PlateSpec, Twist,
-                   bending_extent_m)
+from .spec import (
+    CylindricalBend,
+    Dent,
+    Dome,
+    Flat,
+    Fold,
+    PlateSpec,
+    Twist,
+    bending_extent_m,
+)
 
 __all__ = ["surface_point", "surface_derivatives", "surface_normal"]
 

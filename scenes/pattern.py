@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from scenes.camera import centred_principal_point
+from platebench.scenes.camera import centred_principal_point
 
 
 @dataclass(frozen=True)

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.camera import Camera, intrinsics, look_at_rotation
-from scenes.pattern import Pattern
-from scenes.rig import DEFAULT_UP
+from platebench.scenes.camera import Camera, intrinsics, look_at_rotation
+from platebench.scenes.pattern import Pattern
+from platebench.scenes.rig import DEFAULT_UP
 
 PROJECTOR_KINDS = ("pinhole", "spot")
 

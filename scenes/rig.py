@@ -11,8 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.camera import Camera, intrinsics, look_at_rotation
-
+from platebench.scenes.camera import Camera, intrinsics, look_at_rotation
 
 # World -X appears up in the image, so image x (and the baseline) runs along world +Y:
 # across the reference plate's bend, as the paper's exploring strategy asks.

@@ -9,11 +9,25 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from scenes.pattern import square_grid
-from scenes.projector import Projector
-from scenes.rig import StereoRig
+from platebench.scenes.pattern import square_grid
+from platebench.scenes.projector import Projector
+from platebench.scenes.rig import StereoRig
 
 MATERIAL_KINDS = ("diffuse", "roughconductor")
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Monte Carlo settings: samples per pixel and the base seed (integers; see ``image_seed``)."""
+
+    spp: int = 16
+    seed: int = 0
+
+    def __post_init__(self):
+        for name, lo, hi, allowed in (("spp", 1, 65536, "1 to 65536"), ("seed", 0, 2**31 - 1, "0 to 2^31-1")):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not (lo <= v <= hi):
+                raise ValueError(f"{name} = {v!r} is out of range: allowed an integer {allowed}")
 METALS = ("Al", "Fe")  # Mitsuba conductor presets: aluminium, iron (steel)
 
 

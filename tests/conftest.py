@@ -14,21 +14,21 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="session")
 def small_config():
     """The reference experiment at 480x360 (f scaled to keep the field of view), spp 8."""
-    from bench.config import SampleConfig, SceneParams
-    from scenes.renderer import RenderSettings
+    from platebench.bench.config import SampleConfig, SceneParams
+    from platebench.scenes.scene_spec import RenderSettings
     return SampleConfig(scene=SceneParams(width=480, height=360), render=RenderSettings(spp=8, seed=3))
 
 
 @pytest.fixture(scope="session")
 def small_sample(small_config):
     """(RenderedSample, renderer) of the small reference experiment."""
-    from bench.sample import render_sample
+    from platebench.bench.run.render import render_sample
     return render_sample(small_config)
 
 
 @pytest.fixture(scope="session")
 def small_sample_dir(small_sample, tmp_path_factory):
-    from bench.sample import write_sample
+    from platebench.bench.io.sample_files import write_sample
     out = tmp_path_factory.mktemp("samples") / "ref10"
     return write_sample(out, small_sample[0])
 
@@ -37,5 +37,5 @@ def run_cli(*args, env=None, timeout=600):
     """Run ``platebench`` in a fresh process (as a user would); returns CompletedProcess."""
     e = dict(os.environ)
     e.update(env or {})
-    return subprocess.run([sys.executable, "-m", "bench.cli", *map(str, args)], cwd=REPO, env=e,
+    return subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *map(str, args)], cwd=REPO, env=e,
                           capture_output=True, text=True, timeout=timeout)

@@ -5,7 +5,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import minimize
 
-from reconstruction.boundary_plane import (
+from platebench.reconstruction.paper.boundary_plane import (
     BoundaryPlane,
     boundary_l1_objective,
     fit_boundary_plane,

@@ -30,7 +30,7 @@ def test_same_seed_gives_byte_identical_images_in_two_processes(tmp_path):
 @pytest.mark.parametrize("flags, message", [
     (("--bend-deg", "360"), "--bend-deg = 360.0 is out of range: allowed 0 to 350 degrees"),
     (("--bend-deg", "nan"), "--bend-deg = nan is out of range"),
-    (("--spp", "0"), "spp = 0 is out of range: allowed 1 to 65536"),
+    (("--spp", "0"), "spp = 0 is out of range: allowed an integer 1 to 65536"),
     (("--width", "-5"), "scene.width = -5 is out of range"),
     (("--distance-m", "0"), "scene.distance_m = 0.0 is out of range"),
 ])

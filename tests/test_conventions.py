@@ -11,10 +11,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from plates import Flat, PlateSpec, build_plate
-from scenes.pattern import Pattern
-from scenes.renderer import PlateRenderer, RenderSettings
-from scenes.scene_spec import reference_scene
+from platebench.plates import Flat, PlateSpec, build_plate
+from platebench.scenes.pattern import Pattern
+from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.scene_spec import RenderSettings, reference_scene
 
 TOL_PX = 0.05
 

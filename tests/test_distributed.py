@@ -15,8 +15,14 @@ from pathlib import Path
 
 import pytest
 
-from bench.dataset import RESULT, read_manifest, read_results, stale_files, validate_result
-from bench.sweep_spec import parse_spec
+from platebench.bench.sweep.dataset import (
+    RESULT,
+    read_manifest,
+    read_results,
+    stale_files,
+    validate_result,
+)
+from platebench.bench.sweep.spec import parse_spec
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 2}}
@@ -24,7 +30,7 @@ SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 2}
 
 @pytest.fixture
 def cluster():
-    from bench.executors import LoopbackCluster
+    from platebench.bench.sweep.executors import LoopbackCluster
     c = LoopbackCluster(n_workers=2, nthreads=1, startup_timeout_s=90)
     try:
         c.start()
@@ -36,7 +42,7 @@ def cluster():
 
 
 def test_dask_sweep_on_two_loopback_workers(cluster, tmp_path):
-    from bench.executors import DaskExecutor, run_sweep
+    from platebench.bench.sweep.executors import DaskExecutor, run_sweep
     pids = set(cluster.worker_pids().values())
     assert len(pids) == 2
     spec = parse_spec({"sweep": {"name": "dask"}, "base": SMALL, "grid": {"bend_deg": [0, 10, 20, 30]}})
@@ -55,8 +61,8 @@ def test_dask_sweep_on_two_loopback_workers(cluster, tmp_path):
 
 
 def test_worker_killed_mid_sweep_loses_no_sample(cluster, tmp_path):
-    from distributed import Client
     import tomli_w
+    from distributed import Client
     spec = tmp_path / "s.toml"
     spec.write_text(tomli_w.dumps({"sweep": {"name": "kill"}, "base": SMALL,
                                    "grid": {"bend_deg": [0, 10, 20, 30, 40, 50]}}))
@@ -64,7 +70,7 @@ def test_worker_killed_mid_sweep_loses_no_sample(cluster, tmp_path):
     pids = cluster.worker_pids()  # address -> worker process pid
     group = {addr: next(i for i, w in enumerate(cluster.workers) if w.pid == os.getpgid(pid))
              for addr, pid in pids.items()}
-    sweep = subprocess.Popen([sys.executable, "-m", "bench.cli", "sweep", str(spec), "--out", str(out),
+    sweep = subprocess.Popen([sys.executable, "-m", "platebench.bench.cli.main", "sweep", str(spec), "--out", str(out),
                               "--scheduler", cluster.address, "--no-progress"], cwd=REPO,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -6,13 +6,13 @@ import json
 import numpy as np
 import trimesh
 
-from bench.image_io import read_exr, read_pfm, read_png
-from bench.sample import load_calibration
-from plates import CylindricalBend, PlateSpec, build_plate
-from scenes.camera import Camera
-from scenes.ground_truth import GroundTruthCaster
-from scenes.renderer import PlateRenderer
-from scenes.scene_spec import reference_scene
+from platebench.bench.io.images import read_exr, read_pfm, read_png
+from platebench.bench.io.sample_files import load_calibration
+from platebench.plates import CylindricalBend, PlateSpec, build_plate
+from platebench.scenes.camera import Camera
+from platebench.scenes.render.ground_truth import GroundTruthCaster
+from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.scene_spec import reference_scene
 
 
 def test_gt_depth_equals_trimesh_ray_cast_of_written_sample(small_sample_dir):

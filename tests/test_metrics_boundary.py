@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from evaluation.boundary_metrics import (
+from platebench.evaluation.boundary_metrics import (
     contour_pixels_distance,
     mask_contours_subpixel,
     points_to_polyline_distance,
@@ -224,7 +224,7 @@ def brute_distance(P, poly, closed):
 def test_random_polylines_against_dense_sampling():
     # The directed max must be the supremum along the source (to within the stated
     # tolerance) and the mean its arc-length average; checked against 50k samples.
-    from evaluation.boundary_metrics import _ArcParam
+    from platebench.evaluation.boundary_metrics import _ArcParam
 
     rng = np.random.default_rng(0)
     for trial in range(6):

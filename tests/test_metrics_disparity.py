@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from evaluation.disparity_metrics import eth3d_metrics, middlebury_metrics
+from platebench.evaluation.disparity_metrics import eth3d_metrics, middlebury_metrics
 
 INF = np.inf
 

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from evaluation.point_metrics import (
+from platebench.evaluation.point_metrics import (
     closest_point_on_mesh,
     match_stats,
     point_to_surface_distance,
     point_triangle_distance,
     score_points,
 )
-from evaluation.stats import ErrorStats, nearest_rank_quantile
+from platebench.evaluation.stats import ErrorStats, nearest_rank_quantile
 
 
 def rot(axis, angle):
@@ -96,7 +96,7 @@ def test_depth_offset_along_tilted_left_axis():
     d = s.to_dict()
     for k in ("depth_mean_mm", "depth_rms_mm", "depth_max_mm", "depth_p95_mm", "err3d_max_mm"):
         assert d[k] == pytest.approx(0.3, abs=1e-12)
-    for k in ("x_max_mm", "y_max_mm", "xy_max_mm", "xy_rms_mm"):
+    for k in ("x_max_mm", "y_max_mm", "xy_radial_max_mm", "xy_radial_rms_mm"):
         assert d[k] == pytest.approx(0.0, abs=1e-12)
     assert d["depth_mean_signed_mm"] == pytest.approx(0.3)  # farther from the camera
     assert d["count"] == 16
@@ -116,7 +116,7 @@ def test_depth_error_equals_difference_of_z_depths():
     assert s.depth.max == pytest.approx(np.max(np.abs(dz)))
     assert s.depth_bias_signed == pytest.approx(np.mean(dz))
     dxy = uv(est) - uv(truth)
-    assert s.xy.rms == pytest.approx(np.sqrt(np.mean(np.sum(dxy**2, axis=1))))
+    assert s.xy_radial.rms == pytest.approx(np.sqrt(np.mean(np.sum(dxy**2, axis=1))))
     assert s.err3d.mean == pytest.approx(np.mean(np.linalg.norm(est - truth, axis=1)))
 
 

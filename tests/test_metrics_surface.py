@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from evaluation.surface_metrics import score_surface
+from platebench.evaluation.surface_metrics import score_surface
 
 LX, LY = 0.10, 0.06  # plate 100 mm x 60 mm in z = 0
 

@@ -13,16 +13,33 @@ import sys
 import numpy as np
 import pytest
 
-from reconstruction.peer_graycode import (DenseResult, RowProfile, decode_columns, decode_opencv, decode_subpixel,
-                                          graycode_sequence, match_columns_along_rows, profile_from_column_map)
-from reconstruction.peer_phase_shift import OPENCV_FINDINGS, decode_phase_columns, decode_phase_shift, phase_shift_sequence
-from reconstruction.peer_sgbm import default_depth_range, disparity_range, sgbm
+from platebench.reconstruction.peers.graycode import (
+    DenseResult,
+    RowProfile,
+    decode_columns,
+    decode_opencv,
+    decode_subpixel,
+    graycode_sequence,
+    match_columns_along_rows,
+    profile_from_column_map,
+)
+from platebench.reconstruction.peers.phase_shift import (
+    OPENCV_FINDINGS,
+    decode_phase_columns,
+    decode_phase_shift,
+    phase_shift_sequence,
+)
+from platebench.reconstruction.peers.sgbm import (
+    default_depth_range,
+    disparity_range,
+    sgbm,
+)
 
 W, H = 320, 240
 
 
 def _rig(width=W, height=H):
-    from scenes.scene_spec import reference_scene
+    from platebench.scenes.scene_spec import reference_scene
     return reference_scene(width=width, height=height, f_px=2000.0 * width / 1280).rig
 
 
@@ -143,8 +160,8 @@ def _score(res, gt):
 
 
 def _cfg(bend_deg, spp=8):
-    from bench.config import SampleConfig, SceneParams, with_overrides
-    from scenes.renderer import RenderSettings
+    from platebench.bench.config import SampleConfig, SceneParams, with_overrides
+    from platebench.scenes.scene_spec import RenderSettings
     cfg = SampleConfig(scene=SceneParams(width=W, height=H), render=RenderSettings(spp=spp))
     return with_overrides(cfg, bend_deg=bend_deg)
 
@@ -152,8 +169,8 @@ def _cfg(bend_deg, spp=8):
 @pytest.fixture(scope="module")
 def bent():
     """10-degree reference plate at 320 x 240, spp 8: sample, renderer and the 42 Gray-code frames."""
-    from bench.pattern_sequences import render_pattern_sequence
-    from bench.sample import render_sample
+    from platebench.bench.run.pattern_sequences import render_pattern_sequence
+    from platebench.bench.run.render import render_sample
     cfg = _cfg(10.0)
     sample, renderer = render_sample(cfg)
     seq = graycode_sequence()
@@ -165,7 +182,7 @@ def bent():
 
 @pytest.mark.render
 def test_pattern_sequence_stacks_and_determinism(bent):
-    from bench.pattern_sequences import render_pattern_sequence
+    from platebench.bench.run.pattern_sequences import render_pattern_sequence
     cap, seq = bent["cap"], bent["seq"]
     for cam in ("left", "right"):
         assert cap[cam].shape == (42, H, W) and cap[cam].dtype == np.uint8
@@ -213,7 +230,10 @@ def test_numpy_column_decode_matches_opencv_getprojpixel(bent):
 
 @pytest.mark.render
 def test_opencv_decode_agrees_roughly_and_sgbm_is_worse(bent):
-    from evaluation.disparity_metrics import eth3d_metrics, middlebury_metrics
+    from platebench.evaluation.disparity_metrics import (
+        eth3d_metrics,
+        middlebury_metrics,
+    )
     seq, cap, s = bent["seq"], bent["cap"], bent["sample"]
     rig, gt = s.scene.rig, s.gt["left"]
     cv_res = decode_opencv(cap["left"], cap["right"], seq, rig)
@@ -239,8 +259,8 @@ def test_opencv_decode_agrees_roughly_and_sgbm_is_worse(bent):
 
 @pytest.mark.render
 def test_phase_shift_sub_mm_on_flat_plate(bent):
-    from bench.pattern_sequences import render_pattern_sequence
-    from bench.sample import render_sample
+    from platebench.bench.run.pattern_sequences import render_pattern_sequence
+    from platebench.bench.run.render import render_sample
     cfg = _cfg(0.0)
     s, renderer = render_sample(cfg, renderer=bent["renderer"])
     try:
@@ -258,9 +278,9 @@ def test_phase_shift_sub_mm_on_flat_plate(bent):
 
 @pytest.mark.render
 def test_compare_command_end_to_end(bent, tmp_path, capsys):
-    from bench import cmd_compare
-    from bench.cli import main
-    from bench.sample import write_sample
+    from platebench.bench.cli import compare as cmd_compare
+    from platebench.bench.cli.main import main
+    from platebench.bench.io.sample_files import write_sample
     s = bent["sample"]
     sample_dir = write_sample(tmp_path / "s", s)
     # Dense peers through the Python entry point, reusing the compiled renderer.

@@ -7,17 +7,24 @@ import cv2
 import numpy as np
 import pytest
 
-from bench.config import SampleConfig, SceneParams
-from bench.sample import render_sample
-from evaluation.boundary_metrics import polyline_distance
-from evaluation.truth import feature_at_pixels
-from plates import Flat, PlateSpec
-from reconstruction.false_boundary import FeatureRays, false_boundary_test
-from reconstruction.boundary_plane import fit_boundary_plane
-from reconstruction.pipeline import projector_feature_rays, reconstruct
-from reconstruction.square_matching import check_fig6, group_squares, match_squares
-from reconstruction.squares import Square
-from scenes.renderer import RenderSettings
+from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.run.render import render_sample
+from platebench.evaluation.boundary_metrics import polyline_distance
+from platebench.evaluation.truth import feature_at_pixels
+from platebench.plates import Flat, PlateSpec
+from platebench.reconstruction.paper.boundary_plane import fit_boundary_plane
+from platebench.reconstruction.paper.false_boundary import (
+    FeatureRays,
+    false_boundary_test,
+)
+from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.square_matching import (
+    check_fig6,
+    group_squares,
+    match_squares,
+)
+from platebench.reconstruction.paper.squares import Square
+from platebench.scenes.scene_spec import RenderSettings
 from tests.conftest import run_cli
 
 

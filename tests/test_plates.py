@@ -12,9 +12,24 @@ import numpy as np
 import pytest
 import trimesh
 
-from plates import (CylindricalBend, Dent, Dome, Flat, Fold, Plate, PlateSpec, PlateSpecError,
-                    Twist, build_plate, reference_spec)
-from plates.deformations import surface_derivatives, surface_normal, surface_point
+from platebench.plates import (
+    CylindricalBend,
+    Dent,
+    Dome,
+    Flat,
+    Fold,
+    Plate,
+    PlateSpec,
+    PlateSpecError,
+    Twist,
+    build_plate,
+    reference_spec,
+)
+from platebench.plates.deformations import (
+    surface_derivatives,
+    surface_normal,
+    surface_point,
+)
 
 L, W = 0.1165, 0.0735
 DEG = math.pi / 180

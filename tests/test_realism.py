@@ -6,12 +6,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bench.config import CAMERA_PRESETS, SampleConfig, SceneParams
-from bench.sample import render_sample
-from reconstruction.pipeline import projector_feature_rays, reconstruct
-from reconstruction.plate_region import ReconstructionError
-from scenes.renderer import RenderSettings
-from scenes.sensor_model import SensorModel
+from platebench.bench.config import CAMERA_PRESETS, SampleConfig, SceneParams
+from platebench.bench.run.render import render_sample
+from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.plate_region import ReconstructionError
+from platebench.scenes.scene_spec import RenderSettings
+from platebench.scenes.sensor_model import SensorModel
 
 
 @pytest.mark.parametrize("level", [0.1, 0.5, 0.8])

@@ -18,8 +18,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench import plots as P
-from bench.report import GENERATOR, ReportInputError, detect_inputs, load_results, method_summary, write_report
+from platebench.bench.report import plots as P
+from platebench.bench.report.html import (
+    GENERATOR,
+    ReportInputError,
+    detect_inputs,
+    load_results,
+    method_summary,
+    write_report,
+)
 
 PNG_SIG = b"\x89PNG\r\n\x1a\n"
 FAIL_MSG = "ReconstructionError: <left_active.png> found 0 squares & see http://example.invalid/x"
@@ -266,7 +273,7 @@ def test_nothing_to_report_and_foreign_out_dir(tmp_path, capsys):
     with pytest.raises(ValueError, match="neither a sweep dataset .* nor a false-boundary study") as e:
         write_report(tmp_path / "empty")
     assert "\n" not in str(e.value)
-    from bench.cli import main
+    from platebench.bench.cli.main import main
     assert main(["report", str(tmp_path / "empty")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("platebench: error: ") and err.count("\n") == 1
@@ -283,7 +290,7 @@ def test_nothing_to_report_and_foreign_out_dir(tmp_path, capsys):
 
 def test_cli_report_prints_index(tmp_path, capsys):
     ds = make_dataset(tmp_path / "ds")
-    from bench.cli import main
+    from platebench.bench.cli.main import main
     assert main(["report", str(ds), "--out", str(tmp_path / "r")]) == 0
     out = capsys.readouterr().out.strip()
     assert out == str(tmp_path / "r" / "index.html") and Path(out).is_file()
@@ -340,12 +347,16 @@ def test_report_renders_in_headless_chromium(tmp_path):
 
 @pytest.mark.render
 def test_error_map_on_a_real_tiny_sample(tmp_path):
-    from bench.config import SampleConfig, SceneParams
-    from bench.recon_io import image_checksums, write_reconstruction
-    from bench.sample import load_inputs, render_sample, write_sample
-    from plates import CylindricalBend, PlateSpec
-    from reconstruction.pipeline import projector_feature_rays, reconstruct
-    from scenes.renderer import RenderSettings
+    from platebench.bench.config import SampleConfig, SceneParams
+    from platebench.bench.io.recon_files import image_checksums, write_reconstruction
+    from platebench.bench.io.sample_files import load_inputs, write_sample
+    from platebench.bench.run.render import render_sample
+    from platebench.plates import CylindricalBend, PlateSpec
+    from platebench.reconstruction.paper.pipeline import (
+        projector_feature_rays,
+        reconstruct,
+    )
+    from platebench.scenes.scene_spec import RenderSettings
 
     cfg = SampleConfig(plate=PlateSpec(0.1165, 0.0735, deformation=CylindricalBend(np.radians(20))),
                        scene=SceneParams(width=160, height=120), render=RenderSettings(spp=2, seed=1))
@@ -364,7 +375,7 @@ def test_error_map_on_a_real_tiny_sample(tmp_path):
     assert (data["centre_kind"] == "3d").sum() > 0  # identities from the GT feature map
     assert data["surface_dist_mm"] is not None and np.all(np.isfinite(data["surface_dist_mm"]))
     assert data["surface_dist_mm"].max() < 20.0  # mm: a 20-degree bend reconstructs to within millimetres
-    from evaluation.point_metrics import point_to_surface_distance
+    from platebench.evaluation.point_metrics import point_to_surface_distance
     d = point_to_surface_distance(rec.points, sample.plate.mesh) * 1e3
     assert np.all(data["centre_err_mm"][data["centre_kind"] == "3d"] >= d[data["centre_kind"] == "3d"] - 1e-9)
     out = P.plot_error_map(sdir, rdir, tmp_path / "map.png", data=data)
@@ -460,7 +471,7 @@ def test_axis_levels_order_and_bins():
 
 
 def test_swept_axes_from_manifest_and_columns(tmp_path):
-    from bench.report import swept_axes
+    from platebench.bench.report.html import swept_axes
     rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
     axes, varying = swept_axes({"spec": {"axes": {"noise": ["none", "high"], "roughness": [0.05, 0.2, 0.5]}}}, rows)
     assert axes == ["noise", "roughness"]  # spec order; bend_deg, spp, width_px take one value: not swept

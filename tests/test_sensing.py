@@ -7,14 +7,27 @@ import math
 import numpy as np
 import pytest
 
-from bench.config import SampleConfig, SceneParams
-from bench.false_boundary_study import VisibilityProbe, analytic_L, bent_plate, smallest_hiding_bend, visibility_distance
-from bench.sensing import run_sensing
-from reconstruction.boundary_plane import fit_boundary_plane
-from reconstruction.exploring import (PoseError, SensorPose, bending_curve, cure_move_back, stage2_pose,
-                                      tangent_intersection_distance, validate_pose)
-from scenes.camera import intrinsics, Camera
-from scenes.renderer import RenderSettings
+from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.run.sensing import run_sensing
+from platebench.bench.run.study import (
+    VisibilityProbe,
+    analytic_L,
+    bent_plate,
+    smallest_hiding_bend,
+    visibility_distance,
+)
+from platebench.reconstruction.paper.boundary_plane import fit_boundary_plane
+from platebench.reconstruction.strategy.exploring import (
+    PoseError,
+    SensorPose,
+    bending_curve,
+    cure_move_back,
+    stage2_pose,
+    tangent_intersection_distance,
+    validate_pose,
+)
+from platebench.scenes.camera import Camera, intrinsics
+from platebench.scenes.scene_spec import RenderSettings
 from tests.conftest import run_cli
 
 SMALL = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2))
@@ -128,7 +141,7 @@ FINE = SampleConfig(scene=SceneParams(width=640, height=480,
 def _bent(cfg, deg, direction, axis_rad):
     from dataclasses import replace
 
-    from plates import CylindricalBend
+    from platebench.plates import CylindricalBend
     return replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(math.radians(deg), direction,
                                                                               axis_rad=axis_rad)))
 
@@ -168,7 +181,7 @@ def test_concave_bend_past_180_degrees_is_detected_and_declared_incurable():
 
 
 def test_sample_flags_set_bend_direction_axis_and_grid(tmp_path):
-    from bench.config import ConfigError, parse_grid, with_overrides
+    from platebench.bench.config import ConfigError, parse_grid, with_overrides
     cfg = with_overrides(SampleConfig(), bend_deg=170, bend_direction="down", bend_axis_deg=90, grid="6x12@12")
     d = cfg.plate.deformation
     assert (math.degrees(d.angle_rad), d.direction, math.degrees(d.axis_rad)) == pytest.approx((170, "down", 90))

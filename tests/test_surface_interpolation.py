@@ -4,8 +4,11 @@ import numpy as np
 import pytest
 from scipy.interpolate import RBFInterpolator
 
-from reconstruction.boundary_plane import fit_boundary_plane, plane_frame
-from reconstruction.surface_interpolation import (
+from platebench.reconstruction.paper.boundary_plane import (
+    fit_boundary_plane,
+    plane_frame,
+)
+from platebench.reconstruction.paper.surface_interpolation import (
     SurfaceGrid,
     interpolate_surface,
     points_in_polygon,

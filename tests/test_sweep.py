@@ -17,8 +17,14 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from bench.dataset import RESULT, read_manifest, read_results, stale_files, validate_result
-from bench.sweep_spec import SpecError, load_spec, parse_spec
+from platebench.bench.sweep.dataset import (
+    RESULT,
+    read_manifest,
+    read_results,
+    stale_files,
+    validate_result,
+)
+from platebench.bench.sweep.spec import SpecError, load_spec, parse_spec
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 1}}
@@ -30,7 +36,7 @@ def write_spec(path: Path, doc: dict) -> Path:
 
 
 def cli(*args, timeout=180):
-    return subprocess.run([sys.executable, "-m", "bench.cli", *map(str, args)], cwd=REPO, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *map(str, args)], cwd=REPO, capture_output=True,
                           text=True, timeout=timeout)
 
 
@@ -125,7 +131,7 @@ def test_bad_spec_on_the_command_line_writes_nothing(tmp_path):
 def test_local_sweep_two_workers_with_a_failing_sample(tmp_path):
     """4 samples on 2 worker processes; albedo 0 (a black plate) makes the paper's pipeline fail:
     recorded as failed, the sweep goes on; manifest + CSV + Parquet have the right rows."""
-    from bench.executors import LocalExecutor, run_sweep
+    from platebench.bench.sweep.executors import LocalExecutor, run_sweep
     spec = parse_spec({"sweep": {"name": "t"}, "base": SMALL, "grid": {"bend_deg": [0, 30], "albedo": [0.8, 0.0]}})
     out = tmp_path / "ds"
     summary = run_sweep(spec, out, LocalExecutor(2), progress=False)
@@ -171,7 +177,7 @@ def test_resume_after_kill_9(tmp_path):
     spec = write_spec(tmp_path / "s.toml", {"sweep": {"name": "resume"}, "base": SMALL,
                                             "grid": {"bend_deg": [0, 15, 30]}})
     out = tmp_path / "ds"
-    p = subprocess.Popen([sys.executable, "-m", "bench.cli", "sweep", str(spec), "--out", str(out), "--workers", "1",
+    p = subprocess.Popen([sys.executable, "-m", "platebench.bench.cli.main", "sweep", str(spec), "--out", str(out), "--workers", "1",
                           "--no-progress"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     first = out / "samples" / "0000" / RESULT
     try:
@@ -234,7 +240,7 @@ def test_local_worker_killed_mid_sweep_is_retried(tmp_path):
     """kill -9 a pool worker while it works: the pool is rebuilt, its sample retried, none lost."""
     import threading
 
-    from bench.executors import LocalExecutor, run_sweep
+    from platebench.bench.sweep.executors import LocalExecutor, run_sweep
     spec = parse_spec({"sweep": {"name": "kill-local"}, "base": SMALL, "grid": {"bend_deg": [0, 10, 20, 30, 40, 50]}})
     out = tmp_path / "ds"
     killed = []

@@ -3,7 +3,11 @@
 import numpy as np
 import pytest
 
-from reconstruction.threshold import TsaiThreshold, otsu_threshold, tsai_moment_threshold
+from platebench.reconstruction.paper.threshold import (
+    TsaiThreshold,
+    otsu_threshold,
+    tsai_moment_threshold,
+)
 
 
 def _two_level(a, b, p, n=1000, dtype=np.uint8, seed=0):

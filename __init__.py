@@ -1,0 +1,36 @@
+"""PlateBench: a physically based test bench for stereo and structured-light measurement of
+smooth, deformed plates, built around Chen & Zheng, "Passive and Active Stereo Vision for Smooth
+Surface Detection of Deformed Plates" (IEEE Trans. SMC, 1995).
+
+One namespace, one direction of imports (a lower layer never imports a higher one)::
+
+    platebench.plates          parametric bent plates with exact surfaces (numpy, trimesh)
+    platebench.scenes          camera, rig, projector, patterns (plain numpy);
+                               platebench.scenes.render: the Mitsuba renderer and ground truth
+    platebench.reconstruction  the methods under test: paper/, peers/, calibration/, strategy/
+    platebench.evaluation      ground-truth derivations and metrics (the typed Score)
+    platebench.bench           config, files (io/), runs (run/), sweeps, reports, perf, CLI
+
+This module is the short facade the README shows (see ``platebench.api``)::
+
+    import platebench
+    sample = platebench.render()                 # the reference experiment: 4 images + exact truth
+    rec = platebench.reconstruct(sample)         # the paper's pipeline (images + calibration only)
+    score = platebench.score(sample, rec)        # a typed Score against the truth
+    platebench.sweep("examples/bend_sweep.toml", "ds", workers=2)
+    platebench.report("ds")
+
+Importing ``platebench`` is cheap: nothing here imports Mitsuba until a function needs it.
+"""
+from __future__ import annotations
+
+from importlib import metadata as _metadata
+
+try:
+    __version__ = _metadata.version("platebench")
+except _metadata.PackageNotFoundError:  # pragma: no cover - running from an uninstalled tree
+    __version__ = "0+unknown"
+
+from platebench.api import reconstruct, render, report, score, sense, sweep  # noqa: E402
+
+__all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report"]

@@ -1,0 +1,135 @@
+"""``platebench calibrate``: calibrate the stereo rig and the structured light from renders, score against truth."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from platebench.bench.cli.render import add_sample_flags, config_from_args
+from platebench.bench.io.atomic import staged_directory, write_json
+from platebench.bench.progress import bar, step_callback
+from platebench.bench.run.calibration import (
+    DEFAULT_TARGET_Z_M,
+    compare_reconstruction,
+    run_calibration,
+)
+from platebench.evaluation.metrics_row import MetricsRow
+from platebench.scenes.render.board_renderer import BoardSpec, calibration_poses
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("calibrate",
+                       help="calibrate cameras (ChArUco) and projector rays (paper IV-A) from renders",
+                       description="Render a ChArUco board in 20 poses for both cameras and a white target plane "
+                                   "at known heights under the projector; calibrate the cameras (OpenCV, distortion "
+                                   "fixed to zero and free), the stereo pair and each projected square's ray (the "
+                                   "paper's structured-light calibration); compare with the true calibration; then "
+                                   "reconstruct the reference sample with the estimated and the true calibration "
+                                   "and score both. Writes DIR/calibration.json (units in the keys) and prints "
+                                   "a table.")
+    p.add_argument("--out", type=Path, required=True, help="output directory to create (holds calibration.json)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
+    add_sample_flags(p)
+    p.add_argument("--target-z-mm", type=float, nargs="+", metavar="Z",
+                   help="heights of the white target plane in MILLIMETRES, world z (default -30 0 30; at least 2)")
+    p.add_argument("--no-reconstruction", action="store_true",
+                   help="skip the reference reconstruction with estimated vs true calibration")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    cfg = config_from_args(args)
+    if args.out.exists() and not args.overwrite:
+        raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
+    if args.target_z_mm is None:
+        target_z = DEFAULT_TARGET_Z_M
+    else:
+        if len(args.target_z_mm) < 2 or len(set(args.target_z_mm)) != len(args.target_z_mm):
+            raise ValueError("--target-z-mm needs at least 2 distinct heights")
+        if not all(math.isfinite(z) and -150.0 <= z <= 150.0 for z in args.target_z_mm):
+            raise ValueError("--target-z-mm values are out of range: allowed -150 to 150 mm")
+        target_z = tuple(z * 1e-3 for z in args.target_z_mm)
+    board = BoardSpec()
+    n_poses = len(calibration_poses(cfg.scene.build().rig, board))
+    steps = 2 * n_poses + 2 * len(target_z) + (0 if args.no_reconstruction else 6 + 3)
+    with bar(steps, "calibrate") as pbar:
+        step = step_callback(pbar)
+        result, renderer = run_calibration(cfg, board, target_z, progress=step)
+        comparison = None
+        if not args.no_reconstruction:
+            comparison = compare_reconstruction(cfg, result, renderer, progress=step)
+        pbar.set_postfix_str("write")
+        out = dict(result.report)
+        out["units"] = ("metres, radians, pixels unless a key names another unit; camera dicts (K, R, t) in the "
+                        "OpenCV convention of calib.json (x_cam = R x_world + t, t in metres)")
+        if comparison is not None:
+            out["reconstruction"] = {name: {"metrics": MetricsRow.from_score(s).columns(), "score": s.to_dict()}
+                                     for name, s in comparison.items()}
+        with staged_directory(args.out, overwrite=args.overwrite) as d:
+            write_json(d / "calibration.json", out)
+        pbar.update(pbar.total - pbar.n)
+    print(format_table(result.report, comparison))
+    print(f"{'written':34s} {args.out / 'calibration.json'}")
+    return 0
+
+
+def format_table(report: dict, comparison: dict | None = None) -> str:
+    """The calibration report (and the reference reconstruction per calibration, ``Score``s) as text."""
+    """The calibration errors (and the reconstruction with estimated vs true calibration) as text."""
+    c = report["config"]
+    lines = [f"calibration at {c['width_px']}x{c['height_px']} px, f {c['f_px']:.1f} px, spp {c['spp']}, "
+             f"{len(c['board_poses'])} board poses, target z {[round(z * 1e3, 1) for z in c['target_z_m']]} mm",
+             f"{'quantity':34s} {'fixed distortion':>22s} {'free distortion':>22s}"]
+
+    def row(name, fmt, get):
+        vals = [fmt.format(get(report, k)) for k in ("fixed_distortion", "free_distortion")]
+        lines.append(f"{name:34s} {vals[0]:>22s} {vals[1]:>22s}")
+
+    for cam in ("left", "right"):
+        row(f"{cam} fx error (px / %)", "{}", lambda r, k: f"{r['cameras'][k][cam]['fx_error_px']:+.3f} / "
+                                                           f"{r['cameras'][k][cam]['fx_error_pct']:+.4f}")
+        row(f"{cam} fy error (px / %)", "{}", lambda r, k: f"{r['cameras'][k][cam]['fy_error_px']:+.3f} / "
+                                                           f"{r['cameras'][k][cam]['fy_error_pct']:+.4f}")
+        row(f"{cam} principal point error (px)", "{}",
+            lambda r, k: f"{r['cameras'][k][cam]['cx_error_px']:+.3f}, {r['cameras'][k][cam]['cy_error_px']:+.3f}")
+        row(f"{cam} reprojection RMS (px)", "{:.4f}", lambda r, k: r["cameras"][k][cam]["reprojection_rms_px"])
+        row(f"{cam} max distortion shift (px)", "{:.3f}",
+            lambda r, k: r["cameras"][k][cam]["max_distortion_displacement_px"])
+    row("stereo f error (px / %)", "{}", lambda r, k: f"{r['stereo'][k]['K_left']['fx_error_px']:+.3f} / "
+                                                      f"{r['stereo'][k]['K_left']['fx_error_pct']:+.4f}")
+    row("stereo pp error L, R (px)", "{}", lambda r, k: f"{r['stereo'][k]['K_left']['principal_point_error_px']:.3f}, "
+                                                        f"{r['stereo'][k]['K_right']['principal_point_error_px']:.3f}")
+    row("baseline error (mm / %)", "{}", lambda r, k: f"{r['stereo'][k]['baseline_error_mm']:+.4f} / "
+                                                      f"{r['stereo'][k]['baseline_error_pct']:+.4f}")
+    row("rotation between cameras (deg)", "{:.4f}", lambda r, k: r["stereo"][k]["rotation_between_cameras_error_deg"])
+    row("f x baseline error (%)", "{:+.4f}", lambda r, k: r["stereo"][k]["f_times_baseline_error_pct"])
+    row("stereo reprojection RMS (px)", "{:.4f}", lambda r, k: r["stereo"][k]["stereo_reprojection_rms_px"])
+    row("left camera centre error (mm)", "{:.4f}", lambda r, k: r["stereo"][k]["left_center_error_norm_mm"])
+    row("left camera rotation error (deg)", "{:.4f}", lambda r, k: r["stereo"][k]["left_rotation_error_deg"])
+    lines.append("projector rays (estimated stereo | true stereo):")
+    for key, label, unit in (("angle_error", "ray angle error", "mrad"),
+                             ("distance_at_plate_plane", "ray distance at z = 0", "mm")):
+        a, b = report["projector_rays"], report["projector_rays_true_stereo"]
+        lines.append(f"  {label + ' RMS / max (' + unit + ')':32s} {a[f'{key}_rms_{unit}']:>10.4f} / "
+                     f"{a[f'{key}_max_{unit}']:.4f} | {b[f'{key}_rms_{unit}']:.4f} / {b[f'{key}_max_{unit}']:.4f}")
+    a = report["projector_rays"]
+    lines.append(f"  {'projector centre error (mm)':32s} {a['projector_center_error_norm_mm']:>10.4f} | "
+                 f"{report['projector_rays_true_stereo']['projector_center_error_norm_mm']:.4f}")
+    lines.append(f"  {'target plane depth error (mm)':32s} "
+                 + ", ".join(f"z {p['known_z_mm']:+.0f}: {p['depth_error_mm']:+.4f}" for p in a["target_planes"]))
+    if comparison is not None:
+        lines.append("reference reconstruction:")
+        lines.append(f"  {'calibration':26s} {'points':>6s} {'depth RMS':>10s} {'depth max':>10s} {'x/y RMS':>15s} "
+                     f"{'boundary':>9s} {'expected':>8s}  (mm)")
+        for name in ("true", "estimated", "true_rig_estimated_rays"):
+            s = comparison[name]
+            if s.points is None:
+                lines.append(f"  {name:26s} no points scored")
+                continue
+            p, m = s.points.stats, MetricsRow.from_score(s)
+            lines.append(f"  {name:26s} {p.count:>6d} {m.depth_rms_mm:>10.4f} {m.depth_max_mm:>10.4f} "
+                         f"{p.x.rms * 1e3:>7.4f}/{p.y.rms * 1e3:<7.4f} {m.boundary_mean_mm:>9.4f} "
+                         f"{s.matching.expected_count_method:>8d}")
+    t = report["timings_s"]
+    lines.append(f"{'time (s)':34s} board {t['board_render_s']:.1f}, target {t['target_render_s']:.1f}, "
+                 f"calibrate {t['calibrate_s']:.1f}")
+    return "\n".join(lines)

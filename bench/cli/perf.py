@@ -1,0 +1,48 @@
+"""``platebench perf``: benchmarks with ratios against baselines measured in the same run."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.io.atomic import write_json
+from platebench.scenes.scene_spec import RenderSettings
+
+TARGETS = ("render", "reconstruct", "sweep")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("perf", help="benchmarks: render and reconstruct timings against same-run baselines",
+                       description="render: a whole sample (4 images + ground truth) vs raw mitsuba.render of the "
+                                   "same images, and kernel reuse on a second sample. reconstruct: the paper's "
+                                   "pipeline vs OpenCV StereoSGBM on the same passive pair. sweep: samples per "
+                                   "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
+                                   "worker. Reference experiment at 1280x960, spp 16 unless told otherwise.")
+    p.add_argument("targets", nargs="*", metavar="TARGET",
+                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all)")
+    p.add_argument("--width", type=int, default=1280)
+    p.add_argument("--height", type=int, default=960)
+    p.add_argument("--spp", type=int, default=16)
+    p.add_argument("--repeat", type=int, default=2, help="timed repetitions (best is reported)")
+    p.add_argument("--json", type=Path, help="also write the figures as JSON here")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from platebench.bench.perf.benchmarks import perf_reconstruct, perf_render  # noqa: PLC0415
+    bad = [t for t in args.targets if t not in TARGETS]
+    if bad:
+        raise ValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS)}")
+    if args.repeat < 1:
+        raise ValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
+    cfg = SampleConfig(scene=SceneParams(width=args.width, height=args.height), render=RenderSettings(spp=args.spp))
+    out = {}
+    for target in args.targets or TARGETS:
+        print(f"== perf {target} ({args.width}x{args.height}, spp {args.spp})")
+        if target == "sweep":
+            from platebench.bench.perf.sweep import perf_sweep  # noqa: PLC0415
+            out[target] = perf_sweep()
+        else:
+            out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
+    if args.json:
+        write_json(args.json, out)
+    return 0

@@ -1,0 +1,88 @@
+"""``platebench sweep``: expand a sweep spec into samples; render, reconstruct and score each.
+
+The spec format is documented in ``bench/sweep_spec.py``, the dataset layout in
+``bench/dataset.py``, the executors in ``bench/executors.py``.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "sweep", help="run a sweep spec: many samples rendered, reconstructed and scored into a dataset",
+        description="Expand SPEC.toml (grids or seeded random draws over plate family, bend, size, material, "
+                    "distance and pose, pattern, noise, resolution, spp, seed; see bench/sweep_spec.py) into "
+                    "samples, validate all of them, then render, reconstruct and score each one. DATASET gets "
+                    "manifest.json, results.csv and results.parquet (one row per sample and method) and "
+                    "samples/<id>/. Runs on a local process pool (--workers) or a Dask cluster (--scheduler). "
+                    "A failing sample is recorded (status failed) and the sweep goes on; --resume continues an "
+                    "interrupted sweep without redoing finished samples.")
+    p.add_argument("spec", type=Path, metavar="SPEC.toml", help="sweep spec (TOML)")
+    p.add_argument("--out", type=Path, required=True, metavar="DATASET", help="dataset directory")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default 1; 0 runs in this process); not with --scheduler")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on this Dask distributed scheduler instead (workers need this package and see "
+                        "DATASET at the same path)")
+    p.add_argument("--methods", help="comma-separated reconstruction methods, overriding the spec's")
+    p.add_argument("--resume", action="store_true", help="continue DATASET: skip samples whose result is done")
+    p.add_argument("--retry-failed", action="store_true", help="with --resume, run failed samples again")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing sweep DATASET")
+    p.add_argument("--dry-run", action="store_true", help="validate and list the samples; render nothing")
+    p.add_argument("--progress", dest="progress", action="store_true", default=None,
+                   help="show the progress bar even when stderr is not a terminal")
+    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    p.set_defaults(run=run)
+
+
+def _methods(text: str | None):
+    if text is None:
+        return None
+    return tuple(m.strip() for m in text.split(",") if m.strip())
+
+
+def run(args) -> int:
+    from platebench.bench.sweep.executors import DaskExecutor, LocalExecutor, run_sweep  # noqa: PLC0415
+    from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
+
+    if args.scheduler and args.workers is not None:
+        raise ValueError("--workers applies to the local pool; with --scheduler the cluster's workers run the sweep")
+    if args.retry_failed and not args.resume:
+        raise ValueError("--retry-failed goes with --resume")
+    if args.resume and args.overwrite:
+        raise ValueError("--resume and --overwrite exclude each other")
+    spec = load_spec(args.spec, _methods(args.methods))  # every sample validated before anything is written
+    if args.dry_run:
+        print(f"spec        {args.spec} ({spec.mode}, {len(spec.samples)} samples, methods {', '.join(spec.methods)})")
+        for s in spec.samples:
+            print(f"  {s.sample_id}  {s.params}")
+        if spec.duplicates:
+            print(f"note: {spec.duplicates} duplicate samples dropped")
+        for k, n in spec.ignored.items():
+            print(f"note: axis {k} does not apply to {n} samples (ignored there)")
+        return 0
+    executor = DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(
+        1 if args.workers is None else args.workers)
+    if args.scheduler:
+        executor.connect()  # fail fast, before the dataset is created
+    summary = run_sweep(spec, args.out, executor, resume=args.resume, overwrite=args.overwrite,
+                        retry_failed=args.retry_failed, progress=args.progress,
+                        log=lambda m: print(m, file=sys.stderr))
+    ex = summary.executor
+    where = f"dask {ex.get('scheduler')} ({ex.get('workers')} workers)" if ex.get("kind") == "dask" else \
+        (f"local, {ex.get('workers')} worker(s)" if ex.get("workers") else "in-process")
+    print(f"sweep       {spec.name}: {summary.total} samples x {len(spec.methods)} method(s), {where}")
+    print(f"done        {summary.ok} ok, {summary.failed} failed"
+          + (f" ({summary.skipped} already done before)" if summary.skipped else ""))
+    if summary.run:
+        print(f"time        {summary.wall_s:.1f} s for {summary.run} samples ({summary.samples_per_min:.1f} samples/min)")
+    failed = [r for r in summary.results.values() if r["status"] == "failed"]
+    for r in sorted(failed, key=lambda r: r.get("index", 0))[:5]:
+        print(f"failed      {r['sample_id']}: {r.get('error')}")
+    if len(failed) > 5:
+        print(f"failed      ... and {len(failed) - 5} more (see results.csv)")
+    out = summary.dataset
+    print(f"written     {out / 'manifest.json'}, {out / 'results.csv'}, {out / 'results.parquet'}")
+    return 0

@@ -1,0 +1,7 @@
+"""Sample configuration (plate, scene, render, sensor) from TOML files and CLI flags, and presets."""
+from platebench.bench.config.presets import *  # noqa: F401,F403
+from platebench.bench.config.presets import __all__ as _presets
+from platebench.bench.config.sample_config import *  # noqa: F401,F403
+from platebench.bench.config.sample_config import __all__ as _config
+
+__all__ = [*_config, *_presets]

@@ -1,0 +1,48 @@
+"""Named presets: camera (resolution + sensor model) and sensor noise levels.
+
+The "1995" camera is a PULNiX TM-540-like CCD (512 x 480, 8-bit, noisy), the paper's; "modern"
+a current machine-vision camera; "ideal" is noise-free. Noise presets set the shot noise
+(electrons at full scale) and the read noise (DN) of the sensor model.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+from platebench.bench.config.sample_config import ConfigError, SampleConfig
+from platebench.scenes.sensor_model import SensorModel
+
+__all__ = ["CAMERA_PRESETS", "NOISE_PRESETS", "with_camera_preset", "noise_preset_of"]
+
+NOISE_PRESETS = {
+    "none": {"full_well_e": 0.0, "read_noise_dn": 0.0},
+    "low": {"full_well_e": 20000.0, "read_noise_dn": 0.5},
+    "medium": {"full_well_e": 5000.0, "read_noise_dn": 1.0},
+    "high": {"full_well_e": 1000.0, "read_noise_dn": 2.0},
+}
+
+
+
+CAMERA_PRESETS = {
+    "ideal": ({}, SensorModel()),
+    "1995": ({"width": 512, "height": 480},
+             SensorModel(bit_depth=8, full_well_e=4000.0, read_noise_dn=1.5, gamma=1.0)),
+    "modern": ({"width": 2048, "height": 1536},
+               SensorModel(bit_depth=16, full_well_e=20000.0, read_noise_dn=3.0, gamma=1.0)),
+}
+
+
+def with_camera_preset(cfg: SampleConfig, name: str) -> SampleConfig:
+    """``cfg`` with a camera preset's resolution (field of view kept) and sensor model."""
+    if name not in CAMERA_PRESETS:
+        raise ConfigError(f"--camera = {name!r} is not known: choose one of {', '.join(CAMERA_PRESETS)}")
+    scene_over, sensor = CAMERA_PRESETS[name]
+    return replace(cfg, scene=replace(cfg.scene, **scene_over), sensor=sensor)
+
+
+
+def noise_preset_of(sensor: dict) -> str:
+    """The name of the noise preset a sensor dict matches, or "custom"."""
+    for name, preset in NOISE_PRESETS.items():
+        if all(float(sensor.get(k, 0.0)) == v for k, v in preset.items()):
+            return name
+    return "custom"

@@ -1,0 +1,236 @@
+"""Sample configuration: a plate and a scene from a TOML file and/or CLI flags.
+
+TOML layout (all SI: metres, radians; every key optional, defaults = the paper's
+reference experiment)::
+
+    [plate]            # PlateSpec.to_dict() format, e.g.
+    length_m = 0.1165
+    width_m = 0.0735
+    thickness_m = 0.0
+    [plate.deformation]
+    family = "cylinder"
+    angle_rad = 0.17453
+    direction = "up"
+
+    [scene]
+    distance_m = 0.40
+    width = 1280
+    height = 960
+    f_px = 2000.0
+    baseline_m = 0.10
+    projector_kind = "pinhole"   # or "spot"
+    ambient = 0.0
+    [scene.material]             # kind = "diffuse" | "roughconductor", albedo, metal, alpha
+    [scene.pattern]              # rows, cols, square_px, gap_x_px, gap_y_px
+
+    [render]
+    spp = 16
+    seed = 0
+
+Unknown keys are refused with the key named.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from platebench.plates import CylindricalBend, PlateSpec, reference_spec
+from platebench.scenes.pattern import square_grid
+from platebench.scenes.scene_spec import (
+    REFERENCE,
+    Lighting,
+    Material,
+    RenderSettings,
+    SceneSpec,
+    reference_scene,
+)
+from platebench.scenes.sensor_model import SensorModel
+
+__all__ = ["ConfigError", "SceneParams", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid", "with_overrides"]
+
+
+class ConfigError(ValueError):
+    """A configuration key or value is not allowed."""
+
+
+_SCENE_KEYS = {"distance_m", "width", "height", "f_px", "baseline_m", "projector_kind", "ambient",
+               "material", "pattern", "aperture_radius_m", "focus_distance_m"}
+_PATTERN_KEYS = {"rows", "cols", "square_px", "gap_x_px", "gap_y_px"}
+_MATERIAL_KEYS = {"kind", "albedo", "metal", "alpha"}
+_RENDER_KEYS = {"spp", "seed", "variant"}
+_SENSOR_KEYS = {"bit_depth", "radiance_full_scale", "gamma", "full_well_e", "read_noise_dn"}
+_TOP_KEYS = {"plate", "scene", "render", "sensor"}
+
+
+def _check_keys(where: str, d: dict, allowed: set) -> None:
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise ConfigError(f"unknown key {where}.{unknown[0]}: allowed keys are {', '.join(sorted(allowed))}")
+
+
+@dataclass(frozen=True)
+class SceneParams:
+    """The scalar knobs of a scene (what sample.json records); ``build()`` makes the SceneSpec."""
+
+    distance_m: float = REFERENCE["distance_m"]
+    width: int = REFERENCE["width"]
+    height: int = REFERENCE["height"]
+    f_px: float | None = None  # None: 2000 px scaled with the width (same field of view)
+    baseline_m: float = REFERENCE["baseline_m"]
+    projector_kind: str = "pinhole"
+    ambient: float = 0.0
+    material: dict = field(default_factory=dict)
+    pattern: dict = field(default_factory=dict)
+    aperture_radius_m: float = 0.0  # thin-lens aperture radius; 0: pinhole (no defocus)
+    focus_distance_m: float | None = None  # None: focused on the plate centre
+
+    def __post_init__(self):
+        checks = (("distance_m", 0.05, 5.0), ("width", 16, 8192), ("height", 16, 8192),
+                  ("f_px", 10.0, 1e5), ("baseline_m", 1e-3, 2.0), ("ambient", 0.0, 1.0))
+        for name, lo, hi in checks:
+            v = getattr(self, name)
+            if name == "f_px" and v is None:
+                continue
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or not (lo <= v <= hi):
+                raise ConfigError(f"scene.{name} = {v!r} is out of range: allowed {lo} to {hi}")
+        if self.projector_kind not in ("pinhole", "spot"):
+            raise ConfigError(f"scene.projector_kind = {self.projector_kind!r}: allowed 'pinhole' or 'spot'")
+        _check_keys("scene.material", self.material, _MATERIAL_KEYS)
+        _check_keys("scene.pattern", self.pattern, _PATTERN_KEYS)
+
+    def build(self) -> SceneSpec:
+        try:
+            material = Material(**self.material)
+            pattern = None
+            if self.pattern:
+                pattern = square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **self.pattern)
+            scene = reference_scene(distance_m=self.distance_m, width=int(self.width), height=int(self.height),
+                                    f_px=self.focal_px, baseline_m=self.baseline_m,
+                                    projector_kind=self.projector_kind, pattern=pattern, material=material,
+                                    lighting=Lighting(ambient=self.ambient))
+            return replace(scene, aperture_radius_m=self.aperture_radius_m, focus_distance_m=self.focus_distance_m)
+        except ValueError as e:
+            raise ConfigError(str(e)) from None
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length in pixels; by default the reference 2000 px scaled with the image width."""
+        return float(self.f_px) if self.f_px is not None else REFERENCE["f_px"] * self.width / REFERENCE["width"]
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("distance_m", "width", "height", "f_px", "baseline_m",
+                                              "projector_kind", "ambient", "material", "pattern",
+                                              "aperture_radius_m", "focus_distance_m")}
+
+
+@dataclass(frozen=True)
+class SampleConfig:
+    """Everything that defines one sample."""
+
+    plate: PlateSpec = field(default_factory=reference_spec)
+    scene: SceneParams = field(default_factory=SceneParams)
+    render: RenderSettings = field(default_factory=RenderSettings)
+    sensor: SensorModel = field(default_factory=SensorModel)
+    variant: str | None = None
+
+    def to_dict(self) -> dict:
+        return {"plate": self.plate.to_dict(), "scene": self.scene.to_dict(),
+                "render": {"spp": self.render.spp, "seed": self.render.seed, "variant": self.variant},
+                "sensor": self.sensor.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SampleConfig":
+        _check_keys("config", d, _TOP_KEYS)
+        try:
+            plate = PlateSpec.from_dict(d["plate"]) if "plate" in d else reference_spec()
+            scene_d = dict(d.get("scene", {}))
+            _check_keys("scene", scene_d, _SCENE_KEYS)
+            scene = SceneParams(**scene_d)
+            render_d = dict(d.get("render", {}))
+            _check_keys("render", render_d, _RENDER_KEYS)
+            variant = render_d.pop("variant", None)
+            render = RenderSettings(**render_d)
+            sensor_d = dict(d.get("sensor", {}))
+            _check_keys("sensor", sensor_d, _SENSOR_KEYS)
+            sensor = SensorModel(**sensor_d)
+        except ConfigError:
+            raise
+        except (ValueError, TypeError) as e:
+            raise ConfigError(str(e).splitlines()[0]) from None
+        return cls(plate, scene, render, sensor, variant)
+
+
+# Camera presets: resolution and what the sensor gives. "1995" is a PULNiX TM-540-like CCD
+# (512 x 480, 8-bit, noisy); "modern" a current machine-vision camera; "ideal" is noise-free.
+
+
+
+
+def load_config(path: Path | None) -> SampleConfig:
+    """Read a TOML sample configuration (None: the reference experiment)."""
+    if path is None:
+        return SampleConfig()
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: configuration file is missing")
+    try:
+        d = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: invalid TOML ({e})") from None
+    return SampleConfig.from_dict(d)
+
+
+def parse_grid(text: str) -> dict:
+    """'ROWSxCOLS@SQUARE_PX' (e.g. '6x12@12') -> square_grid keywords: ROWS arrays of COLS squares
+    of SQUARE_PX projector pixels, x gap SQUARE_PX/2, row gap 4 x SQUARE_PX (the Fig. 6 spacing)."""
+    import re  # noqa: PLC0415
+    m = re.fullmatch(r"\s*(\d+)\s*x\s*(\d+)\s*@\s*(\d+)\s*", text or "")
+    if not m:
+        raise ConfigError(f"--grid = {text!r} is not ROWSxCOLS@SQUARE_PX (e.g. 4x4@40, the paper's; 6x12@12)")
+    rows, cols, sq = (int(g) for g in m.groups())
+    for name, v, lo, hi in (("ROWS", rows, 1, 40), ("COLS", cols, 1, 80), ("SQUARE_PX", sq, 4, 200)):
+        if not lo <= v <= hi:
+            raise ConfigError(f"--grid {name} = {v} is out of range: allowed {lo} to {hi}")
+    return {"rows": rows, "cols": cols, "square_px": sq, "gap_x_px": max(1, sq // 2), "gap_y_px": 4 * sq}
+
+
+def with_overrides(cfg: SampleConfig, bend_deg=None, width=None, height=None, spp=None, seed=None,
+                   variant=None, distance_m=None, bend_direction=None, bend_axis_deg=None,
+                   grid=None) -> SampleConfig:
+    """Apply CLI flags on top of a configuration (angles in degrees, as the flags say).
+
+    ``bend_direction`` 'down' (convex) or 'up' (concave); ``bend_axis_deg`` the bend axis's angle
+    from the plate's width direction, 0 to 180 (0: bent along its length; 90: across its width);
+    ``grid`` 'ROWSxCOLS@SQUARE_PX' (see ``parse_grid``)."""
+    plate = cfg.plate
+    if bend_deg is not None or bend_direction is not None or bend_axis_deg is not None:
+        if bend_deg is not None and (not math.isfinite(bend_deg) or not (0.0 <= bend_deg <= 350.0)):
+            raise ConfigError(f"--bend-deg = {bend_deg} is out of range: allowed 0 to 350 degrees")
+        if bend_direction is not None and bend_direction not in ("up", "down"):
+            raise ConfigError(f"--bend-direction = {bend_direction!r}: allowed 'down' (convex) or 'up' (concave)")
+        if bend_axis_deg is not None and (not math.isfinite(bend_axis_deg) or not (0.0 <= bend_axis_deg < 180.0)):
+            raise ConfigError(f"--bend-axis-deg = {bend_axis_deg} is out of range: allowed 0 to 180 (exclusive) degrees")
+        dfm = plate.deformation
+        if not isinstance(dfm, CylindricalBend):
+            dfm = CylindricalBend(angle_rad=math.radians(10.0))
+        changes = {k: v for k, v in (("angle_rad", None if bend_deg is None else math.radians(bend_deg)),
+                                      ("direction", bend_direction),
+                                      ("axis_rad", None if bend_axis_deg is None else math.radians(bend_axis_deg)))
+                   if v is not None}
+        try:
+            plate = replace(plate, deformation=replace(dfm, **changes))
+        except ValueError as e:
+            raise ConfigError(str(e)) from None
+    scene_over = {k: v for k, v in (("width", width), ("height", height), ("distance_m", distance_m))
+                  if v is not None}
+    if grid is not None:
+        scene_over["pattern"] = parse_grid(grid)
+    scene = replace(cfg.scene, **scene_over) if scene_over else cfg.scene
+    try:
+        render = RenderSettings(spp=spp if spp is not None else cfg.render.spp,
+                                seed=seed if seed is not None else cfg.render.seed)
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
+    return SampleConfig(plate, scene, render, cfg.sensor, variant or cfg.variant)

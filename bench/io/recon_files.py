@@ -1,0 +1,129 @@
+"""Reconstruction directory: write (atomically) and read back.
+
+    RECON/points.ply    triangulated square centres (world, metres)
+    RECON/points.csv    pattern_row, pattern_col, feature_id, u_left, v_left, u_right, v_right, x_m, y_m, z_m
+    RECON/boundary.npy  (N,3) reconstructed closed boundary (world, metres)
+    RECON/surface.ply   interpolated surface mesh (world, metres)
+    RECON/recon.json    counts, expected count, false-boundary flags, planes, Fig. 6 checks,
+                        timings per step, thresholds, and the sample's image checksums
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from platebench.bench.io.atomic import (
+    staged_directory,
+    write_bytes,
+    write_json,
+    write_text,
+)
+from platebench.bench.io.images import DatasetError
+from platebench.reconstruction.paper.pipeline import Reconstruction
+
+CSV_COLUMNS = ("pattern_row", "pattern_col", "feature_id", "u_left", "v_left", "u_right", "v_right",
+               "x_m", "y_m", "z_m")
+
+
+def image_checksums(images: dict) -> dict:
+    return {n: hashlib.sha256(np.ascontiguousarray(img).tobytes()).hexdigest() for n, img in images.items()}
+
+
+def _plane_dict(p) -> dict:
+    return {"point_m": p.point.tolist(), "normal": p.normal.tolist(), "offset_m": float(p.offset),
+            "objective": float(p.objective_m2), "iterations": int(p.iterations), "method": p.method}
+
+
+def recon_summary(r: Reconstruction, sample_dir: Path, checksums: dict, method: str = "paper") -> dict:
+    return {
+        "method": method,
+        "sample_dir": str(Path(sample_dir).resolve()),
+        "input_checksums": checksums,
+        "n_points": int(len(r.points)),
+        "false_boundary": r.false_boundary.to_dict(),
+        "boundary_plane": _plane_dict(r.boundary_plane),
+        "least_squares_plane": _plane_dict(r.least_squares_plane),
+        "fig6": {k: v.to_dict() for k, v in r.fig6.items()},
+        "unmatched": list(r.unmatched),
+        "corner_row_mismatch_px": r.corner_row_mismatch_px.tolist(),
+        "thresholds": r.thresholds,
+        "timings_s": r.timings_s,
+        "n_boundary_points": int(len(r.boundary)),
+    }
+
+
+def points_csv(r: Reconstruction) -> str:
+    buf = io.StringIO()
+    buf.write(",".join(CSV_COLUMNS) + "\n")
+    for k in range(len(r.points)):
+        vals = [r.pattern_row[k], r.pattern_col[k], r.feature_id[k], *r.uv_left[k], *r.uv_right[k], *r.points[k]]
+        buf.write(",".join(str(int(v)) if i < 3 else f"{v:.9g}" for i, v in enumerate(vals)) + "\n")
+    return buf.getvalue()
+
+
+def write_reconstruction(out: Path, r: Reconstruction, sample_dir: Path, checksums: dict,
+                         overwrite: bool = False) -> Path:
+    with staged_directory(Path(out), overwrite=overwrite) as d:
+        cloud = trimesh.PointCloud(r.points) if len(r.points) else None
+        if cloud is not None:
+            write_bytes(d / "points.ply", cloud.export(file_type="ply"))
+        write_text(d / "points.csv", points_csv(r))
+        np.save(d / "boundary.npy", r.boundary)
+        surf = trimesh.Trimesh(r.surface_vertices, r.surface_faces, process=False)
+        write_bytes(d / "surface.ply", surf.export(file_type="ply", encoding="binary"))
+        write_json(d / "recon.json", recon_summary(r, sample_dir, checksums))
+    return Path(out)
+
+
+@dataclass(frozen=True)
+class ReconFiles:
+    """A reconstruction directory read back (world frame, metres)."""
+
+    points: np.ndarray
+    feature_id: np.ndarray
+    uv_left: np.ndarray
+    uv_right: np.ndarray
+    boundary: np.ndarray
+    surface: trimesh.Trimesh | None
+    meta: dict
+
+
+def load_reconstruction(recon_dir: Path) -> ReconFiles:
+    d = Path(recon_dir)
+    if not d.is_dir():
+        raise DatasetError(f"{d}: reconstruction directory is missing")
+    meta_path = d / "recon.json"
+    if not meta_path.is_file():
+        raise DatasetError(f"{meta_path}: file is missing")
+    try:
+        meta = json.loads(meta_path.read_text())
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{meta_path}: invalid JSON ({e.msg})") from None
+    csv = d / "points.csv"
+    if not csv.is_file():
+        raise DatasetError(f"{csv}: file is missing")
+    rows = [line.split(",") for line in csv.read_text().splitlines()[1:] if line.strip()]
+    try:
+        table = np.array(rows, dtype=float).reshape(-1, len(CSV_COLUMNS))
+    except ValueError:
+        raise DatasetError(f"{csv}: not a {len(CSV_COLUMNS)}-column numeric table") from None
+    if not np.all(np.isfinite(table)):
+        bad = int(np.argwhere(~np.isfinite(table))[0, 0]) + 2
+        raise DatasetError(f"{csv}: line {bad} holds NaN or inf: a reconstruction must not contain them")
+    bpath = d / "boundary.npy"
+    if not bpath.is_file():
+        raise DatasetError(f"{bpath}: file is missing")
+    boundary = np.load(bpath)
+    if boundary.ndim != 2 or boundary.shape[1] != 3 or not np.all(np.isfinite(boundary)):
+        raise DatasetError(f"{bpath}: must be a finite (N,3) array, got shape {boundary.shape}")
+    spath = d / "surface.ply"
+    surface = trimesh.load(spath, process=False, force="mesh") if spath.is_file() else None
+    if surface is not None and not np.all(np.isfinite(surface.vertices)):
+        raise DatasetError(f"{spath}: surface vertices hold NaN or inf")
+    return ReconFiles(table[:, 7:10], table[:, 2].astype(int), table[:, 3:5], table[:, 5:7], boundary, surface, meta)

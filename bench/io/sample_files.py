@@ -1,0 +1,222 @@
+"""One dataset sample on disk: write it (layout version 1) and read it back.
+
+Layout (all world frame, metres; see README "Dataset sample layout")::
+
+    SAMPLE/sample.json      every parameter, seed, package versions, layout version, timings
+    SAMPLE/calib.json       left/right: K, R, t, width, height; baseline_m; projector: K, R, t, width, height, kind
+    SAMPLE/calib.txt        Middlebury-style calibration of the left/right pair
+    SAMPLE/pattern.png      the projected pattern; pattern.json its features
+    SAMPLE/plate.ply        ground-truth mesh
+    SAMPLE/boundary.npy     (N,3) closed true boundary
+    SAMPLE/images/{left,right}_{passive,active}.png (camera DN) and .exr (linear radiance)
+    SAMPLE/gt/{left,right}_depth.exr, _mask.png, _points.exr, _normal.exr, _proj.exr, _feature.png
+    SAMPLE/gt/disp0GT.pfm   left disparity, inf where unknown
+    SAMPLE/gt/visibility.json
+
+The whole directory is staged and renamed into place: a sample exists complete or
+not at all. Reconstruction reads only ``images/``, ``calib.json`` and ``pattern.json``
+(see ``load_inputs``); ground truth is read by evaluation only.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from platebench.bench.io.atomic import (
+    staged_directory,
+    write_bytes,
+    write_json,
+    write_text,
+)
+from platebench.bench.io.images import (
+    DatasetError,
+    read_exr,
+    read_pfm,
+    read_png,
+    write_exr,
+    write_pfm,
+    write_png,
+)
+from platebench.bench.io.versions import package_versions
+from platebench.scenes.camera import Camera
+from platebench.scenes.naming import CAMERAS, IMAGE_NAMES
+from platebench.scenes.pattern import Feature, Pattern
+from platebench.scenes.projector import Projector
+from platebench.scenes.rig import StereoRig
+
+LAYOUT_VERSION = 1
+
+
+def calib_dict(rig: StereoRig, projector: Projector) -> dict:
+    return {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
+            "projector": projector.to_dict(), "frames": "OpenCV camera frames, x_cam = R x_world + t; "
+            "world right-handed +Z up; metres; pixel centres at integers"}
+
+
+def middlebury_calib(rig: StereoRig, max_disp: float) -> str:
+    def mat(K):
+        return "[" + "; ".join(" ".join(f"{v:.10g}" for v in row) for row in K) + "]"
+    return (f"cam0={mat(rig.left.K)}\ncam1={mat(rig.right.K)}\ndoffs=0\n"
+            f"baseline={rig.baseline_m * 1000:.10g}\nwidth={rig.left.width}\nheight={rig.left.height}\n"
+            f"ndisp={int(np.ceil(max_disp))}\nisint=0\nvmin=0\nvmax={int(np.ceil(max_disp))}\n")
+
+
+def _mesh_ply_bytes(mesh: trimesh.Trimesh) -> bytes:
+    return mesh.export(file_type="ply", encoding="binary")
+
+
+def write_sample(out: Path, s, overwrite: bool = False) -> Path:
+    """Write a rendered sample (``bench.run.render.RenderedSample``) atomically; returns the sample
+    directory."""
+    out = Path(out)
+    rig = s.scene.rig
+    with staged_directory(out, overwrite=overwrite) as d:
+        (d / "images").mkdir()
+        (d / "gt").mkdir()
+        for name in IMAGE_NAMES:
+            write_png(d / "images" / f"{name}.png", s.digital[name])
+            write_exr(d / "images" / f"{name}.exr", s.radiance[name])
+        pattern = s.scene.projector.pattern
+        write_png(d / "pattern.png", np.rint(pattern.image * 255).astype(np.uint8))
+        write_json(d / "pattern.json", pattern.features_json())
+        write_json(d / "calib.json", calib_dict(rig, s.scene.projector))
+        write_bytes(d / "plate.ply", _mesh_ply_bytes(s.plate.mesh))
+        np.save(d / "boundary.npy", np.asarray(s.plate.boundary, np.float64))
+        max_disp = 1.0
+        for cam in CAMERAS:
+            g = s.gt[cam]
+            write_exr(d / "gt" / f"{cam}_depth.exr", g.depth)
+            write_png(d / "gt" / f"{cam}_mask.png", (g.mask * 255).astype(np.uint8))
+            write_exr(d / "gt" / f"{cam}_points.exr", g.points)
+            write_exr(d / "gt" / f"{cam}_normal.exr", g.normals)
+            write_exr(d / "gt" / f"{cam}_proj.exr", g.proj_uv)
+            write_png(d / "gt" / f"{cam}_feature.png", (g.feature + 1).astype(np.uint16))
+        disp = np.where(s.gt["left"].mask, rig.disparity(s.gt["left"].depth64), np.inf).astype(np.float32)
+        if np.isfinite(disp).any():
+            max_disp = float(np.nanmax(np.where(np.isfinite(disp), disp, np.nan))) * 1.1
+        write_pfm(d / "gt" / "disp0GT.pfm", disp)
+        write_text(d / "calib.txt", middlebury_calib(rig, max_disp))
+        write_json(d / "gt" / "visibility.json", {c: v.to_dict() for c, v in s.visibility.items()})
+        meta = {"layout_version": LAYOUT_VERSION, "config": s.config.to_dict(), "variant": s.variant,
+                "packages": package_versions(), "timings_s": s.timings_s,
+                "false_boundary_gt": any(v.false_boundary for v in s.visibility.values()),
+                "images": {n: hashlib.sha256(s.digital[n].tobytes()).hexdigest() for n in IMAGE_NAMES}}
+        write_json(d / "sample.json", meta)
+    return out
+
+
+# -- reading ------------------------------------------------------------------
+@dataclass(frozen=True)
+class Calibration:
+    """What calib.json holds: the stereo rig and the projector model (no pattern image)."""
+
+    rig: StereoRig
+    projector_camera: Camera
+    projector_kind: str
+    projector_cutoff_rad: float | None
+
+
+@dataclass(frozen=True)
+class ReconstructionInputs:
+    """Everything the method under test may see: images, calibration, the pattern description."""
+
+    images: dict  # name -> (H,W) uint8/uint16
+    calibration: Calibration
+    pattern: Pattern
+    sample_dir: Path
+
+
+def _read_json(path: Path) -> dict:
+    if not path.is_file():
+        raise DatasetError(f"{path}: file is missing")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path}: invalid JSON ({e.msg} at line {e.lineno})") from None
+
+
+def load_calibration(sample_dir: Path) -> Calibration:
+    path = Path(sample_dir) / "calib.json"
+    d = _read_json(path)
+    try:
+        left, right = Camera.from_dict(d["left"]), Camera.from_dict(d["right"])
+        rig = StereoRig(left, right, float(d["baseline_m"]))
+        p = d["projector"]
+        return Calibration(rig, Camera.from_dict(p), p.get("kind", "pinhole"), p.get("cutoff_rad"))
+    except (KeyError, ValueError, TypeError) as e:
+        raise DatasetError(f"{path}: bad calibration ({e})") from None
+
+
+def load_pattern(sample_dir: Path) -> Pattern:
+    sample_dir = Path(sample_dir)
+    d = _read_json(sample_dir / "pattern.json")
+    img = read_png(sample_dir / "pattern.png").astype(np.float32) / 255.0
+    feats = tuple(Feature.from_dict(f) for f in d["features"])
+    fmap = np.full(img.shape, -1, np.int32)
+    for f in feats:  # rebuild ownership from the corners (square features)
+        (u0, v0), (u1, v1) = f.corners[0], f.corners[2]
+        fmap[int(np.ceil(v0)):int(np.floor(v1)) + 1, int(np.ceil(u0)):int(np.floor(u1)) + 1] = f.id
+    return Pattern(img, feats, fmap, d.get("description", {}))
+
+
+def load_inputs(sample_dir: Path) -> ReconstructionInputs:
+    """Read what reconstruction may see; never opens gt/, plate.ply, boundary.npy or sample.json."""
+    sample_dir = Path(sample_dir)
+    if not sample_dir.is_dir():
+        raise DatasetError(f"{sample_dir}: sample directory is missing")
+    calib = load_calibration(sample_dir)
+    images = {}
+    for name in IMAGE_NAMES:
+        img = read_png(sample_dir / "images" / f"{name}.png")
+        cam = calib.rig.left
+        if img.shape != (cam.height, cam.width):
+            raise DatasetError(f"{sample_dir / 'images' / (name + '.png')}: size {img.shape[1]}x{img.shape[0]} "
+                               f"differs from calib.json's {cam.width}x{cam.height}")
+        images[name] = img
+    return ReconstructionInputs(images, calib, load_pattern(sample_dir), sample_dir)
+
+
+@dataclass(frozen=True)
+class GroundTruthFiles:
+    """Ground truth of a written sample, for evaluation."""
+
+    mesh: trimesh.Trimesh
+    boundary: np.ndarray
+    depth: dict
+    mask: dict
+    points: dict
+    feature: dict
+    proj_uv: dict
+    disparity: np.ndarray
+    visibility: dict
+    meta: dict
+
+
+def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:
+    d = Path(sample_dir)
+    meta = _read_json(d / "sample.json")
+    if meta.get("layout_version") != LAYOUT_VERSION:
+        raise DatasetError(f"{d / 'sample.json'}: layout_version {meta.get('layout_version')} "
+                           f"is not supported (expected {LAYOUT_VERSION})")
+    ply = d / "plate.ply"
+    if not ply.is_file():
+        raise DatasetError(f"{ply}: file is missing")
+    mesh = trimesh.load(ply, process=False, force="mesh")
+    bpath = d / "boundary.npy"
+    if not bpath.is_file():
+        raise DatasetError(f"{bpath}: file is missing")
+    g = d / "gt"
+    return GroundTruthFiles(
+        mesh, np.load(bpath),
+        {c: read_exr(g / f"{c}_depth.exr") for c in CAMERAS},
+        {c: read_png(g / f"{c}_mask.png") > 0 for c in CAMERAS},
+        {c: read_exr(g / f"{c}_points.exr") for c in CAMERAS},
+        {c: read_png(g / f"{c}_feature.png").astype(np.int32) - 1 for c in CAMERAS},
+        {c: read_exr(g / f"{c}_proj.exr") for c in CAMERAS},
+        read_pfm(g / "disp0GT.pfm"),
+        _read_json(g / "visibility.json"), meta)

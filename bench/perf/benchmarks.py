@@ -1,0 +1,106 @@
+"""Benchmarks: figures and ratios against a baseline measured in the same run.
+
+* ``render``: a whole sample (4 images + all ground truth) against raw ``mitsuba.render``
+  of the same 4 images (target ratio <= 1.3); then a second sample with another bend
+  and camera distance through the same renderer, which must reuse the compiled kernels
+  (kernel compiles counted with drjit's kernel history).
+* ``reconstruct``: the paper's pipeline on the reference sample against one OpenCV
+  StereoSGBM call on the same passive pair (target ratio <= 0.5).
+
+Timings are wall-clock seconds, best of ``repeat`` runs after one warm-up.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.run.render import render_sample
+from platebench.plates import CylindricalBend
+from platebench.scenes.naming import IMAGE_NAMES
+from platebench.scenes.render.runtime import KernelCounter
+
+
+def _best(fn, repeat: int) -> float:
+    best = np.inf
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:
+    """Whole sample vs raw renders; then a second sample reusing kernels."""
+    sample, renderer = render_sample(cfg)  # warm-up: compiles (or loads) kernels
+    mi = renderer.mi
+
+    def raw():
+        for name in IMAGE_NAMES:
+            cam, light = name.split("_")
+            renderer.set_lighting(light)  # the renderer's own parameter switch, then Mitsuba only
+            img = mi.render(renderer.scene, sensor=("left", "right").index(cam), spp=cfg.render.spp,
+                            seed=cfg.render.seed)
+            np.asarray(img)  # the pixels in host memory, as any caller needs them
+
+    t_raw = _best(raw, repeat)
+    t_sample = _best(lambda: render_sample(cfg, renderer), repeat)
+    other = replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(np.radians(40.0), "up")),
+                    scene=replace(cfg.scene, distance_m=cfg.scene.distance_m * 1.25))
+    builds_before = renderer.scene_builds
+    with KernelCounter() as kc:
+        t0 = time.perf_counter()
+        render_sample(other, renderer)
+        t_second = time.perf_counter() - t0
+    out = {"variant": renderer.variant, "image_size_px": [cfg.scene.width, cfg.scene.height], "spp": cfg.render.spp,
+           "raw_mitsuba_render_4_images_s": t_raw, "whole_sample_s": t_sample,
+           "ratio_sample_over_raw": t_sample / t_raw, "ratio_target": 1.3,
+           "second_sample_s": t_second, "second_sample_kernel_compiles": kc.compiled,
+           "second_sample_kernel_launches": kc.launches, "second_sample_disk_cache_loads": kc.from_disk,
+           "second_sample_scene_rebuilds": renderer.scene_builds - builds_before,
+           "ground_truth_s": sample.timings_s["ground_truth_s"]}
+    log(f"raw mitsuba.render, 4 images      {t_raw:7.2f} s")
+    log(f"whole sample (images + GT)        {t_sample:7.2f} s   ratio {t_sample / t_raw:.2f} (target <= 1.3)")
+    log(f"second sample (40 deg, 0.5 m)     {t_second:7.2f} s   kernel compiles {kc.compiled} of "
+        f"{kc.launches} launches, scene rebuilds {out['second_sample_scene_rebuilds']}")
+    return out
+
+
+def sgbm_disparity(left: np.ndarray, right: np.ndarray, num_disp: int, block: int = 5) -> np.ndarray:
+    """One OpenCV StereoSGBM call (P1/P2 as OpenCV recommends) -> float disparity (NaN invalid)."""
+    sgbm = cv2.StereoSGBM_create(minDisparity=0, numDisparities=num_disp, blockSize=block,
+                                 P1=8 * block * block, P2=32 * block * block)
+    d = sgbm.compute(left, right).astype(np.float32) / 16.0
+    d[d <= 0] = np.nan
+    return d
+
+
+def perf_reconstruct(cfg: SampleConfig = SampleConfig(), repeat: int = 3, log=print) -> dict:
+    """The paper's pipeline vs one SGBM call on the same passive pair."""
+    from platebench.reconstruction.paper.pipeline import (  # noqa: PLC0415
+        projector_feature_rays,
+        reconstruct,
+    )
+    sample, _ = render_sample(cfg)
+    rig, proj = sample.scene.rig, sample.scene.projector
+    rays = projector_feature_rays(proj.camera, proj.pattern)
+    run_recon = lambda: reconstruct(sample.digital, rig, rays, proj.pattern)  # noqa: E731
+    run_recon()
+    t_recon = _best(run_recon, repeat)
+    z = sample.gt["left"].depth64[sample.gt["left"].mask]
+    num_disp = int(np.ceil(rig.disparity(z.min() * 0.9) / 16.0)) * 16
+    left, right = sample.digital["left_passive"], sample.digital["right_passive"]
+    sgbm_disparity(left, right, num_disp)
+    t_sgbm = _best(lambda: sgbm_disparity(left, right, num_disp), repeat)
+    steps = run_recon().timings_s
+    out = {"reconstruct_s": t_recon, "sgbm_s": t_sgbm, "sgbm_num_disparities": num_disp,
+           "ratio_reconstruct_over_sgbm": t_recon / t_sgbm, "ratio_target": 0.5,
+           "steps_s": {k: v for k, v in steps.items() if k != "total_s"}}
+    log(f"reconstruct (paper pipeline)      {t_recon * 1e3:7.1f} ms")
+    log(f"OpenCV StereoSGBM ({num_disp} disp)     {t_sgbm * 1e3:7.1f} ms   ratio {t_recon / t_sgbm:.2f} (target <= 0.5)")
+    for k, v in sorted(out["steps_s"].items(), key=lambda kv: -kv[1]):
+        log(f"  {k:30s} {v * 1e3:7.1f} ms")
+    return out

@@ -1,0 +1,238 @@
+"""Peer methods side by side on one written sample (``platebench compare``).
+
+Re-creates the sample's plate and scene from ``SAMPLE_DIR/sample.json`` (its calibration
+must agree with ``calib.json``), renders the projector sequences the chosen methods need
+with one renderer (``bench.run.pattern_sequences``), runs each method
+(``reconstruction.peers``: pure functions of images and calibration) and scores it against
+the sample's ground truth with ``evaluation.dense``:
+
+* depth: |Z_est - Z_gt| (left camera z-depth, mm) over plate pixels with an estimate:
+  median, RMS, p95, max, signed mean; coverage = those pixels / plate pixels (gt mask);
+  estimates off the plate are counted separately (the disparity metrics ignore them);
+* disparity: Middlebury v3 and ETH3D two-view metrics against ``gt/disp0GT.pfm``.
+
+The "paper" row is read, not computed: a directory holding ``points.csv`` (world x, y, z in
+metres) and optionally ``recon.json`` from ``platebench reconstruct``; its points are scored
+by depth error at their left-image projection and by distance to the true plate surface.
+Without such files the row is left out, with a note.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.io.images import DatasetError
+from platebench.bench.io.points import read_points_csv
+from platebench.bench.io.sample_files import load_ground_truth, load_inputs
+from platebench.bench.run.pattern_sequences import render_pattern_sequence
+from platebench.evaluation.dense import score_dense, score_points_depth
+from platebench.plates import build_plate
+from platebench.reconstruction.peers import graycode, phase_shift, sgbm
+from platebench.scenes.naming import image_seed
+from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.scene_spec import RenderSettings
+
+__all__ = ["METHODS", "ALL_METHODS", "DESCRIPTIONS", "MethodRow", "Comparison", "compare_sample",
+           "find_paper_reconstruction", "comparison_json"]
+
+
+METHODS = ("paper", "graycode", "graycode-subpx", "phase", "sgbm")
+
+
+DESCRIPTIONS = {
+    "paper": "paper's projected squares (read from platebench reconstruct output)",
+    "graycode": "Gray code, OpenCV GrayCodePattern.decode",
+    "graycode-subpx": "Gray code, sub-pixel column matching along rows (numpy)",
+    "phase": "4-step phase shifting + Gray-code unwrapping (numpy)",
+    "phase-opencv": "3-step phase shifting, OpenCV SinusoidalPattern wrapped phase + Gray-code unwrapping",
+    "sgbm": "OpenCV StereoSGBM on the passive pair",
+}
+
+
+ALL_METHODS = METHODS + ("phase-opencv",)
+
+
+def _f(x) -> float | None:
+    """JSON-safe float: None for NaN/inf."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
+    """(points (N,3), recon.json dict, directory) of a ``platebench reconstruct`` output, or None."""
+    cands = [Path(recon_dir)] if recon_dir is not None else [Path(sample_dir).resolve().parent,
+                                                              Path(sample_dir) / "recon"]
+    for d in cands:
+        pts_path = d / "points.csv"
+        if pts_path.is_file():
+            meta = {}
+            if (d / "recon.json").is_file():
+                try:
+                    meta = json.loads((d / "recon.json").read_text())
+                except json.JSONDecodeError as e:
+                    raise DatasetError(f"{d / 'recon.json'}: invalid JSON ({e.msg})") from None
+            return read_points_csv(pts_path), meta, d
+    return None
+
+
+@dataclass
+class MethodRow:
+    name: str
+    description: str
+    n_images: int
+    time_s: float
+    render_s: float
+    scores: dict
+    notes: list = field(default_factory=list)
+    result: object = None  # DenseResult, None for the paper row
+
+
+@dataclass
+class Comparison:
+    sample_dir: Path
+    rows: list
+    notes: list
+    scene_reproduced: bool | None
+    gt_depth: np.ndarray
+    gt_mask: np.ndarray
+
+
+def _check_calibration(spec, calib) -> None:
+    for name in ("left", "right"):
+        a, b = getattr(spec.rig, name), getattr(calib.rig, name)
+        if not (np.allclose(a.K, b.K, atol=1e-6) and np.allclose(a.R, b.R, atol=1e-9)
+                and np.allclose(a.t, b.t, atol=1e-9) and (a.width, a.height) == (b.width, b.height)):
+            raise DatasetError(f"sample.json's configuration does not reproduce calib.json ({name} camera); "
+                               "the sample cannot be re-rendered for the peer methods")
+
+
+def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "phase", "sgbm", "paper"),
+                   recon_dir: Path | None = None, spp: int | None = None, depth_range_m=None,
+                   renderer=None, progress=None) -> Comparison:
+    """Run and score ``methods`` on a written sample (see module doc)."""
+
+    say = progress or (lambda msg: None)
+    sample_dir = Path(sample_dir)
+    unknown = [m for m in methods if m not in ALL_METHODS]
+    if unknown:
+        raise ValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}")
+    inputs = load_inputs(sample_dir)
+    gt = load_ground_truth(sample_dir)
+    cfg = SampleConfig.from_dict(gt.meta["config"])
+    rig = inputs.calibration.rig
+    notes = []
+    rows = []
+    gt_depth, gt_mask = gt.depth["left"], gt.mask["left"]
+
+    needs_render = [m for m in methods if m not in ("paper", "sgbm")]
+    scene_reproduced = None
+    if needs_render:
+        say("scene")
+        plate = build_plate(cfg.plate)
+        spec = cfg.scene.build()
+        _check_calibration(spec, inputs.calibration)
+        if renderer is None:
+            renderer = PlateRenderer(spec, plate, cfg.variant)
+        else:
+            renderer.set_scene(spec)
+            renderer.set_plate(plate)
+        # Does the re-created scene give the sample's own bytes? (Same variant and seed: it should.)
+        img = cfg.sensor.digitize(renderer.render("left", "passive", cfg.render),
+                                  seed=image_seed(cfg.render.seed, "left", "passive"))
+        want = gt.meta.get("images", {}).get("left_passive")
+        scene_reproduced = want is None or hashlib.sha256(img.tobytes()).hexdigest() == want
+        if not scene_reproduced:
+            notes.append("re-rendered left_passive differs from the sample's bytes (other Mitsuba variant or "
+                         "version?); peer sequences are rendered from the re-created scene")
+    settings = RenderSettings(spp=spp or cfg.render.spp, seed=cfg.render.seed)
+    pw, ph = inputs.calibration.projector_camera.width, inputs.calibration.projector_camera.height
+
+    def sequence(frames, name):
+        say(f"render {name} ({len(frames)} frames x 2 cameras)")
+        cap = render_pattern_sequence(renderer, frames, settings, cfg.sensor, name=name)
+        if cfg.sensor.bit_depth != 8:  # the structured-light decoders (and OpenCV's) take 8-bit DN
+            cap = dataclasses.replace(cap, images={c: (a >> 8).astype(np.uint8) for c, a in cap.images.items()})
+            if "8-bit" not in " ".join(notes):
+                notes.append(f"{cfg.sensor.bit_depth}-bit captures reduced to 8-bit for the structured-light decoders")
+        return cap
+
+    # Gray code: one 42-frame sequence serves both decoders (the sub-pixel one uses 22 of them).
+    gray_seq = gray_cap = None
+    if "graycode" in methods or "graycode-subpx" in methods:
+        gray_seq = graycode.graycode_sequence(pw, ph)
+        if "graycode" not in methods:
+            gray_seq = gray_seq.columns_only()
+        gray_cap = sequence(gray_seq.images, "graycode")
+    for name in methods:
+        if name == "paper":
+            continue
+        if name not in ("phase", "phase-opencv"):
+            say(f"method {name}")
+        if name == "graycode":
+            res = graycode.decode_opencv(gray_cap["left"], gray_cap["right"], gray_seq, rig)
+            render_s = gray_cap.timings_s["render_s"]
+        elif name == "graycode-subpx":
+            cols = gray_seq.columns_only()
+            if gray_seq.row_pairs:
+                idx = [i for p in gray_seq.col_pairs for i in p] + [gray_seq.black, gray_seq.white]
+                L, R = gray_cap["left"][idx], gray_cap["right"][idx]
+            else:
+                L, R = gray_cap["left"], gray_cap["right"]
+            res = graycode.decode_subpixel(L, R, cols, rig)
+            render_s = gray_cap.timings_s["render_s"] * cols.n_images / gray_seq.n_images
+        elif name in ("phase", "phase-opencv"):
+            backend = "numpy" if name == "phase" else "opencv"
+            seq = phase_shift.phase_shift_sequence(pw, ph, backend=backend)
+            cap = sequence(seq.images, name)
+            say(f"method {name}")
+            res = phase_shift.decode_phase_shift(cap["left"], cap["right"], seq, rig)
+            render_s = cap.timings_s["render_s"]
+        elif name == "sgbm":
+            res = sgbm.sgbm(inputs.images["left_passive"], inputs.images["right_passive"], rig,
+                                 depth_range_m=depth_range_m)
+            render_s = 0.0
+        sc = score_dense(res.depth, res.disparity, res.valid, gt_depth, gt_mask, gt.disparity)
+        rows.append(MethodRow(name, DESCRIPTIONS[name], res.n_images, res.timings.get("total_s", float("nan")),
+                              render_s, sc, list(res.notes), res))
+    if "paper" in methods:
+        found = find_paper_reconstruction(sample_dir, recon_dir)
+        if found is None:
+            where = recon_dir if recon_dir is not None else f"{sample_dir.resolve().parent} or {sample_dir / 'recon'}"
+            notes.append(f"paper row left out: no points.csv from 'platebench reconstruct' in {where} "
+                         "(pass --recon DIR)")
+        else:
+            pts, meta, d = found
+            sc = score_points_depth(pts, rig.left, gt_depth, gt.mesh)
+            t = meta.get("timings_s", meta.get("timings", {}))
+            t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
+            rows.insert(0, MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
+                                     [f"read from {d}"]))
+    return Comparison(sample_dir, rows, notes, scene_reproduced, gt_depth, gt_mask)
+
+
+def _jsonable(o):
+    if isinstance(o, dict):
+        return {k: _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, (float, np.floating)):
+        return _f(o)
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    return o
+
+
+def comparison_json(cmp: Comparison) -> dict:
+    return _jsonable({
+        "sample": str(cmp.sample_dir), "scene_reproduced": cmp.scene_reproduced, "notes": cmp.notes,
+        "units": "depth errors in mm, disparity metrics in px / %, times in s; n_images = exposures per camera",
+        "methods": {r.name: {"description": r.description, "n_images": r.n_images, "time_s": r.time_s,
+                             "render_s": r.render_s, **r.scores, "notes": r.notes} for r in cmp.rows}})
+

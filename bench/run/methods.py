@@ -1,0 +1,133 @@
+"""The registry of reconstruction methods a sweep (or ``compare``) can run on a written sample.
+
+A method is a function ``run(ctx: MethodContext) -> MethodOutput``: it reads the sample's
+images and calibration (``ctx.sample_dir``; never its ground truth), writes what it made to
+``ctx.recon_dir`` and returns its ``MetricsRow`` (scored against the truth by the bench) with
+its timings. Built in: "paper" (the paper's pipeline) and the peers of ``platebench compare``
+(Gray code, phase shifting, SGBM).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from platebench.bench.io.atomic import staged_directory, write_json
+from platebench.bench.io.images import write_pfm
+from platebench.bench.io.recon_files import image_checksums, write_reconstruction
+from platebench.bench.run.compare import ALL_METHODS, DESCRIPTIONS, compare_sample
+from platebench.bench.run.paper_method import reconstruct_dir
+from platebench.bench.run.score import score_files
+from platebench.errors import UserValueError
+from platebench.evaluation.metrics_row import MetricsRow
+
+__all__ = ["MethodContext", "MethodOutput", "Method", "METHODS", "register_method", "get_method"]
+
+
+@dataclass(frozen=True)
+class MethodContext:
+    """What a method gets for one sample."""
+
+    sample_dir: Path  # the written sample (a method reads only its images, calib.json, pattern.json)
+    recon_dir: Path  # where the method writes its outputs (staged)
+    renderer: object  # the worker's PlateRenderer (for methods that render their own pattern sequences)
+    pose: dict | None  # the sweep's pose axes of this sample (None: the reference pose)
+
+
+@dataclass(frozen=True)
+class MethodOutput:
+    """A method's scored result for one sample (times in seconds)."""
+
+    metrics: MetricsRow
+    time_recon_s: float
+    time_eval_s: float
+    time_render_extra_s: float = 0.0  # renders of the method's own pattern sequences
+
+
+@dataclass(frozen=True)
+class Method:
+    name: str
+    description: str
+    run: Callable[[MethodContext], MethodOutput]
+    rerenders_from_config: bool = False  # re-creates the scene from sample.json (which holds no pose)
+
+
+METHODS: dict[str, Method] = {}
+
+
+def register_method(name: str, description: str, run: Callable[[MethodContext], MethodOutput],
+                    rerenders_from_config: bool = False) -> Method:
+    """Add a method to the registry (a name may be registered once)."""
+    if not isinstance(name, str) or not name or name in METHODS:
+        raise UserValueError(f"method name {name!r} is empty or already registered")
+    METHODS[name] = Method(name, description, run, rerenders_from_config)
+    return METHODS[name]
+
+
+def get_method(name: str) -> Method:
+    try:
+        return METHODS[name]
+    except KeyError:
+        raise UserValueError(f"method {name!r} is not known: allowed {', '.join(METHODS)}") from None
+
+
+def _run_paper(ctx: MethodContext) -> MethodOutput:
+    t0 = time.perf_counter()
+    rec, inputs = reconstruct_dir(ctx.sample_dir)
+    write_reconstruction(ctx.recon_dir, rec, ctx.sample_dir, image_checksums(inputs.images), overwrite=True)
+    t1 = time.perf_counter()
+    score = score_files(ctx.sample_dir, ctx.recon_dir)
+    write_json(ctx.recon_dir / "score.json", score.to_dict())
+    return MethodOutput(MetricsRow.from_score(score), t1 - t0, time.perf_counter() - t1)
+
+
+def _finite(x) -> float | None:
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _jsonable(o):
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, (float, np.floating)):
+        return _finite(o)
+    if isinstance(o, np.integer):
+        return int(o)
+    return o
+
+
+def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
+    def run(ctx: MethodContext) -> MethodOutput:
+        t0 = time.perf_counter()
+        cmp = compare_sample(ctx.sample_dir, (name,), renderer=ctx.renderer)
+        row = next(r for r in cmp.rows if r.name == name)
+        wall = time.perf_counter() - t0
+        with staged_directory(ctx.recon_dir, overwrite=True) as d:
+            doc = {"method": name, "description": row.description, "n_images": row.n_images, "time_s": row.time_s,
+                   "render_s": row.render_s, "notes": list(row.notes) + list(cmp.notes), "scores": row.scores}
+            write_json(d / "score.json", _jsonable(doc))
+            res = row.result
+            if res is not None and getattr(res, "disparity", None) is not None:
+                disp = np.asarray(res.disparity, np.float32)
+                write_pfm(d / "disparity.pfm", np.where(np.isfinite(disp), disp, np.inf).astype(np.float32))
+        render_s = _finite(row.render_s) or 0.0
+        recon_s = _finite(row.time_s)
+        return MethodOutput(MetricsRow.from_dense(row.scores),
+                            recon_s if recon_s is not None else wall - render_s,
+                            max(wall - render_s - (recon_s or 0.0), 0.0), render_s)
+    return run
+
+
+register_method("paper", "the paper's pipeline: projected squares + passive boundary (Chen & Zheng 1995)", _run_paper)
+for _name in ALL_METHODS:
+    if _name != "paper":
+        register_method(_name, DESCRIPTIONS[_name], _peer_runner(_name), rerenders_from_config=_name != "sgbm")

@@ -1,0 +1,95 @@
+"""Render one sample in memory: the plate, the four images and all ground truth.
+
+``render_sample(cfg)`` builds the plate and scene, renders the four images through one
+``PlateRenderer`` (pass it back for the next sample: kernels are reused, the plate and the
+scene are swapped by parameter update) and casts the ground truth. ``posed_scene`` re-places
+the rig for a sweep's pose axes. Writing the sample is ``bench.io.sample_files.write_sample``.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from platebench.bench.config import SampleConfig
+from platebench.plates import Plate, build_plate
+from platebench.scenes.naming import IMAGE_NAMES, image_seed
+from platebench.scenes.render.ground_truth import GroundTruthCaster
+from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
+
+__all__ = ["RenderedSample", "render_sample", "posed_scene"]
+
+
+@dataclass(frozen=True)
+class RenderedSample:
+    """A rendered sample in memory: config, plate, scene, images, ground truth, timings.
+
+    ``radiance``/``digital``: image name (``scenes.naming.IMAGE_NAMES``) -> (H, W) array: linear
+    float32 radiance, and the camera's uint8/uint16 output; ``gt``: camera -> CameraGroundTruth;
+    ``visibility``: camera -> BoundaryVisibility of the true boundary; ``timings_s`` in seconds.
+    """
+
+    config: SampleConfig
+    plate: Plate
+    scene: SceneSpec
+    radiance: dict  # name -> (H,W) float32 linear
+    digital: dict  # name -> (H,W) uint8/uint16 camera output
+    gt: dict  # camera -> CameraGroundTruth
+    visibility: dict  # camera -> BoundaryVisibility
+    timings_s: dict
+    variant: str
+
+
+def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, progress=None,
+                  scene=None) -> tuple[RenderedSample, PlateRenderer]:
+    """Build the plate and scene, render the four images and cast all ground truth.
+
+    Pass the ``renderer`` of a previous sample to reuse its compiled kernels (plate and
+    scene are swapped by parameter update). ``progress(step_name)`` is called per step.
+    ``scene`` (a SceneSpec) replaces ``cfg.scene.build()``: a rig placed by the sensing loop.
+    """
+    step = progress or (lambda name: None)
+    t0 = time.perf_counter()
+    timings = {}
+    step("plate")
+    plate = build_plate(cfg.plate)
+    scene = scene if scene is not None else cfg.scene.build()
+    timings["plate_s"] = time.perf_counter() - t0
+    t = time.perf_counter()
+    if renderer is None:
+        renderer = PlateRenderer(scene, plate, cfg.variant)
+    else:
+        renderer.set_scene(scene)
+        renderer.set_plate(plate)
+    timings["scene_s"] = time.perf_counter() - t
+    radiance, digital = {}, {}
+    for name in IMAGE_NAMES:
+        step(f"render {name}")
+        t = time.perf_counter()
+        cam, light = name.split("_")
+        radiance[name] = renderer.render(cam, light, cfg.render)
+        digital[name] = cfg.sensor.digitize(radiance[name], seed=image_seed(cfg.render.seed, cam, light))
+        timings[f"render_{name}_s"] = time.perf_counter() - t
+    step("ground truth")
+    t = time.perf_counter()
+    caster = GroundTruthCaster(renderer)
+    gt, vis = caster.all()
+    timings["ground_truth_s"] = time.perf_counter() - t
+    timings["total_s"] = time.perf_counter() - t0
+    return RenderedSample(cfg, plate, scene, radiance, digital, gt, vis, timings, renderer.variant), renderer
+
+
+
+
+def posed_scene(scene: SceneSpec, distance_m: float, pose: dict) -> SceneSpec:
+    """``scene`` with the rig tilted by ``tilt_deg`` from vertical toward azimuth ``azimuth_deg``
+    (from +X around +Z), its mid-baseline point ``distance_m`` from the plate centre, looking at
+    it; the baseline stays as close to the reference baseline direction as the tilt allows."""
+    tilt = math.radians(float(pose.get("tilt_deg", 0.0)))
+    az = math.radians(float(pose.get("azimuth_deg", 0.0)))
+    center = distance_m * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
+    baseline_dir = np.asarray(scene.rig.left.R[0], float)  # camera +x (the baseline) in the world frame
+    return scene_for_pose(center, np.zeros(3), baseline_dir, scene)

@@ -1,0 +1,390 @@
+"""Sweep dataset layout: manifest, per-sample results, results table (CSV + Parquet), resume.
+
+Layout (format ``platebench-sweep`` version 1)::
+
+    DATASET/manifest.json          spec (parsed + its TOML text + sha256), package versions, executor,
+                                   counts, and per sample: id, axis values, config sha256, status,
+                                   error, worker, result.json / sample.json / score.json checksums
+                                   and the image checksums
+    DATASET/spec.toml              the spec file as given
+    DATASET/results.csv            one row per sample and method (``COLUMNS``); units in the names
+    DATASET/results.parquet        the same table (pyarrow), typed
+    DATASET/samples/<id>/sample/   the rendered sample (layout version 1, see bench/sample.py)
+    DATASET/samples/<id>/recon/<method>/   the method's reconstruction + score.json
+    DATASET/samples/<id>/result.json       written LAST: status, error, metrics per method,
+                                   timings, worker, checksums of the files above
+
+Results columns: the sample's parameters as rendered (bend_deg, axis_deg in degrees, sizes
+in metres, pixels, ...; ``params_json`` holds the spec's axis values), then the metrics
+(``METRIC_COLUMNS``, units in the names, empty when a method does not produce them or
+failed), timings and the worker. ``coverage_frac``: for "paper" the fraction of the plate
+area covered by its interpolated surface; for dense peer methods the fraction of plate
+pixels with a depth estimate. ``time_render_s`` is the sample's render (+ the method's own
+pattern sequence for peers), ``time_total_s`` the whole sample task.
+
+Every file is written atomically (bench/atomic.py): ``sample/`` and ``recon/<method>/`` are
+staged and renamed into place, ``result.json``, the manifest and the tables are written
+to a temporary name and renamed. A sample counts as done when its ``result.json`` exists
+and validates (``validate_result``: right sample id and configuration, and every file it
+lists still has the checksum it lists); ``--resume`` skips those and redoes the rest.
+Leftovers of an interrupted run (``.tmp-*`` directories, ``.*.tmp`` files) are swept.
+"""
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import hashlib
+import io
+import json
+import math
+import os
+import shutil
+from importlib import metadata
+from pathlib import Path
+
+from platebench.bench.config import SampleConfig, noise_preset_of
+from platebench.bench.io.atomic import sweep_stale, write_bytes, write_json, write_text
+from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
+from platebench.scenes.scene_spec import Material
+
+FORMAT = "platebench-sweep"
+VERSION = 1
+RESULT_FORMAT = "platebench-sweep-result"
+MANIFEST = "manifest.json"
+SPEC_COPY = "spec.toml"
+RESULTS_CSV = "results.csv"
+RESULTS_PARQUET = "results.parquet"
+SAMPLES = "samples"
+RESULT = "result.json"
+STATUSES = ("ok", "failed")
+
+# (column, type) of the results table; "str", "int", "float", "bool"; None where unknown
+COLUMNS = (
+    ("sample_id", "str"), ("index", "int"), ("method", "str"), ("status", "str"), ("error", "str"),
+    ("family", "str"), ("bend_deg", "float"), ("direction", "str"), ("axis_deg", "float"),
+    ("length_m", "float"), ("width_m", "float"), ("thickness_m", "float"),
+    ("material", "str"), ("albedo", "float"), ("metal", "str"), ("roughness", "float"),
+    ("distance_m", "float"), ("tilt_deg", "float"), ("azimuth_deg", "float"), ("baseline_m", "float"),
+    ("projector_kind", "str"), ("pattern", "str"),
+    ("width_px", "int"), ("height_px", "int"), ("f_px", "float"), ("aperture_radius_m", "float"),
+    ("spp", "int"), ("seed", "int"),
+    ("noise", "str"), ("full_well_e", "float"), ("read_noise_dn", "float"), ("bit_depth", "int"),
+    *((name, f.metadata["kind"]) for name, f in METRIC_FIELDS.items()),
+    ("time_render_s", "float"), ("time_recon_s", "float"), ("time_eval_s", "float"), ("time_total_s", "float"),
+    ("variant", "str"), ("worker", "str"), ("worker_maxrss_mb", "float"), ("params_json", "str"),
+)
+COLUMN_NAMES = tuple(c for c, _ in COLUMNS)
+METRIC_COLUMNS = METRIC_NAMES
+
+
+class DatasetLayoutError(ValueError):
+    """The output directory cannot be used for this sweep (one-line message)."""
+
+
+def now_utc() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def sample_dir(dataset: Path, sample_id: str) -> Path:
+    return Path(dataset) / SAMPLES / sample_id
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def text_sha256(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def write_json_result(dataset: Path, sample_id: str, res: dict) -> None:
+    """Write a sample's result.json (atomically); the sample counts as done from then on."""
+    d = sample_dir(dataset, sample_id)
+    d.mkdir(parents=True, exist_ok=True)
+    write_json(d / RESULT, {k: v for k, v in res.items() if not k.startswith("_") and k != "cached"})
+
+
+def package_versions() -> dict:
+    from platebench.bench.io.versions import package_versions as sample_versions  # noqa: PLC0415
+    out = sample_versions()
+    for name in ("dask", "distributed", "pyarrow", "tqdm"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+# ----------------------------------------------------------------------------- per-sample result
+def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = None) -> dict | None:
+    """The sample's result.json if it exists and is valid (see module doc), else None."""
+    d = sample_dir(dataset, sample_id)
+    path = d / RESULT
+    try:
+        res = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(res, dict) or res.get("format") != RESULT_FORMAT or res.get("version") != VERSION:
+        return None
+    if res.get("sample_id") != sample_id or res.get("status") not in STATUSES:
+        return None
+    if config_sha256 is not None and res.get("config_sha256") != config_sha256:
+        return None
+    if not isinstance(res.get("rows"), list) or not res["rows"]:
+        return None
+    for rel, digest in (res.get("files") or {}).items():
+        p = d / rel
+        try:
+            if file_sha256(p) != digest:
+                return None
+        except OSError:
+            return None
+    return res
+
+
+def sweep_sample_leftovers(dataset: Path, sample_id: str) -> int:
+    """Remove temporary leftovers of an interrupted write inside one sample directory."""
+    d = sample_dir(dataset, sample_id)
+    return sweep_stale(d) + sweep_stale(d / "recon")
+
+
+# ----------------------------------------------------------------------------- table rows
+def _deg(x):
+    return None if x is None else round(math.degrees(float(x)), 9)
+
+
+def sample_columns(config: dict, pose: dict | None, params: dict) -> dict:
+    """The parameter columns of a sample, from its full configuration (what was rendered)."""
+    plate = config["plate"]
+    dfm = plate["deformation"]
+    scene = config["scene"]
+    try:
+        mat = Material(**(scene.get("material") or {}))
+    except (TypeError, ValueError):
+        mat = None
+    sensor = config["sensor"]
+    noise = noise_preset_of(sensor)
+    try:
+        f_px = SampleConfig.from_dict(config).scene.focal_px
+    except ValueError:
+        f_px = scene.get("f_px")
+    pose = pose or {}
+    return {
+        "family": dfm.get("family"), "bend_deg": _deg(dfm.get("angle_rad")), "direction": dfm.get("direction"),
+        "axis_deg": _deg(dfm.get("axis_rad")), "length_m": plate.get("length_m"), "width_m": plate.get("width_m"),
+        "thickness_m": plate.get("thickness_m"),
+        "material": mat.kind if mat else None,
+        "albedo": mat.albedo if mat and mat.kind == "diffuse" else None,
+        "metal": mat.metal if mat and mat.kind == "roughconductor" else None,
+        "roughness": mat.alpha if mat and mat.kind == "roughconductor" else None,
+        "distance_m": scene.get("distance_m"), "tilt_deg": float(pose.get("tilt_deg", 0.0)),
+        "azimuth_deg": float(pose.get("azimuth_deg", 0.0)), "baseline_m": scene.get("baseline_m"),
+        "projector_kind": scene.get("projector_kind"),
+        "pattern": json.dumps(scene.get("pattern") or {}, sort_keys=True) if scene.get("pattern") else "default",
+        "width_px": scene.get("width"), "height_px": scene.get("height"), "f_px": f_px,
+        "aperture_radius_m": scene.get("aperture_radius_m"),
+        "spp": config["render"].get("spp"), "seed": config["render"].get("seed"),
+        "noise": noise, "full_well_e": sensor.get("full_well_e"), "read_noise_dn": sensor.get("read_noise_dn"),
+        "bit_depth": sensor.get("bit_depth"),
+        "params_json": json.dumps(params, sort_keys=True, default=str),
+    }
+
+
+def rows_of_result(res: dict) -> list[dict]:
+    """Table rows (one per method) of a sample's result.json."""
+    base = {"sample_id": res["sample_id"], "index": res.get("index")}
+    base.update(sample_columns(res["config"], res.get("pose"), res.get("params", {})))
+    w = res.get("worker") or {}
+    t = res.get("timings_s") or {}
+    out = []
+    for row in res["rows"]:
+        r = dict(base)
+        r.update({"method": row.get("method"), "status": row.get("status"), "error": row.get("error")})
+        metrics = row.get("metrics") or {}
+        for k in METRIC_COLUMNS:
+            r[k] = metrics.get(k)
+        r.update({k: v for k, v in metrics.items() if k not in METRIC_FIELDS})  # a method's own metrics
+        if r.get("false_boundary_gt") is None:
+            r["false_boundary_gt"] = res.get("false_boundary_gt")
+        r["time_render_s"] = _sum(t.get("render_s"), row.get("time_render_extra_s"))
+        r["time_recon_s"] = row.get("time_recon_s")
+        r["time_eval_s"] = row.get("time_eval_s")
+        r["time_total_s"] = t.get("total_s")
+        r["variant"] = res.get("variant")
+        r["worker"] = f"{w.get('host')}:{w.get('pid')}" if w else None
+        r["worker_maxrss_mb"] = w.get("maxrss_mb")
+        out.append(r)
+    return out
+
+
+def _sum(a, b):
+    if a is None:
+        return None
+    return float(a) + float(b or 0.0)
+
+
+def _cell(v, kind: str):
+    if v is None:
+        return None
+    if kind == "float":
+        v = float(v)
+        return v if math.isfinite(v) else None
+    if kind == "int":
+        return int(v)
+    if kind == "bool":
+        return bool(v)
+    return str(v)
+
+
+def columns_of(rows: list[dict]) -> tuple:
+    """(name, kind) of the table's columns: ``COLUMNS``, then the methods' own metrics (``extra`` of
+    their ``MetricsRow``; bool or float, in sorted order) after the shared metric columns."""
+    known = set(COLUMN_NAMES)
+    extra: dict = {}
+    for r in rows:
+        for k, v in r.items():
+            if k not in known and v is not None:
+                extra[k] = "bool" if isinstance(v, bool) and extra.get(k, "bool") == "bool" else "float"
+            elif k not in known:
+                extra.setdefault(k, "float")
+    cut = COLUMN_NAMES.index(METRIC_COLUMNS[-1]) + 1
+    return COLUMNS[:cut] + tuple(sorted(extra.items())) + COLUMNS[cut:]
+
+
+def table_columns(rows: list[dict], columns: tuple | None = None) -> dict:
+    """Column name -> list of typed cells (None = missing)."""
+    return {name: [_cell(r.get(name), kind) for r in rows] for name, kind in (columns or columns_of(rows))}
+
+
+def csv_text(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    columns = columns_of(rows)
+    w.writerow([name for name, _ in columns])
+    cols = table_columns(rows, columns)
+    for i in range(len(rows)):
+        line = []
+        for name, kind in columns:
+            v = cols[name][i]
+            line.append("" if v is None else (repr(v) if kind == "float" else str(v).lower() if kind == "bool"
+                                              else str(v)))
+        w.writerow(line)
+    return buf.getvalue()
+
+
+def parquet_bytes(rows: list[dict]) -> bytes:
+    import pyarrow as pa  # noqa: PLC0415
+    import pyarrow.parquet as pq  # noqa: PLC0415
+    types = {"str": pa.string(), "int": pa.int64(), "float": pa.float64(), "bool": pa.bool_()}
+    columns = columns_of(rows)
+    cols = table_columns(rows, columns)
+    schema = pa.schema([(name, types[kind]) for name, kind in columns])
+    table = pa.table({name: pa.array(cols[name], type=types[kind]) for name, kind in columns}, schema=schema)
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink)
+    return sink.getvalue().to_pybytes()
+
+
+def write_results(dataset: Path, results: list[dict]) -> list[dict]:
+    """Write results.csv and results.parquet (atomically) from result.json dicts; returns the rows."""
+    rows = [r for res in sorted(results, key=lambda x: x.get("index", 0)) for r in rows_of_result(res)]
+    write_text(Path(dataset) / RESULTS_CSV, csv_text(rows))
+    write_bytes(Path(dataset) / RESULTS_PARQUET, parquet_bytes(rows))
+    return rows
+
+
+def read_results(dataset: Path):
+    """The results table as a pyarrow Table."""
+    import pyarrow.parquet as pq  # noqa: PLC0415
+    return pq.read_table(Path(dataset) / RESULTS_PARQUET)
+
+
+# ----------------------------------------------------------------------------- manifest
+def manifest_dict(spec, results: dict, executor: dict | None, started: str, state: str,
+                  packages: dict | None = None) -> dict:
+    """The manifest: ``results`` maps sample id -> result.json dict (completed samples only)."""
+    samples = []
+    counts = {"total": len(spec.samples), "ok": 0, "failed": 0, "pending": 0}
+    for plan in spec.samples:
+        res = results.get(plan.sample_id)
+        entry = {"id": plan.sample_id, "index": plan.index, "params": plan.params,
+                 "config_sha256": plan.config_sha256, "pose": plan.pose}
+        if res is None:
+            entry["status"] = "pending"
+            counts["pending"] += 1
+        else:
+            entry["status"] = res["status"]
+            counts[res["status"]] += 1
+            entry["error"] = res.get("error")
+            entry["methods"] = {r["method"]: {"status": r["status"], "error": r.get("error")} for r in res["rows"]}
+            entry["result_sha256"] = res.get("_result_sha256")
+            entry["files_sha256"] = res.get("files", {})
+            entry["images_sha256"] = res.get("images", {})
+            w = res.get("worker") or {}
+            entry["worker"] = f"{w.get('host')}:{w.get('pid')}" if w else None
+        samples.append(entry)
+    return {"format": FORMAT, "version": VERSION, "state": state, "created_utc": started,
+            "updated_utc": now_utc(), "spec": spec.to_dict(), "spec_text": spec.text,
+            "packages": packages if packages is not None else package_versions(), "executor": executor or {},
+            "counts": counts,
+            "layout": {"samples": f"{SAMPLES}/<id>/sample", "recon": f"{SAMPLES}/<id>/recon/<method>",
+                       "result": f"{SAMPLES}/<id>/{RESULT}", "results": [RESULTS_CSV, RESULTS_PARQUET]},
+            "samples": samples}
+
+
+def read_manifest(dataset: Path) -> dict | None:
+    try:
+        m = json.loads((Path(dataset) / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+    return m if isinstance(m, dict) and m.get("format") == FORMAT else None
+
+
+def prepare_dataset(out: Path, spec, resume: bool, overwrite: bool) -> None:
+    """Check ``out`` can take this sweep (before anything is rendered), make it, sweep leftovers."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise DatasetLayoutError(f"{out} exists and is not a directory")
+    nonempty = out.is_dir() and any(out.iterdir())
+    if nonempty:
+        manifest = read_manifest(out)
+        if overwrite:
+            if manifest is None:
+                raise DatasetLayoutError(f"{out} is not empty and holds no sweep manifest: refusing to replace it")
+            shutil.rmtree(out)
+        elif resume:
+            if manifest is None:
+                raise DatasetLayoutError(f"{out}: no valid {MANIFEST} to resume from (is it a sweep dataset?)")
+            old = (manifest.get("spec") or {}).get("sha256")
+            if old != spec.sha256:
+                raise DatasetLayoutError(f"{out} was made from a different spec (sha256 {str(old)[:12]} vs "
+                                         f"{spec.sha256[:12]}): use another --out, or --overwrite")
+        else:
+            raise DatasetLayoutError(f"{out} already exists (use --resume to continue it or --overwrite to replace it)")
+    (out / SAMPLES).mkdir(parents=True, exist_ok=True)
+    sweep_stale(out)
+    sweep_stale(out / SAMPLES)
+    for p in (out / SAMPLES).iterdir():
+        if p.is_dir():
+            sweep_stale(p)
+            sweep_stale(p / "recon")
+    if spec.text and not (out / SPEC_COPY).exists():
+        write_text(out / SPEC_COPY, spec.text)
+
+
+def write_manifest(dataset: Path, manifest: dict) -> None:
+    write_json(Path(dataset) / MANIFEST, manifest)
+
+
+def stale_files(dataset: Path) -> list[Path]:
+    """Temporary leftovers anywhere under ``dataset`` (what ``sweep_stale`` removes), for checks."""
+    out = []
+    for root, dirs, files in os.walk(dataset):
+        for name in dirs + files:
+            if name.startswith((".tmp-", ".old-")) or (name.startswith(".") and name.endswith(".tmp")):
+                out.append(Path(root) / name)
+    return out

@@ -1,0 +1,731 @@
+"""Sweep specifications: a TOML file that expands into many validated samples.
+
+``platebench sweep SPEC.toml --out DATASET`` reads a spec, builds every sample's
+``SampleConfig`` up front (so a bad value is refused before anything is rendered or
+written), then renders, reconstructs and scores each sample (see ``bench.executors``).
+
+Spec format
+===========
+
+Four tables; unknown keys are refused by name::
+
+    [sweep]
+    name = "bend_sweep"          # free text, recorded in the manifest
+    description = "..."          # optional free text
+    mode = "grid"                # "grid" or "random"; optional: inferred from [grid] / [random]
+    methods = ["paper"]          # reconstruction methods (bench.jobs.METHODS), default ["paper"]
+    seed = 0                     # random mode: seed of the draws (default 0)
+    count = 20                   # random mode: number of samples (required there)
+    seed_per_sample = false      # true: sample i renders with seed base.render.seed + i
+                                 # (unless "seed" is an axis); false: all use base.render.seed
+
+    [base]                       # the fixed part: a sample configuration, the same tables
+    [base.plate]                 # as `platebench render --config` (bench/config.py), SI units
+    length_m = 0.1165
+    [base.plate.deformation]
+    family = "cylinder"
+    angle_rad = 0.1745
+    [base.scene]
+    width = 240
+    height = 180                 # f_px is scaled with the width unless given
+    [base.render]
+    spp = 4
+    [base.sensor]
+    read_noise_dn = 0.0
+
+    [grid]                       # grid mode: the cartesian product of all axes,
+    bend_deg = {start = 0, stop = 60, step = 20}   # first axis outermost; stop is included
+    material = ["diffuse", "roughconductor"]
+
+    [random]                     # random mode: `count` seeded independent draws
+    bend_deg = {min = 0, max = 60}                 # uniform real
+    spp = {min = 2, max = 8, int = true}           # uniform integer, both ends included
+    family = ["cylinder", "fold"]                  # uniform choice
+    distance_m = 0.45                              # a constant
+
+Grid axis values: a list, ``{start, stop, step}`` (stop included), ``{start, stop,
+num}`` (evenly spaced), ``{values = [...]}`` or a single value. Random axis values:
+a list (uniform choice), ``{min, max}`` (uniform real), ``{min, max, int = true}``
+(uniform integer), ``{values = [...]}`` or a single value. Sample ``i`` of a random
+sweep is drawn from ``numpy.random.default_rng([seed, i])`` over the axes in sorted
+name order: the same seed gives the same samples, whatever the order of the keys, and
+raising ``count`` keeps the first samples.
+
+Axes (names say their unit; applied in this order, whatever the order in the file):
+
+=================  ==========================================================
+length_m           plate length (X), metres
+width_m            plate width (Y), metres
+thickness_m        plate thickness, metres
+family             deformation family: flat, cylinder, fold, twist, dome, dent
+                   (switching family keeps angle/direction/axis where the new
+                   family has them; other parameters get defaults, see
+                   ``family_defaults``)
+bend_deg           bend angle, degrees (cylinder 0..350, fold 0..180, twist -90..90)
+direction          "up" or "down" (cylinder, fold)
+axis_deg           bend-axis direction, degrees in [0, 180) (cylinder, fold)
+fold_position_m    fold band centre along the bending coordinate, metres
+fold_band_m        fold band width, metres
+sag_m              dome sag (centre above corners), metres
+dent_depth_m       dent depth, metres
+dent_radius_m      dent radius, metres
+material           "diffuse" or "roughconductor", or a table of
+                   kind/albedo/metal/alpha
+albedo             diffuse reflectance 0..1
+metal              "Al" or "Fe" (roughconductor)
+roughness          GGX alpha 0.001..1 (roughconductor)
+distance_m         sensing distance: rig height above the plate centre, metres
+tilt_deg           pose: tilt of the rig's viewing direction from vertical, degrees
+                   0..75 (the rig stays at distance_m from the plate centre)
+azimuth_deg        pose: direction of the tilt around +Z from +X, degrees
+baseline_m         stereo baseline, metres
+projector_kind     "pinhole" or "spot"
+ambient            passive light left on in active images, 0..1
+pattern            projected squares: a table of rows/cols/square_px/gap_x_px/gap_y_px
+resolution         "WxH" or [W, H] (camera pixels; f_px scales with W unless set)
+width_px           camera width, pixels
+height_px          camera height, pixels
+f_px               focal length, pixels
+aperture_radius_m  thin-lens aperture radius, metres (0 = pinhole, no defocus)
+focus_distance_m   thin-lens focus distance, metres
+spp                samples per pixel
+seed               render seed (Monte Carlo and sensor noise)
+noise              "none", "low", "medium", "high" (``NOISE_PRESETS``) or a table of
+                   sensor keys (full_well_e, read_noise_dn, bit_depth, gamma, ...)
+full_well_e        shot noise: electrons at full scale (0 = none)
+read_noise_dn      Gaussian read noise, DN
+bit_depth          8 or 16
+gamma              response curve exponent
+=================  ==========================================================
+
+Any dotted path into the sample configuration is an axis too, quoted in TOML:
+``"plate.deformation.sag_m" = [0.001, 0.002]``, ``"scene.material.alpha" = [0.1, 0.3]``
+(applied last, in file order). An axis that does not apply to a sample's family
+(``bend_deg`` on a flat plate, say) is ignored for that sample, and identical samples
+are kept once.
+
+Pose: ``tilt_deg``/``azimuth_deg`` re-place the rig with ``scenes.scene_spec.scene_for_pose``
+(conventional stereo kept, baseline as close to the reference direction as the tilt
+allows). ``sample.json`` holds no pose (``result.json`` and the manifest do), so methods
+that re-create the scene from ``sample.json`` to render their own patterns (graycode,
+phase) are refused together with a non-zero tilt.
+
+Output: see ``bench/dataset.py`` (manifest.json, results.csv/.parquet, samples/<id>/).
+
+Validation: every sample's ``SampleConfig`` (and scene) is built before anything is
+rendered; the first bad value is refused with one line naming the spec key, the
+sample and the allowed range, e.g. ``grid.bend_deg = 400 (sample 0002): CylindricalBend.
+angle_rad = 6.98132 (400.00 deg) is out of range: allowed 0 to 350 deg``. An empty grid
+(no axis, or an axis with no value) is refused.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import numbers
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig
+
+__all__ = ["SpecError", "SweepSpec", "SamplePlan", "load_spec", "parse_spec", "AXES",
+           "family_defaults", "MAX_SAMPLES"]
+
+MAX_SAMPLES = 100_000
+_TOP_KEYS = ("sweep", "base", "grid", "random")
+_SWEEP_KEYS = ("name", "description", "mode", "methods", "seed", "count", "seed_per_sample")
+_GRID_FORMS = ("start", "stop", "step", "num", "values")
+_RANDOM_FORMS = ("min", "max", "int", "values")
+
+_DEFORMATION_FIELDS = {  # fields each family takes (plates.spec)
+    "flat": (), "cylinder": ("angle_rad", "direction", "axis_rad"),
+    "fold": ("angle_rad", "position_m", "band_m", "direction", "axis_rad"), "twist": ("angle_rad",),
+    "dome": ("sag_m",), "dent": ("depth_m", "radius_m", "centre_u_m", "centre_v_m"),
+}
+
+
+class SpecError(ConfigError):
+    """A sweep spec is invalid; the one-line message names the key, the value and the allowed range."""
+
+
+def family_defaults(family: str, length_m: float, width_m: float) -> dict:
+    """Deformation dict of ``family`` with default parameters for an L x W plate (metres, radians)."""
+    angle = math.radians(10.0)
+    if family == "flat":
+        return {"family": "flat"}
+    if family == "cylinder":
+        return {"family": "cylinder", "angle_rad": angle, "direction": "up", "axis_rad": 0.0}
+    if family == "fold":
+        return {"family": "fold", "angle_rad": angle, "position_m": 0.0, "band_m": 0.25 * length_m,
+                "direction": "up", "axis_rad": 0.0}
+    if family == "twist":
+        return {"family": "twist", "angle_rad": angle}
+    if family == "dome":
+        return {"family": "dome", "sag_m": 0.02 * math.hypot(length_m, width_m)}
+    if family == "dent":
+        s = min(length_m, width_m)
+        return {"family": "dent", "depth_m": 0.02 * s, "radius_m": 0.25 * s, "centre_u_m": 0.0, "centre_v_m": 0.0}
+    raise SpecError(f"family = {family!r} is unknown: allowed {', '.join(_DEFORMATION_FIELDS)}")
+
+
+# ----------------------------------------------------------------------------- axes
+class _NotApplicable(Exception):
+    """The axis does not apply to this sample (e.g. bend_deg on a flat plate)."""
+
+
+def _num(key: str, v, integer: bool = False):
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
+        raise SpecError(f"{key} = {v!r} is not a finite number")
+    if integer:
+        if float(v) != int(v):
+            raise SpecError(f"{key} = {v!r} is not an integer")
+        return int(v)
+    return float(v)
+
+
+def _str(key: str, v, choices=None) -> str:
+    if not isinstance(v, str):
+        raise SpecError(f"{key} = {v!r} is not a string" + (f": allowed {', '.join(choices)}" if choices else ""))
+    if choices and v not in choices:
+        raise SpecError(f"{key} = {v!r} is not allowed: allowed {', '.join(choices)}")
+    return v
+
+
+def _table(key: str, v) -> dict:
+    if not isinstance(v, dict):
+        raise SpecError(f"{key} = {v!r} is not a table")
+    return dict(v)
+
+
+def _deformation(d: dict) -> dict:
+    return d["plate"]["deformation"]
+
+
+def _set_deformation_field(name: str, convert=lambda x: x):
+    def apply(d: dict, v, state: dict) -> None:
+        dfm = _deformation(d)
+        if name not in _DEFORMATION_FIELDS.get(dfm.get("family"), ()):
+            raise _NotApplicable
+        dfm[name] = convert(v)
+    return apply
+
+
+def _set_path(*path):
+    def apply(d: dict, v, state: dict) -> None:
+        node = d
+        for p in path[:-1]:
+            node = node.setdefault(p, {})
+        node[path[-1]] = v
+    return apply
+
+
+def _apply_family(d: dict, v, state: dict) -> None:
+    plate = d["plate"]
+    new = family_defaults(v, plate["length_m"], plate["width_m"])
+    old = _deformation(d)
+    for k in ("angle_rad", "direction", "axis_rad"):
+        if k in new and k in old:
+            new[k] = old[k]
+    plate["deformation"] = new
+
+
+def _apply_material(d: dict, v, state: dict) -> None:
+    if isinstance(v, str):
+        d["scene"].setdefault("material", {})["kind"] = v
+    else:
+        d["scene"]["material"] = dict(v)
+
+
+def _apply_resolution(d: dict, v, state: dict) -> None:
+    d["scene"]["width"], d["scene"]["height"] = v
+
+
+def _apply_noise(d: dict, v, state: dict) -> None:
+    d["sensor"].update(NOISE_PRESETS[v] if isinstance(v, str) else v)
+
+
+def _apply_pose(name: str):
+    def apply(d: dict, v, state: dict) -> None:
+        state.setdefault("pose", {})[name] = v
+    return apply
+
+
+def _parse_resolution(key: str, v):
+    if isinstance(v, str):
+        parts = v.lower().split("x")
+        if len(parts) == 2 and all(p.strip().isdigit() for p in parts):
+            return int(parts[0]), int(parts[1])
+    elif isinstance(v, list) and len(v) == 2:
+        return _num(key, v[0], True), _num(key, v[1], True)
+    raise SpecError(f"{key} = {v!r} is not a resolution: allowed \"WxH\" or [W, H] in pixels")
+
+
+def _parse_noise(key: str, v):
+    if isinstance(v, str):
+        return _str(key, v, tuple(NOISE_PRESETS))
+    t = _table(key, v)
+    from platebench.bench.config import _SENSOR_KEYS  # noqa: PLC0415
+    bad = sorted(set(t) - _SENSOR_KEYS)
+    if bad:
+        raise SpecError(f"{key} has unknown key {bad[0]!r}: allowed {', '.join(sorted(_SENSOR_KEYS))} "
+                        f"or a preset {', '.join(NOISE_PRESETS)}")
+    return t
+
+
+def _parse_material(key: str, v):
+    if isinstance(v, str):
+        return _str(key, v, ("diffuse", "roughconductor"))
+    return _table(key, v)
+
+
+@dataclass(frozen=True)
+class Axis:
+    """A named sweep axis: how to read a value (``parse``) and where it goes (``apply``)."""
+
+    name: str
+    parse: Callable[[str, Any], Any]
+    apply: Callable[[dict, Any, dict], None]
+    help: str
+    table_valued: bool = False
+
+
+def _float_axis(name, apply, help_):
+    return Axis(name, lambda k, v: _num(k, v), apply, help_)
+
+
+def _int_axis(name, apply, help_):
+    return Axis(name, lambda k, v: _num(k, v, True), apply, help_)
+
+
+def _str_axis(name, choices, apply, help_):
+    return Axis(name, lambda k, v: _str(k, v, choices), apply, help_)
+
+
+_AXIS_LIST = (
+    _float_axis("length_m", _set_path("plate", "length_m"), "plate length, m"),
+    _float_axis("width_m", _set_path("plate", "width_m"), "plate width, m"),
+    _float_axis("thickness_m", _set_path("plate", "thickness_m"), "plate thickness, m"),
+    _str_axis("family", tuple(_DEFORMATION_FIELDS), _apply_family, "deformation family"),
+    _float_axis("bend_deg", _set_deformation_field("angle_rad", math.radians), "bend angle, deg"),
+    _str_axis("direction", ("up", "down"), _set_deformation_field("direction"), "bend direction"),
+    _float_axis("axis_deg", _set_deformation_field("axis_rad", math.radians), "bend-axis direction, deg"),
+    _float_axis("fold_position_m", _set_deformation_field("position_m"), "fold band centre, m"),
+    _float_axis("fold_band_m", _set_deformation_field("band_m"), "fold band width, m"),
+    _float_axis("sag_m", _set_deformation_field("sag_m"), "dome sag, m"),
+    _float_axis("dent_depth_m", _set_deformation_field("depth_m"), "dent depth, m"),
+    _float_axis("dent_radius_m", _set_deformation_field("radius_m"), "dent radius, m"),
+    Axis("material", _parse_material, _apply_material, "material kind or table", table_valued=True),
+    _float_axis("albedo", _set_path("scene", "material", "albedo"), "diffuse albedo"),
+    _str_axis("metal", ("Al", "Fe"), _set_path("scene", "material", "metal"), "conductor preset"),
+    _float_axis("roughness", _set_path("scene", "material", "alpha"), "GGX alpha"),
+    _float_axis("distance_m", _set_path("scene", "distance_m"), "sensing distance, m"),
+    _float_axis("tilt_deg", _apply_pose("tilt_deg"), "pose: tilt from vertical, deg"),
+    _float_axis("azimuth_deg", _apply_pose("azimuth_deg"), "pose: tilt direction from +X, deg"),
+    _float_axis("baseline_m", _set_path("scene", "baseline_m"), "stereo baseline, m"),
+    _str_axis("projector_kind", ("pinhole", "spot"), _set_path("scene", "projector_kind"), "projector model"),
+    _float_axis("ambient", _set_path("scene", "ambient"), "ambient fraction in active images"),
+    Axis("pattern", _table, _set_path("scene", "pattern"), "square grid table", table_valued=True),
+    Axis("resolution", _parse_resolution, _apply_resolution, "\"WxH\" or [W, H]", table_valued=True),
+    _int_axis("width_px", _set_path("scene", "width"), "camera width, px"),
+    _int_axis("height_px", _set_path("scene", "height"), "camera height, px"),
+    _float_axis("f_px", _set_path("scene", "f_px"), "focal length, px"),
+    _float_axis("aperture_radius_m", _set_path("scene", "aperture_radius_m"), "thin-lens aperture radius, m"),
+    _float_axis("focus_distance_m", _set_path("scene", "focus_distance_m"), "thin-lens focus distance, m"),
+    _int_axis("spp", _set_path("render", "spp"), "samples per pixel"),
+    _int_axis("seed", _set_path("render", "seed"), "render seed"),
+    Axis("noise", _parse_noise, _apply_noise, "noise preset or sensor table", table_valued=True),
+    _float_axis("full_well_e", _set_path("sensor", "full_well_e"), "shot noise, e- at full scale"),
+    _float_axis("read_noise_dn", _set_path("sensor", "read_noise_dn"), "read noise, DN"),
+    _int_axis("bit_depth", _set_path("sensor", "bit_depth"), "8 or 16"),
+    _float_axis("gamma", _set_path("sensor", "gamma"), "response exponent"),
+)
+AXES: dict[str, Axis] = {a.name: a for a in _AXIS_LIST}
+_AXIS_ORDER = {a.name: i for i, a in enumerate(_AXIS_LIST)}
+_DOTTED_ROOTS = ("plate", "scene", "render", "sensor")
+POSE_LIMITS = {"tilt_deg": (0.0, 75.0), "azimuth_deg": (-360.0, 360.0)}
+
+
+def _dotted_axis(name: str) -> Axis:
+    parts = name.split(".")
+    if parts[0] not in _DOTTED_ROOTS or len(parts) < 2 or not all(parts):
+        raise SpecError(f"unknown axis {name!r}: allowed {', '.join(AXES)}, or a dotted configuration path "
+                        f"starting with {', '.join(_DOTTED_ROOTS)} (e.g. \"scene.distance_m\")")
+    return Axis(name, lambda k, v: v, _set_path(*parts), "configuration path", table_valued=True)
+
+
+def _axis(name: str) -> Axis:
+    return AXES.get(name) or _dotted_axis(name)
+
+
+# ----------------------------------------------------------------------------- values of an axis
+def _is_range(spec, axis: Axis, forms, needs) -> bool:
+    """Is a table written for an axis a range/choice form (rather than a table-valued value)?"""
+    if not isinstance(spec, dict):
+        return False
+    if not axis.table_valued:
+        return True
+    return set(spec) <= set(forms) and ("values" in spec or needs <= set(spec))
+
+
+def _grid_values(key: str, axis: Axis, spec) -> list:
+    if _is_range(spec, axis, _GRID_FORMS, {"start", "stop"}):
+        bad = sorted(set(spec) - set(_GRID_FORMS))
+        if bad:
+            raise SpecError(f"{key} has unknown key {bad[0]!r}: allowed a list, {{start, stop, step}}, "
+                            "{start, stop, num} or {values = [...]}")
+        if "values" in spec:
+            if len(spec) != 1:
+                raise SpecError(f"{key}: 'values' cannot be combined with {', '.join(sorted(set(spec) - {'values'}))}")
+            vals = spec["values"]
+            return _grid_values(key, axis, vals if isinstance(vals, list) else [vals])
+        if "start" not in spec or "stop" not in spec or ("step" in spec) == ("num" in spec):
+            raise SpecError(f"{key} = {spec!r}: a range needs start, stop and exactly one of step or num")
+        start, stop = _num(f"{key}.start", spec["start"]), _num(f"{key}.stop", spec["stop"])
+        if "num" in spec:
+            num = _num(f"{key}.num", spec["num"], True)
+            if not 1 <= num <= MAX_SAMPLES:
+                raise SpecError(f"{key}.num = {num} is out of range: allowed 1 to {MAX_SAMPLES}")
+            raw = [float(x) for x in np.linspace(start, stop, num)]
+        else:
+            step = _num(f"{key}.step", spec["step"])
+            if step <= 0:
+                raise SpecError(f"{key}.step = {spec['step']!r} is out of range: allowed > 0")
+            if stop < start:
+                raise SpecError(f"{key}: stop = {spec['stop']!r} is below start = {spec['start']!r}: "
+                                "allowed stop >= start")
+            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            if n > MAX_SAMPLES:
+                raise SpecError(f"{key}: {n} values is too many: allowed at most {MAX_SAMPLES}")
+            ints = all(isinstance(spec[k], int) and not isinstance(spec[k], bool) for k in ("start", "stop", "step"))
+            raw = [start + i * step for i in range(n)]
+            raw = [int(round(x)) if ints else round(x, 12) for x in raw]
+        return [axis.parse(key, x) for x in raw]
+    if isinstance(spec, list) and not (axis.name == "resolution" and _is_pair(spec)):
+        values = spec
+    else:
+        values = [spec]
+    if not values:
+        raise SpecError(f"{key} is empty: give at least one value")
+    return [axis.parse(f"{key}[{i}]" if len(values) > 1 else key, v) for i, v in enumerate(values)]
+
+
+def _is_pair(v) -> bool:
+    return isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) and not isinstance(x, bool) for x in v)
+
+
+@dataclass(frozen=True)
+class _RandomAxis:
+    key: str
+    axis: Axis
+    choices: tuple | None = None
+    lo: float | None = None
+    hi: float | None = None
+    integer: bool = False
+
+    def draw(self, rng: np.random.Generator):
+        if self.choices is not None:
+            return copy.deepcopy(self.choices[int(rng.integers(len(self.choices)))])
+        if self.integer:
+            return self.axis.parse(self.key, int(rng.integers(int(self.lo), int(self.hi) + 1)))
+        return self.axis.parse(self.key, float(rng.uniform(self.lo, self.hi)))
+
+
+def _random_axis(key: str, axis: Axis, spec) -> _RandomAxis:
+    if _is_range(spec, axis, _RANDOM_FORMS, {"min", "max"}):
+        bad = sorted(set(spec) - set(_RANDOM_FORMS))
+        if bad:
+            raise SpecError(f"{key} has unknown key {bad[0]!r}: allowed a list, {{min, max}}, "
+                            "{min, max, int = true} or {values = [...]}")
+        if "values" in spec:
+            if len(spec) != 1:
+                raise SpecError(f"{key}: 'values' cannot be combined with {', '.join(sorted(set(spec) - {'values'}))}")
+            vals = spec["values"]
+            return _RandomAxis(key, axis, tuple(_grid_values(key, axis, vals if isinstance(vals, list) else [vals])))
+        if "min" not in spec or "max" not in spec:
+            raise SpecError(f"{key} = {spec!r}: a random range needs min and max")
+        integer = spec.get("int", False)
+        if not isinstance(integer, bool):
+            raise SpecError(f"{key}.int = {integer!r} is not allowed: allowed true or false")
+        lo, hi = _num(f"{key}.min", spec["min"], integer), _num(f"{key}.max", spec["max"], integer)
+        if hi < lo:
+            raise SpecError(f"{key}: max = {spec['max']!r} is below min = {spec['min']!r}: allowed max >= min")
+        axis.parse(f"{key}.min", lo)
+        return _RandomAxis(key, axis, None, lo, hi, integer)
+    return _RandomAxis(key, axis, tuple(_grid_values(key, axis, spec)))
+
+
+# ----------------------------------------------------------------------------- the spec
+@dataclass(frozen=True)
+class SamplePlan:
+    """One expanded sample: id, axis values as written, its validated configuration and pose."""
+
+    index: int
+    sample_id: str
+    params: dict  # axis name -> value (as in the spec; human units where the name says so)
+    config: SampleConfig
+    pose: dict | None  # {"tilt_deg", "azimuth_deg"} or None (the reference pose)
+    config_sha256: str
+
+    @property
+    def config_dict(self) -> dict:
+        return self.config.to_dict()
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A parsed, validated sweep spec and its expansion (``samples``)."""
+
+    name: str
+    mode: str
+    methods: tuple
+    seed: int
+    count: int | None
+    seed_per_sample: bool
+    base: dict  # canonical SampleConfig dict
+    axes: tuple  # ((key, definition as written), ...)
+    samples: tuple  # SamplePlan, ...
+    doc: dict  # the parsed TOML
+    text: str = ""
+    description: str = ""
+    ignored: dict = field(default_factory=dict)  # axis -> number of samples it did not apply to
+    duplicates: int = 0
+
+    @property
+    def sha256(self) -> str:
+        """Identity of the expansion: the sample ids, configurations, poses and methods."""
+        h = hashlib.sha256()
+        h.update(json.dumps(list(self.methods)).encode())
+        for s in self.samples:
+            h.update(f"{s.sample_id}:{s.config_sha256}\n".encode())
+        return h.hexdigest()
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "description": self.description, "mode": self.mode,
+                "methods": list(self.methods), "seed": self.seed, "count": self.count,
+                "seed_per_sample": self.seed_per_sample, "base": self.base,
+                "axes": {k: v for k, v in self.axes}, "n_samples": len(self.samples),
+                "ignored_axes": self.ignored, "duplicates_dropped": self.duplicates, "sha256": self.sha256}
+
+
+def config_sha256(config_dict: dict, pose: dict | None, methods) -> str:
+    doc = {"config": config_dict, "pose": pose, "methods": list(methods)}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def _check_pose(where: str, pose: dict) -> None:
+    for k, (lo, hi) in POSE_LIMITS.items():
+        if k in pose and not lo <= pose[k] <= hi:
+            raise SpecError(f"{where}{k} = {pose[k]!r} is out of range: allowed {lo:g} to {hi:g} deg")
+    if pose:
+        from platebench.bench.sweep.tasks import pose_supported  # noqa: PLC0415
+        why = pose_supported()
+        if why:
+            raise SpecError(f"{where}{next(iter(pose))}: pose axes are not available in this build ({why})")
+
+
+def _validate(d: dict, state: dict, cache: dict | None = None) -> SampleConfig:
+    cfg = SampleConfig.from_dict(copy.deepcopy(d))
+    pose = state.get("pose")
+    key = json.dumps([d["scene"], pose], sort_keys=True, default=str)
+    if cache is not None and key in cache:
+        return cfg
+    try:
+        scene = cfg.scene.build()
+    except ValueError as e:
+        raise ConfigError(str(e).splitlines()[0]) from None
+    if pose:
+        from platebench.bench.sweep.tasks import posed_scene  # noqa: PLC0415
+        try:
+            posed_scene(scene, cfg.scene.distance_m, pose)
+        except ValueError as e:
+            raise ConfigError(f"pose {pose}: {str(e).splitlines()[0]}") from None
+    if cache is not None:
+        cache[key] = True
+    return cfg
+
+
+def _apply_all(base: dict, items: list, until: int | None = None):
+    d = copy.deepcopy(base)
+    state: dict = {}
+    ignored = []
+    order = sorted(range(len(items)), key=lambda i: (_AXIS_ORDER.get(items[i][1].name, len(_AXIS_ORDER)), i))
+    for i in order[:until]:
+        key, axis, value = items[i]
+        try:
+            axis.apply(d, copy.deepcopy(value), state)
+        except _NotApplicable:
+            ignored.append(key)
+    return d, state, ignored, [items[i] for i in order]
+
+
+def _build_sample(base: dict, items: list, section: str, label: str, cache: dict) -> tuple:
+    """Apply ``items`` [(key, Axis, value)] to ``base`` and validate. On failure, validate after
+    each axis in turn so that the bad value is blamed on the axis that brought it."""
+    d, state, ignored, ordered = _apply_all(base, items)
+    try:
+        if "pose" in state:
+            _check_pose(f"{section}.", state["pose"])
+        return _validate(d, state, cache), d, state, ignored
+    except ConfigError:
+        pass
+    for n in range(1, len(ordered) + 1):
+        key, axis, value = ordered[n - 1]
+        d, state, _, _ = _apply_all(base, ordered, n)
+        try:
+            if "pose" in state:
+                _check_pose(f"{section}.", state["pose"])
+            _validate(d, state)
+        except SpecError as e:
+            raise SpecError(f"{e} (sample {label})") from None
+        except ConfigError as e:
+            shown = json.dumps(value) if not isinstance(value, str) else repr(value)
+            raise SpecError(f"{section}.{key} = {shown} (sample {label}): {e}") from None
+    _validate(d, state)  # raises
+    raise AssertionError("unreachable")
+
+
+def _check_table_keys(where: str, d: dict, allowed) -> None:
+    bad = sorted(set(d) - set(allowed))
+    if bad:
+        raise SpecError(f"unknown key {where}{bad[0]}: allowed keys are {', '.join(allowed)}")
+
+
+def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> SweepSpec:
+    """Validate a parsed spec and expand it into samples (raises SpecError, nothing is written)."""
+    if not isinstance(doc, dict):
+        raise SpecError("a sweep spec must be a TOML table")
+    _check_table_keys("", doc, _TOP_KEYS)
+    sweep = doc.get("sweep", {})
+    if not isinstance(sweep, dict):
+        raise SpecError("sweep must be a table")
+    _check_table_keys("sweep.", sweep, _SWEEP_KEYS)
+    for t in ("base", "grid", "random"):
+        if t in doc and not isinstance(doc[t], dict):
+            raise SpecError(f"{t} must be a table")
+    name = sweep.get("name", "sweep")
+    if not isinstance(name, str):
+        raise SpecError(f"sweep.name = {name!r} is not a string")
+    description = sweep.get("description", "")
+    mode = sweep.get("mode")
+    if mode is None:
+        if "grid" in doc and "random" in doc:
+            raise SpecError("both [grid] and [random] are given: keep one, or set sweep.mode")
+        mode = "random" if "random" in doc else "grid"
+    _str("sweep.mode", mode, ("grid", "random"))
+    other = "random" if mode == "grid" else "grid"
+    if other in doc:
+        raise SpecError(f"[{other}] is given but sweep.mode = {mode!r}: remove it")
+    # methods
+    from platebench.bench.sweep.tasks import METHODS  # noqa: PLC0415
+    if methods is None:
+        methods = sweep.get("methods", ["paper"])
+        where = "sweep.methods"
+    else:
+        where = "--methods"
+    if isinstance(methods, str):
+        methods = [methods]
+    if not isinstance(methods, (list, tuple)) or not methods:
+        raise SpecError(f"{where} = {methods!r}: give a non-empty list from {', '.join(METHODS)}")
+    for m in methods:
+        if m not in METHODS:
+            raise SpecError(f"{where}: method {m!r} is unknown: allowed {', '.join(METHODS)}")
+    methods = tuple(dict.fromkeys(methods))
+    seed = _num("sweep.seed", sweep.get("seed", 0), True)
+    if not 0 <= seed < 2**63:
+        raise SpecError(f"sweep.seed = {seed} is out of range: allowed 0 to 2^63-1")
+    seed_per_sample = sweep.get("seed_per_sample", False)
+    if not isinstance(seed_per_sample, bool):
+        raise SpecError(f"sweep.seed_per_sample = {seed_per_sample!r} is not allowed: allowed true or false")
+    count = sweep.get("count")
+    if mode == "random":
+        if count is None:
+            raise SpecError("sweep.count is missing: random mode needs the number of samples")
+        count = _num("sweep.count", count, True)
+        if not 1 <= count <= MAX_SAMPLES:
+            raise SpecError(f"sweep.count = {count} is out of range: allowed 1 to {MAX_SAMPLES}")
+    elif count is not None:
+        raise SpecError("sweep.count applies to random mode only: a grid's size is the product of its axes")
+    # base
+    try:
+        base_cfg = SampleConfig.from_dict(copy.deepcopy(doc.get("base", {})))
+        base_cfg.scene.build()
+    except ValueError as e:
+        msg = str(e).splitlines()[0]
+        raise SpecError(f"base: {msg}" if not msg.startswith("unknown key config.") else
+                        "unknown key base." + msg[len("unknown key config."):]) from None
+    base = base_cfg.to_dict()
+    # axes
+    axes_doc = doc.get(mode, {})
+    if not axes_doc:
+        raise SpecError(f"[{mode}] is empty: give at least one axis, e.g. bend_deg = [0, 20, 40]"
+                        if mode == "grid" else "[random] is empty: give at least one axis to draw")
+    section = mode
+    axes = [(k, _axis(k)) for k in axes_doc]
+    plans: list[tuple[dict, list]] = []  # (params, items)
+    if mode == "grid":
+        value_lists = [_grid_values(f"{section}.{k}", a, axes_doc[k]) for k, a in axes]
+        total = math.prod(len(v) for v in value_lists)
+        if total > MAX_SAMPLES:
+            raise SpecError(f"[grid] expands to {total} samples: allowed at most {MAX_SAMPLES}")
+        for combo in itertools.product(*value_lists):
+            items = [(k, a, v) for (k, a), v in zip(axes, combo)]
+            plans.append(({k: v for (k, _), v in zip(axes, combo)}, items))
+    else:
+        draws = [(k, a, _random_axis(f"{section}.{k}", a, axes_doc[k])) for k, a in sorted(axes, key=lambda x: x[0])]
+        for i in range(count):
+            rng = np.random.default_rng([seed, i])
+            items = [(k, a, r.draw(rng)) for k, a, r in draws]
+            order = {k: j for j, (k, _) in enumerate(axes)}
+            items.sort(key=lambda it: order[it[0]])
+            plans.append(({k: v for k, _, v in items}, items))
+    width = max(4, len(str(len(plans) - 1)))
+    samples, seen, ignored, cache = [], set(), {}, {}
+    duplicates = 0
+    base_seed = base["render"]["seed"]
+    for i, (params, items) in enumerate(plans):
+        label = f"{i:0{width}d}"
+        if seed_per_sample and "seed" not in params:
+            items = items + [("seed", AXES["seed"], (base_seed + i) % 2**31)]
+        cfg, d, state, ign = _build_sample(base, items, section, label, cache)
+        for k in ign:
+            ignored[k] = ignored.get(k, 0) + 1
+        pose = state.get("pose")
+        digest = config_sha256(cfg.to_dict(), pose, methods)
+        if digest in seen:
+            duplicates += 1
+            continue
+        seen.add(digest)
+        samples.append((params, cfg, pose, digest))
+    posed = [p for _, _, p, _ in samples if p and any(float(v) != 0.0 for k, v in p.items() if k == "tilt_deg")]
+    rerender = [m for m in methods if METHODS[m].rerenders_from_config]
+    if posed and rerender:
+        raise SpecError(f"{where}: {', '.join(rerender)} cannot run on samples with a pose axis (tilt_deg): "
+                        "they re-create the scene from sample.json, which holds no pose; drop one or the other")
+    width = max(4, len(str(len(samples) - 1)))
+    plans_out = tuple(SamplePlan(j, f"{j:0{width}d}", p, c, pose, dg) for j, (p, c, pose, dg) in enumerate(samples))
+    return SweepSpec(name, mode, methods, seed, count, seed_per_sample, base, tuple((k, axes_doc[k]) for k, _ in axes),
+                     plans_out, doc, text, description if isinstance(description, str) else str(description),
+                     ignored, duplicates)
+
+
+def load_spec(path: Path, methods: tuple | None = None) -> SweepSpec:
+    """Read, validate and expand a TOML sweep spec (raises SpecError with a one-line message)."""
+    path = Path(path)
+    if not path.is_file():
+        raise SpecError(f"{path}: sweep spec file is missing")
+    text = path.read_text()
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SpecError(f"{path}: invalid TOML ({e})") from None
+    try:
+        return parse_spec(doc, text, methods)
+    except SpecError as e:
+        raise SpecError(f"{path}: {e}") from None

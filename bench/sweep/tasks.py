@@ -1,0 +1,196 @@
+"""One sweep sample as a task: render, reconstruct with each method, evaluate, record.
+
+``run_sample(task)`` is what every executor runs (local process pool, in-process, or a
+Dask worker). It is idempotent: if the sample's ``result.json`` already exists and
+validates, it is returned unchanged; otherwise the sample is (re)made from scratch,
+every output staged and renamed into place, and ``result.json`` written last. Any
+error of the sample (rendering, a method, scoring) is caught and recorded in the
+result with status "failed": it never stops the sweep.
+
+Each worker process keeps one ``PlateRenderer`` (module global) and passes it back to
+``render_sample`` for its next sample, so compiled kernels are reused. A lock makes
+samples of one process run one at a time (run Dask workers with ``--nthreads 1``).
+
+The methods a sample runs come from the registry ``bench.run.methods.METHODS``.
+"""
+from __future__ import annotations
+
+import os
+import resource
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.io.sample_files import write_sample
+from platebench.bench.run.methods import METHODS, MethodContext
+from platebench.bench.run.render import posed_scene, render_sample
+from platebench.bench.sweep.dataset import (
+    RESULT_FORMAT,
+    VERSION,
+    file_sha256,
+    now_utc,
+    sample_dir,
+    sweep_sample_leftovers,
+    validate_result,
+    write_json_result,
+)
+from platebench.scenes.render import runtime
+
+
+# ----------------------------------------------------------------------------- tasks
+@dataclass(frozen=True)
+class SampleTask:
+    """What a worker needs for one sample (plain data: picklable, no arrays)."""
+
+    dataset: str  # absolute path of the dataset directory (shared with the workers)
+    sample_id: str
+    index: int
+    config: dict  # SampleConfig.to_dict()
+    pose: dict | None
+    methods: tuple
+    config_sha256: str
+    params: dict = field(default_factory=dict)
+    redo_failed: bool = False  # a valid result.json with status "failed" does not count as done
+
+
+def tasks_from_spec(spec, dataset: Path, redo_failed: bool = False) -> list[SampleTask]:
+    ds = str(Path(dataset).resolve())
+    return [SampleTask(ds, p.sample_id, p.index, p.config.to_dict(), p.pose, tuple(spec.methods), p.config_sha256,
+                       p.params, redo_failed) for p in spec.samples]
+
+
+
+
+# ----------------------------------------------------------------------------- worker state
+_STATE = {"renderer": None, "samples": 0, "parent": None}
+_LOCK = threading.Lock()
+
+
+def set_render_threads(n: int | None) -> bool:
+    """Limit the renderer's CPU threads in this process (N workers on C cores: C // N each)."""
+    if not n:
+        return False
+    runtime.set_thread_count(int(n))
+    return True
+
+
+def worker_init(parent_pid: int | None = None, render_threads: int | None = None) -> None:
+    """Initializer of local pool workers: die with the parent (Linux PR_SET_PDEATHSIG), so a sweep
+    killed with -9 leaves no worker writing behind it; share the CPU cores between workers."""
+    _STATE["parent"] = parent_pid
+    _STATE["render_threads"] = render_threads if set_render_threads(render_threads) else None
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes  # noqa: PLC0415
+            import signal  # noqa: PLC0415
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if parent_pid is not None and os.getppid() != parent_pid:
+        os._exit(1)  # the parent is already gone
+
+
+def worker_info() -> dict:
+    r = _STATE["renderer"]
+    return {"host": socket.gethostname(), "pid": os.getpid(),
+            "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,  # Linux: KiB
+            "samples_in_process": _STATE["samples"], "render_threads": _STATE.get("render_threads"),
+            "scene_builds": getattr(r, "scene_builds", None)}
+
+
+def _error_text(e: BaseException) -> str:
+    msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
+    text = f"{type(e).__name__}: {msg}" if msg else type(e).__name__
+    return text[:500]
+
+
+def failed_result(task: SampleTask, error: str, phase: str = "executor") -> dict:
+    """A result for a sample whose task could not run at all (e.g. its worker kept dying)."""
+    return {"format": RESULT_FORMAT, "version": VERSION, "sample_id": task.sample_id, "index": task.index,
+            "config_sha256": task.config_sha256, "status": "failed", "error": error, "phase": phase,
+            "params": task.params, "config": task.config, "pose": task.pose, "methods": list(task.methods),
+            "variant": None, "false_boundary_gt": None,
+            "rows": [{"method": m, "status": "failed", "error": error, "metrics": {}} for m in task.methods],
+            "timings_s": {}, "files": {}, "images": {}, "worker": None, "finished_utc": now_utc()}
+
+
+def run_sample(task: SampleTask) -> dict:
+    """Make one sample (idempotent; see module doc) and return its result dict."""
+    with _LOCK:
+        return _run_sample(task)
+
+
+def _run_sample(task: SampleTask) -> dict:
+    dataset = Path(task.dataset)
+    done = validate_result(dataset, task.sample_id, task.config_sha256)
+    if done is not None and (done["status"] == "ok" or not task.redo_failed):
+        done["cached"] = True
+        return done
+
+    t0 = time.perf_counter()
+    sdir = sample_dir(dataset, task.sample_id)
+    sdir.mkdir(parents=True, exist_ok=True)
+    sweep_sample_leftovers(dataset, task.sample_id)
+    res = failed_result(task, None, None)
+    res.update(status="ok", error=None, phase=None, rows=[])
+    timings = res["timings_s"]
+    files = res["files"]
+    sample = None
+    try:
+        cfg = SampleConfig.from_dict(task.config)
+        t = time.perf_counter()
+        kwargs = {}
+        if task.pose:
+            kwargs["scene"] = posed_scene(cfg.scene.build(), cfg.scene.distance_m, task.pose)
+        renderer = _STATE["renderer"]
+        if renderer is not None and cfg.variant and renderer.variant != cfg.variant:
+            renderer = None
+        try:
+            sample, renderer = render_sample(cfg, renderer, **kwargs)
+        except BaseException:
+            _STATE["renderer"] = None  # its state is unknown now: start afresh next time
+            raise
+        _STATE["renderer"] = renderer
+        timings["render_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        write_sample(sdir / "sample", sample, overwrite=True)
+        timings["write_s"] = time.perf_counter() - t
+        res["variant"] = sample.variant
+        res["false_boundary_gt"] = bool(any(v.false_boundary for v in sample.visibility.values()))
+        files["sample/sample.json"] = file_sha256(sdir / "sample" / "sample.json")
+        import json  # noqa: PLC0415
+        res["images"] = json.loads((sdir / "sample" / "sample.json").read_text()).get("images", {})
+    except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
+        err = _error_text(e)
+        res.update(status="failed", error=err, phase="render",
+                   rows=[{"method": m, "status": "failed", "error": err, "metrics": {}} for m in task.methods])
+    if sample is not None:
+        for name in task.methods:
+            rdir = sdir / "recon" / name
+            ctx = MethodContext(sdir / "sample", rdir, _STATE["renderer"], task.pose)
+            try:
+                out = METHODS[name].run(ctx)
+                row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
+                       "time_recon_s": out.time_recon_s, "time_eval_s": out.time_eval_s,
+                       "time_render_extra_s": out.time_render_extra_s}
+                for p in sorted(rdir.rglob("*.json")):
+                    files[str(p.relative_to(sdir))] = file_sha256(p)
+            except Exception as e:  # noqa: BLE001
+                row = {"method": name, "status": "failed", "error": _error_text(e), "metrics": {}}
+            res["rows"].append(row)
+        failed = [r for r in res["rows"] if r["status"] != "ok"]
+        if failed:
+            res.update(status="failed", phase="method",
+                       error="; ".join(f"{r['method']}: {r['error']}" for r in failed)[:1000])
+    del sample
+    _STATE["samples"] += 1
+    timings["total_s"] = time.perf_counter() - t0
+    res["worker"] = worker_info()
+    res["finished_utc"] = now_utc()
+    write_json_result(dataset, task.sample_id, res)  # last: the sample counts as done from here on
+    return res

@@ -1,0 +1,19 @@
+"""The one base class of every error a user can fix (bad flags, files, configurations, inputs).
+
+Every layer's user-facing error derives from ``PlateBenchError`` (and from ``ValueError`` where
+a bad value is the cause, for code that catches that). The command line catches this class
+and the file-system errors (missing, existing, unreadable or unwritable paths) and prints one
+line, exit status 2; anything else is a bug and keeps its traceback. Messages are one line
+naming the bad value (or file, or key) and what is allowed.
+"""
+from __future__ import annotations
+
+__all__ = ["PlateBenchError", "UserValueError"]
+
+
+class PlateBenchError(Exception):
+    """An error the user can fix; its message is one line naming the value and what is allowed."""
+
+
+class UserValueError(PlateBenchError, ValueError):
+    """A bad value (a flag, a key, an argument): one line naming it and the allowed range."""

@@ -1,0 +1,78 @@
+"""Scores of dense maps and free point sets against ground truth (methods other than the paper's).
+
+* ``score_dense``: a left-camera depth map and its disparity against the true depth, mask and
+  disparity: depth error (mm) over the plate pixels with an estimate (median, RMS, p95, max,
+  signed mean), coverage of the plate, and the Middlebury v3 and ETH3D two-view metrics.
+* ``score_points_depth``: sparse world points by their depth error at their left-image
+  projection, and by their distance to the true surface.
+
+Inputs: metres, pixels (OpenCV, centres at integers); outputs: keys carry their unit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from platebench.evaluation.disparity_metrics import eth3d_metrics, middlebury_metrics
+from platebench.evaluation.point_metrics import point_to_surface_distance
+
+__all__ = ["score_dense", "score_points_depth", "bilinear"]
+
+
+def score_dense(depth_est, disparity_est, valid, gt_depth, gt_mask, gt_disparity) -> dict:
+    """Depth error (mm), coverage and Middlebury/ETH3D disparity metrics of a dense left map."""
+    mask = np.asarray(gt_mask, bool)
+    est = np.asarray(valid, bool) & mask & np.isfinite(gt_depth)
+    n_plate = int(mask.sum())
+    err = (np.asarray(depth_est, np.float64)[est] - np.asarray(gt_depth, np.float64)[est]) * 1e3
+    a = np.abs(err)
+    out = {"plate_px": n_plate, "estimated_px": int(est.sum()),
+           "coverage_pct": 100.0 * est.sum() / n_plate if n_plate else float("nan"),
+           "off_plate_px": int((np.asarray(valid, bool) & ~mask).sum())}
+    if a.size:
+        out.update(depth_median_mm=float(np.median(a)), depth_rms_mm=float(np.sqrt(np.mean(a * a))),
+                   depth_p95_mm=float(np.percentile(a, 95)), depth_max_mm=float(a.max()),
+                   depth_mean_signed_mm=float(err.mean()))
+    else:
+        out.update(depth_median_mm=float("nan"), depth_rms_mm=float("nan"), depth_p95_mm=float("nan"),
+                   depth_max_mm=float("nan"), depth_mean_signed_mm=float("nan"))
+    disp = np.where(np.isfinite(disparity_est), disparity_est, np.inf)
+    out["middlebury"] = middlebury_metrics(disp, gt_disparity).to_dict()
+    out["eth3d"] = eth3d_metrics(disp, gt_disparity).to_dict()
+    return out
+
+
+def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup at (N,2) pixel coordinates; NaN unless all four neighbours are finite."""
+    H, W = img.shape
+    u, v = uv[:, 0], uv[:, 1]
+    ok = np.isfinite(u) & np.isfinite(v) & (u >= 0) & (v >= 0) & (u <= W - 1) & (v <= H - 1)
+    out = np.full(len(uv), np.nan)
+    u0 = np.clip(np.floor(u[ok]).astype(int), 0, W - 2)
+    v0 = np.clip(np.floor(v[ok]).astype(int), 0, H - 2)
+    fu, fv = u[ok] - u0, v[ok] - v0
+    g = img.astype(np.float64)
+    val = (g[v0, u0] * (1 - fu) * (1 - fv) + g[v0, u0 + 1] * fu * (1 - fv)
+           + g[v0 + 1, u0] * (1 - fu) * fv + g[v0 + 1, u0 + 1] * fu * fv)
+    out[ok] = val
+    return out
+
+
+def score_points_depth(points, left_camera, gt_depth, mesh=None) -> dict:
+    """Depth error of sparse world points at their left-image projection, and distance to the true surface."""
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    uv = left_camera.project(pts)
+    z_gt = bilinear(np.where(np.isfinite(gt_depth), gt_depth, np.nan), uv)
+    z = left_camera.depth(pts)
+    ok = np.isfinite(z_gt)
+    a = np.abs(z[ok] - z_gt[ok]) * 1e3
+    out = {"points": int(len(pts)), "points_on_plate": int(ok.sum())}
+    out["depth_median_mm"] = float(np.median(a)) if a.size else float("nan")
+    out["depth_rms_mm"] = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
+    out["depth_max_mm"] = float(a.max()) if a.size else float("nan")
+    if mesh is not None and len(pts):
+        d = point_to_surface_distance(pts, mesh) * 1e3
+        out["surface_rms_mm"] = float(np.sqrt(np.mean(d * d)))
+        out["surface_max_mm"] = float(d.max())
+    return out
+

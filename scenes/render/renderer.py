@@ -1,0 +1,245 @@
+"""Mitsuba renderer of a plate under passive and active lighting (the only Mitsuba scene builder).
+
+One Mitsuba scene holds the plate, the dark ground, the overhead area light, the
+projector and both stereo sensors. Switching lighting, moving the rig or the
+projector, swapping the pattern or the plate only updates parameters through
+``mi.traverse``, so drjit reuses its compiled kernels; only a change of *structure*
+(image size, projector kind or pattern size, material kind, integrator depth)
+rebuilds the scene.
+
+Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels
+(every material and light here is grey). The ``box`` reconstruction filter keeps
+renders bit-identical for a given seed across processes.
+Units: metres; frames as in ``scenes.camera``; conversions in ``scenes.mitsuba_convert``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from platebench.scenes.naming import CAMERAS, LIGHTINGS, image_seed
+from platebench.scenes.render import runtime
+from platebench.scenes.render.mitsuba_convert import (
+    perspective_fov_deg,
+    perspective_to_world,
+    spot_cutoff_deg,
+    spot_to_world,
+)
+from platebench.scenes.scene_spec import RenderSettings, SceneSpec
+
+
+def _structure(spec: SceneSpec) -> tuple:
+    p = spec.projector
+    m = spec.material
+    return (spec.rig.left.width, spec.rig.left.height, p.kind, p.pattern.width, p.pattern.height,
+            m.kind, m.metal if m.kind == "roughconductor" else None, spec.max_depth, spec.aperture_radius_m > 0)
+
+
+class PlateRenderer:
+    """Renders a plate in a scene; update plate/scene freely, kernels are reused."""
+
+    def __init__(self, spec: SceneSpec, plate, variant: str | None = None):
+        self.mi = runtime.mitsuba(variant)
+        self.variant = self.mi.variant()
+        self._spec = None
+        self._plate = None
+        self._structure = None
+        self.scene_builds = 0
+        self.set_scene(spec)
+        self.set_plate(plate)
+
+    # -- building -------------------------------------------------------------
+    def _bsdf(self, spec: SceneSpec) -> dict:
+        m = spec.material
+        if m.kind == "roughconductor":
+            inner = {"type": "roughconductor", "material": m.metal, "distribution": "ggx", "alpha": m.alpha}
+        else:
+            inner = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [m.albedo] * 3}}
+        return {"type": "twosided", "material": inner}
+
+    def _empty_mesh(self, name: str, bsdf: dict | None):
+        """A mesh sized for the current plate (one placeholder triangle before any plate);
+        set_plate fills its buffers through traverse."""
+        mi = self.mi
+        props = mi.Properties()
+        if bsdf is not None:
+            props["bsdf"] = mi.load_dict(bsdf)
+        if self._plate is None:
+            v, f = np.array([0, 0, 0, 1e-3, 0, 0, 0, 1e-3, 0], np.float32), np.array([0, 1, 2], np.uint32)
+        else:
+            v = np.asarray(self._plate.mesh.vertices, np.float32).ravel()
+            f = np.asarray(self._plate.mesh.faces, np.uint32).ravel()
+        mesh = mi.Mesh(name, v.size // 3, f.size // 3, props=props)
+        params = mi.traverse(mesh)
+        params["vertex_positions"] = type(params["vertex_positions"])(v)
+        params["faces"] = type(params["faces"])(f)
+        params.update()
+        return mesh
+
+    def _build(self, spec: SceneSpec) -> None:
+        mi = self.mi
+        cam = spec.rig.left
+        film = {"type": "hdrfilm", "width": cam.width, "height": cam.height,
+                "rfilter": {"type": "box"}, "pixel_format": "rgb", "sample_border": False}
+        lens = {"type": "perspective"}
+        if spec.aperture_radius_m > 0:  # thin lens: same pinhole mapping at the focus plane, plus blur
+            lens = {"type": "thinlens", "aperture_radius": spec.aperture_radius_m, "focus_distance": spec.focus_m}
+        sensors = {name: {**lens, "fov_axis": "x", "fov": perspective_fov_deg(c, name),
+                          "near_clip": 1e-3, "far_clip": 100.0,
+                          "to_world": mi.ScalarTransform4f(perspective_to_world(c).tolist()),
+                          "film": dict(film), "sampler": {"type": "independent"}}
+                   for name, c in spec.rig.cameras.items()}
+        proj = spec.projector
+        pat = np.zeros((proj.pattern.height, proj.pattern.width, 1), np.float32)
+        if proj.kind == "spot":
+            emitter = {"type": "spot", "cutoff_angle": spot_cutoff_deg(proj.camera, proj.cutoff_rad),
+                       "beam_width": spot_cutoff_deg(proj.camera, proj.cutoff_rad),
+                       "intensity": {"type": "uniform", "value": 1.0},
+                       "texture": {"type": "bitmap", "data": mi.TensorXf(pat), "raw": True,
+                                   "filter_type": "nearest", "wrap_mode": "clamp"},
+                       "to_world": mi.ScalarTransform4f(spot_to_world(proj.camera).tolist())}
+        else:
+            emitter = {"type": "projector", "fov_axis": "x", "fov": perspective_fov_deg(proj.camera, "projector"),
+                       "irradiance": {"type": "bitmap", "data": mi.TensorXf(pat), "raw": True,
+                                      "filter_type": "nearest", "wrap_mode": "clamp"},
+                       "to_world": mi.ScalarTransform4f(perspective_to_world(proj.camera).tolist())}
+        self._plate_mesh = self._empty_mesh("plate", self._bsdf(spec))
+        scene = {"type": "scene",
+                 "integrator": {"type": "path", "max_depth": spec.max_depth, "hide_emitters": True},
+                 "left": sensors["left"], "right": sensors["right"],
+                 "plate": self._plate_mesh,
+                 "ground": {"type": "rectangle",
+                            "to_world": mi.ScalarTransform4f().translate([0, 0, spec.ground_z_m]).scale(2.0),
+                            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                         "value": [spec.ground_albedo] * 3}}},
+                 "light": {"type": "rectangle",
+                           "to_world": mi.ScalarTransform4f(),
+                           "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0] * 3}}},
+                 "projector": emitter}
+        self.scene = mi.load_dict(scene)
+        self.params = mi.traverse(self.scene)
+        self.sensors = {name: self.scene.sensors()[i] for i, name in enumerate(CAMERAS)}
+        # Ground-truth scene: the plate alone (rays hit nothing else).
+        self._gt_mesh = self._empty_mesh("plate_gt", None)
+        self.gt_scene = mi.load_dict({"type": "scene", "plate": self._gt_mesh})
+        self.gt_params = mi.traverse(self.gt_scene)
+        self.scene_builds += 1
+
+    # -- updates --------------------------------------------------------------
+    def set_scene(self, spec: SceneSpec) -> None:
+        """Adopt a new scene description, by parameter update when the structure allows."""
+        structure = _structure(spec)
+        if structure != self._structure:
+            self._build(spec)
+            self._structure = structure
+            if self._plate is not None:
+                self._load_plate(self._plate)
+        p = self.params
+        mi = self.mi
+        for name, cam in spec.rig.cameras.items():
+            key = f"{name}.to_world"
+            p[key] = mi.Transform4f(perspective_to_world(cam).tolist())
+            p[f"{name}.x_fov"] = perspective_fov_deg(cam, name)
+            if spec.aperture_radius_m > 0:
+                p[f"{name}.aperture_radius"] = spec.aperture_radius_m
+                p[f"{name}.focus_distance"] = spec.focus_m
+        proj = spec.projector
+        if proj.kind == "spot":
+            p["projector.to_world"] = mi.Transform4f(spot_to_world(proj.camera).tolist())
+        else:
+            p["projector.to_world"] = mi.Transform4f(perspective_to_world(proj.camera).tolist())
+        # Area light: a square facing -Z, above the rig's centre.
+        light = spec.lighting
+        cx, cy = (float(c) for c in spec.rig.center[:2])
+        a = light.area_size_m / 2
+        M = np.array([[a, 0, 0, cx], [0, a, 0, cy], [0, 0, -1.0, light.area_height_m], [0, 0, 0, 1]])
+        p["light.to_world"] = mi.Transform4f(M.tolist())
+        if spec.material.kind == "diffuse":
+            p["plate.bsdf.brdf_0.reflectance.value"] = [spec.material.albedo] * 3
+        elif spec.material.kind == "roughconductor":
+            p["plate.bsdf.brdf_0.alpha.value"] = spec.material.alpha
+        p.update()
+        self._spec = spec
+        self._light_strengths()
+
+    def _light_strengths(self) -> None:
+        """Scale lights so a white plate at the rig's target shows ``plate_radiance``."""
+        spec = self._spec
+        L = spec.lighting.plate_radiance
+        # Radiance L from a white Lambertian surface needs irradiance E = pi L.
+        # Mitsuba's projector gives E = pi * scale * texture / d^2 on axis; a spot I / d^2.
+        d = max(float(spec.projector.camera.center[2]), 1e-3)  # height above the plate plane z = 0
+        self._proj_scale = L * d ** 2 * (1.0 if spec.projector.kind == "pinhole" else np.pi)
+        h = spec.lighting.area_height_m
+        s = spec.lighting.area_size_m
+        # Irradiance under a square of side s at height h (exact, on axis).
+        a = s / 2.0
+        E_per_radiance = 4.0 * (a / np.sqrt(a * a + h * h)) * np.arctan(a / np.sqrt(a * a + h * h))
+        self._area_radiance = np.pi * L / E_per_radiance
+
+    def set_plate(self, plate) -> None:
+        """Swap the plate geometry (vertex and face buffers) without recompiling kernels."""
+        self._plate = plate
+        self._load_plate(plate)
+
+    def _load_plate(self, plate) -> None:
+        v = np.asarray(plate.mesh.vertices, np.float32).ravel()
+        f = np.asarray(plate.mesh.faces, np.uint32).ravel()
+        if self.variant.startswith("scalar") and len(self.params["plate.vertex_positions"]) != v.size:
+            # Scalar variants cannot resize buffers through traverse: rebuild (no kernels to lose).
+            self._build(self._spec)
+            self.set_scene(self._spec)
+            return
+        for params in (self.params, self.gt_params):
+            # Construct with the buffer's own type (dynamic in every variant, scalar too).
+            params["plate.vertex_positions"] = type(params["plate.vertex_positions"])(v)
+            params["plate.faces"] = type(params["plate.faces"])(f)
+            params.update()
+
+    def set_lighting(self, lighting: str) -> None:
+        """Switch the lights for ``lighting`` (passive: area light; active: projector + ambient)."""
+        p = self.params
+        mi = self.mi
+        amb = self._spec.lighting.ambient
+        area = self._area_radiance * (1.0 if lighting == "passive" else amb)
+        p["light.emitter.radiance.value"] = [float(area)] * 3
+        # Emitter sampling picks a light in proportion to these weights: give none to a
+        # light that is off, or half the samples are wasted (binomial noise).
+        p["light.emitter.sampling_weight"] = 1.0 if area > 0 else 0.0
+        p["projector.sampling_weight"] = 1.0 if lighting == "active" else 0.0
+        pattern = self._spec.projector.pattern.image
+        level = self._proj_scale if lighting == "active" else 0.0
+        if self._spec.projector.kind == "spot":
+            p["projector.texture.data"] = mi.TensorXf(pattern[..., None])
+            p["projector.intensity.value"] = float(level)
+        else:
+            p["projector.irradiance.data"] = mi.TensorXf(pattern[..., None])
+            p["projector.scale"] = float(level)
+        p.update()
+
+    # -- rendering ------------------------------------------------------------
+    def render(self, camera: str, lighting: str, settings: RenderSettings = RenderSettings()) -> np.ndarray:
+        """Linear radiance image (H, W) float32 of one camera under one lighting."""
+        if camera not in CAMERAS:
+            raise ValueError(f"camera = {camera!r} is not allowed: choose one of {CAMERAS}")
+        if lighting not in LIGHTINGS:
+            raise ValueError(f"lighting = {lighting!r} is not allowed: choose one of {LIGHTINGS}")
+        self.set_lighting(lighting)
+        img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
+                             seed=image_seed(settings.seed, camera, lighting))
+        return np.asarray(img, dtype=np.float32).mean(axis=2)
+
+    def render_all(self, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
+        """The four images of a sample, keyed ``left_passive`` ... ``right_active``."""
+        out = {}
+        for lighting in LIGHTINGS:
+            for camera in CAMERAS:
+                out[f"{camera}_{lighting}"] = self.render(camera, lighting, settings)
+        return out
+
+    @property
+    def spec(self) -> SceneSpec:
+        return self._spec
+
+    @property
+    def plate(self):
+        return self._plate
