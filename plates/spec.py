@@ -27,6 +27,8 @@ import numbers
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, ClassVar, Mapping
 
+from platebench.errors import UserValueError
+
 __all__ = [
     "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent",
     "Deformation", "PlateSpec", "reference_spec", "FAMILIES",
@@ -38,7 +40,7 @@ MAX_TWIST_RAD = math.radians(90.0)
 DIRECTIONS = ("up", "down")
 
 
-class PlateSpecError(ValueError):
+class PlateSpecError(UserValueError):
     """A plate specification is invalid; the message names field, value and range."""
 
 

@@ -12,6 +12,7 @@ from platebench.bench.run.calibration import (
     compare_reconstruction,
     run_calibration,
 )
+from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
 from platebench.scenes.render.board_renderer import BoardSpec, calibration_poses
 
@@ -44,9 +45,9 @@ def run(args) -> int:
         target_z = DEFAULT_TARGET_Z_M
     else:
         if len(args.target_z_mm) < 2 or len(set(args.target_z_mm)) != len(args.target_z_mm):
-            raise ValueError("--target-z-mm needs at least 2 distinct heights")
+            raise UserValueError("--target-z-mm needs at least 2 distinct heights")
         if not all(math.isfinite(z) and -150.0 <= z <= 150.0 for z in args.target_z_mm):
-            raise ValueError("--target-z-mm values are out of range: allowed -150 to 150 mm")
+            raise UserValueError("--target-z-mm values are out of range: allowed -150 to 150 mm")
         target_z = tuple(z * 1e-3 for z in args.target_z_mm)
     board = BoardSpec()
     n_poses = len(calibration_poses(cfg.scene.build().rig, board))

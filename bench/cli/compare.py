@@ -36,6 +36,7 @@ from platebench.bench.run.compare import (
     compare_sample,
     comparison_json,
 )
+from platebench.errors import UserValueError
 
 
 # ----------------------------------------------------------------------------- reporting
@@ -94,15 +95,15 @@ def run(args) -> int:
     if not Path(args.sample).is_dir():
         raise FileNotFoundError(f"{args.sample}: sample directory is missing")
     if (args.min_depth_mm is None) != (args.max_depth_mm is None):
-        raise ValueError("--min-depth-mm and --max-depth-mm go together")
+        raise UserValueError("--min-depth-mm and --max-depth-mm go together")
     depth_range = None
     if args.min_depth_mm is not None:
         if not 0 < args.min_depth_mm < args.max_depth_mm:
-            raise ValueError(f"depth range {args.min_depth_mm}-{args.max_depth_mm} mm is out of range: "
+            raise UserValueError(f"depth range {args.min_depth_mm}-{args.max_depth_mm} mm is out of range: "
                              "need 0 < min < max")
         depth_range = (args.min_depth_mm / 1e3, args.max_depth_mm / 1e3)
     if args.spp is not None and not 1 <= args.spp <= 65536:
-        raise ValueError(f"--spp = {args.spp} is out of range: allowed 1 to 65536")
+        raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 65536")
     t0 = time.perf_counter()
 
     def say(msg):

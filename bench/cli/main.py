@@ -1,8 +1,11 @@
-"""``platebench``: the command line. Each sub-command lives in its own ``bench.cmd_*`` module.
+"""``platebench``: the command line. Each sub-command lives in its own ``bench.cli.<name>`` module
+(argparse and printing only; the work is in ``bench.run``, ``bench.sweep``, ``bench.report``).
 
-Errors a user can fix (bad flags, bad files) print one line ``platebench: error: ...``
-and exit with status 2; nothing half-written is left behind. Set PLATEBENCH_DEBUG=1
-to get the full traceback instead.
+Errors a user can fix (``platebench.errors.PlateBenchError``: bad flags, bad files, bad
+configurations) and file-system errors (a path missing, existing, unreadable or unwritable)
+print one line ``platebench: error: ...`` and exit with status 2; nothing half-written is left
+behind. Anything else is a bug and keeps its traceback. PLATEBENCH_DEBUG=1 shows the traceback
+of user errors too.
 """
 from __future__ import annotations
 
@@ -11,27 +14,13 @@ import importlib
 import os
 import sys
 
-from platebench.scenes.render.runtime import RendererUnavailable
+from platebench import __version__
+from platebench.errors import PlateBenchError
 
 # name -> module exposing add_parser(subparsers) and run(args) -> int
-COMMANDS = {
-    "render": "platebench.bench.cli.render",
-    "reconstruct": "platebench.bench.cli.reconstruct",
-    "evaluate": "platebench.bench.cli.evaluate",
-    "perf": "platebench.bench.cli.perf",
-    "info": "platebench.bench.cli.info",
-    "demo": "platebench.bench.cli.demo",
-    "sense": "platebench.bench.cli.sense",
-    "study": "platebench.bench.cli.study",
-    "sweep": "platebench.bench.cli.sweep",
-    "compare": "platebench.bench.cli.compare",
-    "calibrate": "platebench.bench.cli.calibrate",
-    "report": "platebench.bench.cli.report",
-}
-
-
-class UserError(Exception):
-    """An error the user can fix; printed as one line, exit status 2."""
+COMMANDS = {name: f"platebench.bench.cli.{name}" for name in (
+    "render", "reconstruct", "evaluate", "compare", "sense", "study", "sweep", "calibrate", "report", "demo",
+    "perf", "info")}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -41,17 +30,20 @@ def build_parser() -> argparse.ArgumentParser:
                     "(Chen & Zheng 1995): render bent plates with Mitsuba 3, reconstruct them with the "
                     "paper's pipeline and peer methods, score against exact ground truth.",
         epilog="Units: metres and radians in files; flags say when they take mm or degrees. "
-               "Run 'platebench COMMAND --help' for each command.")
+               "Run 'platebench COMMAND --help' for each command. Exit status: 0 done, 2 a user error "
+               "(one line on stderr), 130 interrupted.")
+    parser.add_argument("--version", action="version", version=f"platebench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name, modname in COMMANDS.items():
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as e:
-            if e.name == modname:
-                continue  # command not installed in this build
-            raise
-        mod.add_parser(sub)
+    for modname in COMMANDS.values():
+        importlib.import_module(modname).add_parser(sub)
     return parser
+
+
+def _one_line(e: BaseException) -> str:
+    if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror.lower()}"
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -62,11 +54,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("platebench: interrupted; completed outputs are kept, partial ones removed", file=sys.stderr)
         return 130
-    except (UserError, ValueError, FileExistsError, FileNotFoundError, RendererUnavailable) as e:
+    except (PlateBenchError, OSError) as e:
         if os.environ.get("PLATEBENCH_DEBUG"):
             raise
-        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
-        print(f"platebench: error: {msg}", file=sys.stderr)
+        print(f"platebench: error: {_one_line(e)}", file=sys.stderr)
         return 2
 
 

@@ -5,6 +5,7 @@ from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams
 from platebench.bench.io.atomic import write_json
+from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 TARGETS = ("render", "reconstruct", "sweep")
@@ -31,9 +32,9 @@ def run(args) -> int:
     from platebench.bench.perf.benchmarks import perf_reconstruct, perf_render  # noqa: PLC0415
     bad = [t for t in args.targets if t not in TARGETS]
     if bad:
-        raise ValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS)}")
+        raise UserValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS)}")
     if args.repeat < 1:
-        raise ValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
+        raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
     cfg = SampleConfig(scene=SceneParams(width=args.width, height=args.height), render=RenderSettings(spp=args.spp))
     out = {}
     for target in args.targets or TARGETS:

@@ -7,6 +7,7 @@ import numpy as np
 
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.io.sample_files import load_inputs
+from platebench.errors import UserValueError
 from platebench.reconstruction.paper.pipeline import (
     PipelineOptions,
     projector_feature_rays,
@@ -36,7 +37,7 @@ def run(args) -> int:
     if args.out.exists() and not args.overwrite:
         raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
     if not (0.1 <= args.grid_mm <= 20):
-        raise ValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
+        raise UserValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
     inputs = load_inputs(args.sample_dir)
     rig = inputs.calibration.rig
     rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)

@@ -7,6 +7,7 @@ from pathlib import Path
 from platebench.bench.cli.render import add_sample_flags, config_from_args
 from platebench.bench.progress import bar, step_callback
 from platebench.bench.run.sensing import SensingOptions, run_sensing
+from platebench.errors import UserValueError
 
 
 def add_parser(sub) -> None:
@@ -28,9 +29,9 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     cfg = config_from_args(args)
     if not (10 <= args.workspace_mm <= 2000):
-        raise ValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
+        raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
     if not (0 <= args.max_cures <= 20):
-        raise ValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
+        raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
     if args.out.exists():
         if not args.overwrite:
             raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")

@@ -19,6 +19,7 @@ from platebench.bench.run.study import (
     precision_recall,
     smallest_hiding_bend,
 )
+from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 
@@ -28,17 +29,17 @@ def parse_range(text: str, name: str, lo: float, hi: float) -> list[float]:
         if ":" in text:
             a, b, c = (float(x) for x in text.split(":"))
             if c <= 0:
-                raise ValueError
+                raise UserValueError
             vals = list(np.arange(a, b + c * 1e-9, c))
         else:
             vals = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise ValueError(f"{name} = {text!r} is not START:STOP:STEP or a comma list") from None
+        raise UserValueError(f"{name} = {text!r} is not START:STOP:STEP or a comma list") from None
     if not vals:
-        raise ValueError(f"{name} = {text!r} is an empty range")
+        raise UserValueError(f"{name} = {text!r} is an empty range")
     bad = [v for v in vals if not (lo <= v <= hi)]
     if bad:
-        raise ValueError(f"{name} value {bad[0]:g} is out of range: allowed {lo:g} to {hi:g}")
+        raise UserValueError(f"{name} value {bad[0]:g} is out of range: allowed {lo:g} to {hi:g}")
     return [float(v) for v in vals]
 
 
@@ -71,7 +72,7 @@ def run(args) -> int:
     bends = parse_range(args.bend, "--bend", 0.0, 350.0)
     dirs = [d.strip() for d in args.directions.split(",") if d.strip()]
     if not dirs or any(d not in ("up", "down") for d in dirs):
-        raise ValueError(f"--directions = {args.directions!r}: allowed up, down")
+        raise UserValueError(f"--directions = {args.directions!r}: allowed up, down")
     aspects = parse_range(args.aspects, "--aspects", 0.2, 5.0)
     distances = parse_range(args.distances_m, "--distances-m", 0.1, 3.0)
     l_bends = parse_range(args.l_bends, "--l-bends", 1.0, 179.0)

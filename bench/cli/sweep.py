@@ -8,6 +8,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from platebench.errors import UserValueError
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
@@ -48,11 +50,11 @@ def run(args) -> int:
     from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
 
     if args.scheduler and args.workers is not None:
-        raise ValueError("--workers applies to the local pool; with --scheduler the cluster's workers run the sweep")
+        raise UserValueError("--workers applies to the local pool; with --scheduler the cluster's workers run the sweep")
     if args.retry_failed and not args.resume:
-        raise ValueError("--retry-failed goes with --resume")
+        raise UserValueError("--retry-failed goes with --resume")
     if args.resume and args.overwrite:
-        raise ValueError("--resume and --overwrite exclude each other")
+        raise UserValueError("--resume and --overwrite exclude each other")
     spec = load_spec(args.spec, _methods(args.methods))  # every sample validated before anything is written
     if args.dry_run:
         print(f"spec        {args.spec} ({spec.mode}, {len(spec.samples)} samples, methods {', '.join(spec.methods)})")

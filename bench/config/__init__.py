@@ -4,4 +4,4 @@ from platebench.bench.config.presets import __all__ as _presets
 from platebench.bench.config.sample_config import *  # noqa: F401,F403
 from platebench.bench.config.sample_config import __all__ as _config
 
-__all__ = [*_config, *_presets]
+__all__ = [*_config, *_presets]  # axes: ``platebench.bench.config.axes`` (parameter columns, sweep axes)

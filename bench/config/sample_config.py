@@ -36,6 +36,7 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.scene_spec import (
@@ -51,7 +52,7 @@ from platebench.scenes.sensor_model import SensorModel
 __all__ = ["ConfigError", "SceneParams", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid", "with_overrides"]
 
 
-class ConfigError(ValueError):
+class ConfigError(UserValueError):
     """A configuration key or value is not allowed."""
 
 

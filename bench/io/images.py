@@ -14,9 +14,10 @@ import numpy as np
 import OpenEXR
 
 from platebench.bench.io.atomic import write_bytes
+from platebench.errors import UserValueError
 
 
-class DatasetError(ValueError):
+class DatasetError(UserValueError):
     """A dataset file is missing, unreadable or inconsistent."""
 
 

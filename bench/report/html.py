@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.io.atomic import staged_directory, sweep_stale, write_text
+from platebench.errors import UserValueError
 
 __all__ = ["write_report", "detect_inputs", "load_results", "load_study", "method_summary", "swept_axes",
            "ReportInputError", "GENERATOR"]
@@ -47,7 +48,7 @@ MAX_COMPARES = 12
 _SKIP_DIRS = {"report", "samples", "sample", "recon", "images", "gt", "plots"}
 
 
-class ReportInputError(ValueError):
+class ReportInputError(UserValueError):
     """The input directory holds nothing to report, or the output directory cannot be used."""
 
 

@@ -32,6 +32,7 @@ from platebench.bench.io.images import DatasetError
 from platebench.bench.io.points import read_points_csv
 from platebench.bench.io.sample_files import load_ground_truth, load_inputs
 from platebench.bench.run.pattern_sequences import render_pattern_sequence
+from platebench.errors import UserValueError
 from platebench.evaluation.dense import score_dense, score_points_depth
 from platebench.plates import build_plate
 from platebench.reconstruction.peers import graycode, phase_shift, sgbm
@@ -122,7 +123,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     sample_dir = Path(sample_dir)
     unknown = [m for m in methods if m not in ALL_METHODS]
     if unknown:
-        raise ValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}")
+        raise UserValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}")
     inputs = load_inputs(sample_dir)
     gt = load_ground_truth(sample_dir)
     cfg = SampleConfig.from_dict(gt.meta["config"])

@@ -42,10 +42,10 @@ import shutil
 from importlib import metadata
 from pathlib import Path
 
-from platebench.bench.config import SampleConfig, noise_preset_of
+from platebench.bench.config.axes import PARAMETERS, parameter_columns
 from platebench.bench.io.atomic import sweep_stale, write_bytes, write_json, write_text
+from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
-from platebench.scenes.scene_spec import Material
 
 FORMAT = "platebench-sweep"
 VERSION = 1
@@ -61,14 +61,7 @@ STATUSES = ("ok", "failed")
 # (column, type) of the results table; "str", "int", "float", "bool"; None where unknown
 COLUMNS = (
     ("sample_id", "str"), ("index", "int"), ("method", "str"), ("status", "str"), ("error", "str"),
-    ("family", "str"), ("bend_deg", "float"), ("direction", "str"), ("axis_deg", "float"),
-    ("length_m", "float"), ("width_m", "float"), ("thickness_m", "float"),
-    ("material", "str"), ("albedo", "float"), ("metal", "str"), ("roughness", "float"),
-    ("distance_m", "float"), ("tilt_deg", "float"), ("azimuth_deg", "float"), ("baseline_m", "float"),
-    ("projector_kind", "str"), ("pattern", "str"),
-    ("width_px", "int"), ("height_px", "int"), ("f_px", "float"), ("aperture_radius_m", "float"),
-    ("spp", "int"), ("seed", "int"),
-    ("noise", "str"), ("full_well_e", "float"), ("read_noise_dn", "float"), ("bit_depth", "int"),
+    *((p.name, p.kind) for p in PARAMETERS),
     *((name, f.metadata["kind"]) for name, f in METRIC_FIELDS.items()),
     ("time_render_s", "float"), ("time_recon_s", "float"), ("time_eval_s", "float"), ("time_total_s", "float"),
     ("variant", "str"), ("worker", "str"), ("worker_maxrss_mb", "float"), ("params_json", "str"),
@@ -77,7 +70,7 @@ COLUMN_NAMES = tuple(c for c, _ in COLUMNS)
 METRIC_COLUMNS = METRIC_NAMES
 
 
-class DatasetLayoutError(ValueError):
+class DatasetLayoutError(UserValueError):
     """The output directory cannot be used for this sweep (one-line message)."""
 
 
@@ -153,45 +146,11 @@ def sweep_sample_leftovers(dataset: Path, sample_id: str) -> int:
 
 
 # ----------------------------------------------------------------------------- table rows
-def _deg(x):
-    return None if x is None else round(math.degrees(float(x)), 9)
-
-
 def sample_columns(config: dict, pose: dict | None, params: dict) -> dict:
     """The parameter columns of a sample, from its full configuration (what was rendered)."""
-    plate = config["plate"]
-    dfm = plate["deformation"]
-    scene = config["scene"]
-    try:
-        mat = Material(**(scene.get("material") or {}))
-    except (TypeError, ValueError):
-        mat = None
-    sensor = config["sensor"]
-    noise = noise_preset_of(sensor)
-    try:
-        f_px = SampleConfig.from_dict(config).scene.focal_px
-    except ValueError:
-        f_px = scene.get("f_px")
-    pose = pose or {}
-    return {
-        "family": dfm.get("family"), "bend_deg": _deg(dfm.get("angle_rad")), "direction": dfm.get("direction"),
-        "axis_deg": _deg(dfm.get("axis_rad")), "length_m": plate.get("length_m"), "width_m": plate.get("width_m"),
-        "thickness_m": plate.get("thickness_m"),
-        "material": mat.kind if mat else None,
-        "albedo": mat.albedo if mat and mat.kind == "diffuse" else None,
-        "metal": mat.metal if mat and mat.kind == "roughconductor" else None,
-        "roughness": mat.alpha if mat and mat.kind == "roughconductor" else None,
-        "distance_m": scene.get("distance_m"), "tilt_deg": float(pose.get("tilt_deg", 0.0)),
-        "azimuth_deg": float(pose.get("azimuth_deg", 0.0)), "baseline_m": scene.get("baseline_m"),
-        "projector_kind": scene.get("projector_kind"),
-        "pattern": json.dumps(scene.get("pattern") or {}, sort_keys=True) if scene.get("pattern") else "default",
-        "width_px": scene.get("width"), "height_px": scene.get("height"), "f_px": f_px,
-        "aperture_radius_m": scene.get("aperture_radius_m"),
-        "spp": config["render"].get("spp"), "seed": config["render"].get("seed"),
-        "noise": noise, "full_well_e": sensor.get("full_well_e"), "read_noise_dn": sensor.get("read_noise_dn"),
-        "bit_depth": sensor.get("bit_depth"),
-        "params_json": json.dumps(params, sort_keys=True, default=str),
-    }
+    out = parameter_columns(config, pose)
+    out["params_json"] = json.dumps(params, sort_keys=True, default=str)
+    return out
 
 
 def rows_of_result(res: dict) -> list[dict]:

@@ -49,9 +49,10 @@ from platebench.bench.sweep.tasks import (
     tasks_from_spec,
     worker_init,
 )
+from platebench.errors import UserValueError
 
 
-class ExecutorError(ValueError):
+class ExecutorError(UserValueError):
     """The executor cannot run (scheduler unreachable, no workers): one-line message."""
 
 

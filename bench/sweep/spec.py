@@ -13,7 +13,7 @@ Four tables; unknown keys are refused by name::
     name = "bend_sweep"          # free text, recorded in the manifest
     description = "..."          # optional free text
     mode = "grid"                # "grid" or "random"; optional: inferred from [grid] / [random]
-    methods = ["paper"]          # reconstruction methods (bench.jobs.METHODS), default ["paper"]
+    methods = ["paper"]          # reconstruction methods (bench.run.methods), default ["paper"]
     seed = 0                     # random mode: seed of the draws (default 0)
     count = 20                   # random mode: number of samples (required there)
     seed_per_sample = false      # true: sample i renders with seed base.render.seed + i
@@ -134,6 +134,9 @@ from typing import Any, Callable
 import numpy as np
 
 from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig
+from platebench.bench.config.axes import AXES as AXIS_INFO
+from platebench.bench.run.methods import METHODS, get_method
+from platebench.errors import UserValueError
 
 __all__ = ["SpecError", "SweepSpec", "SamplePlan", "load_spec", "parse_spec", "AXES",
            "family_defaults", "MAX_SAMPLES"]
@@ -292,60 +295,45 @@ class Axis:
     name: str
     parse: Callable[[str, Any], Any]
     apply: Callable[[dict, Any, dict], None]
-    help: str
     table_valued: bool = False
 
-
-def _float_axis(name, apply, help_):
-    return Axis(name, lambda k, v: _num(k, v), apply, help_)
-
-
-def _int_axis(name, apply, help_):
-    return Axis(name, lambda k, v: _num(k, v, True), apply, help_)
+    @property
+    def help(self) -> str:
+        return AXIS_INFO[self.name].help if self.name in AXIS_INFO else "configuration path"
 
 
-def _str_axis(name, choices, apply, help_):
-    return Axis(name, lambda k, v: _str(k, v, choices), apply, help_)
+_CHOICES = {"family": tuple(_DEFORMATION_FIELDS), "direction": ("up", "down"), "metal": ("Al", "Fe"),
+            "projector_kind": ("pinhole", "spot")}
+_INTEGER_AXES = {"width_px", "height_px", "spp", "seed", "bit_depth"}
+_DEGREE_AXES = {"bend_deg", "axis_deg"}  # spec values in degrees, the configuration in radians
+_SPECIAL_AXES = {  # axes whose value is a table or sets several keys
+    "family": Axis("family", lambda k, v: _str(k, v, _CHOICES["family"]), _apply_family),
+    "material": Axis("material", _parse_material, _apply_material, table_valued=True),
+    "pattern": Axis("pattern", _table, _set_path("scene", "pattern"), table_valued=True),
+    "resolution": Axis("resolution", _parse_resolution, _apply_resolution, table_valued=True),
+    "noise": Axis("noise", _parse_noise, _apply_noise, table_valued=True),
+}
 
 
-_AXIS_LIST = (
-    _float_axis("length_m", _set_path("plate", "length_m"), "plate length, m"),
-    _float_axis("width_m", _set_path("plate", "width_m"), "plate width, m"),
-    _float_axis("thickness_m", _set_path("plate", "thickness_m"), "plate thickness, m"),
-    _str_axis("family", tuple(_DEFORMATION_FIELDS), _apply_family, "deformation family"),
-    _float_axis("bend_deg", _set_deformation_field("angle_rad", math.radians), "bend angle, deg"),
-    _str_axis("direction", ("up", "down"), _set_deformation_field("direction"), "bend direction"),
-    _float_axis("axis_deg", _set_deformation_field("axis_rad", math.radians), "bend-axis direction, deg"),
-    _float_axis("fold_position_m", _set_deformation_field("position_m"), "fold band centre, m"),
-    _float_axis("fold_band_m", _set_deformation_field("band_m"), "fold band width, m"),
-    _float_axis("sag_m", _set_deformation_field("sag_m"), "dome sag, m"),
-    _float_axis("dent_depth_m", _set_deformation_field("depth_m"), "dent depth, m"),
-    _float_axis("dent_radius_m", _set_deformation_field("radius_m"), "dent radius, m"),
-    Axis("material", _parse_material, _apply_material, "material kind or table", table_valued=True),
-    _float_axis("albedo", _set_path("scene", "material", "albedo"), "diffuse albedo"),
-    _str_axis("metal", ("Al", "Fe"), _set_path("scene", "material", "metal"), "conductor preset"),
-    _float_axis("roughness", _set_path("scene", "material", "alpha"), "GGX alpha"),
-    _float_axis("distance_m", _set_path("scene", "distance_m"), "sensing distance, m"),
-    _float_axis("tilt_deg", _apply_pose("tilt_deg"), "pose: tilt from vertical, deg"),
-    _float_axis("azimuth_deg", _apply_pose("azimuth_deg"), "pose: tilt direction from +X, deg"),
-    _float_axis("baseline_m", _set_path("scene", "baseline_m"), "stereo baseline, m"),
-    _str_axis("projector_kind", ("pinhole", "spot"), _set_path("scene", "projector_kind"), "projector model"),
-    _float_axis("ambient", _set_path("scene", "ambient"), "ambient fraction in active images"),
-    Axis("pattern", _table, _set_path("scene", "pattern"), "square grid table", table_valued=True),
-    Axis("resolution", _parse_resolution, _apply_resolution, "\"WxH\" or [W, H]", table_valued=True),
-    _int_axis("width_px", _set_path("scene", "width"), "camera width, px"),
-    _int_axis("height_px", _set_path("scene", "height"), "camera height, px"),
-    _float_axis("f_px", _set_path("scene", "f_px"), "focal length, px"),
-    _float_axis("aperture_radius_m", _set_path("scene", "aperture_radius_m"), "thin-lens aperture radius, m"),
-    _float_axis("focus_distance_m", _set_path("scene", "focus_distance_m"), "thin-lens focus distance, m"),
-    _int_axis("spp", _set_path("render", "spp"), "samples per pixel"),
-    _int_axis("seed", _set_path("render", "seed"), "render seed"),
-    Axis("noise", _parse_noise, _apply_noise, "noise preset or sensor table", table_valued=True),
-    _float_axis("full_well_e", _set_path("sensor", "full_well_e"), "shot noise, e- at full scale"),
-    _float_axis("read_noise_dn", _set_path("sensor", "read_noise_dn"), "read noise, DN"),
-    _int_axis("bit_depth", _set_path("sensor", "bit_depth"), "8 or 16"),
-    _float_axis("gamma", _set_path("sensor", "gamma"), "response exponent"),
-)
+def _registry_axis(name: str) -> Axis:
+    """The parser and applier of a plain axis, from its path in ``bench.config.axes.AXES``."""
+    if name in _SPECIAL_AXES:
+        return _SPECIAL_AXES[name]
+    path = AXIS_INFO[name].path
+    if name in _CHOICES:
+        parse = lambda k, v, c=_CHOICES[name]: _str(k, v, c)  # noqa: E731
+    else:
+        parse = lambda k, v, i=name in _INTEGER_AXES: _num(k, v, i)  # noqa: E731
+    if path[0] == "pose":
+        apply = _apply_pose(path[1])
+    elif path[:2] == ("plate", "deformation"):
+        apply = _set_deformation_field(path[2], math.radians if name in _DEGREE_AXES else (lambda x: x))
+    else:
+        apply = _set_path(*path)
+    return Axis(name, parse, apply)
+
+
+_AXIS_LIST = tuple(_registry_axis(name) for name in AXIS_INFO)
 AXES: dict[str, Axis] = {a.name: a for a in _AXIS_LIST}
 _AXIS_ORDER = {a.name: i for i, a in enumerate(_AXIS_LIST)}
 _DOTTED_ROOTS = ("plate", "scene", "render", "sensor")
@@ -357,7 +345,7 @@ def _dotted_axis(name: str) -> Axis:
     if parts[0] not in _DOTTED_ROOTS or len(parts) < 2 or not all(parts):
         raise SpecError(f"unknown axis {name!r}: allowed {', '.join(AXES)}, or a dotted configuration path "
                         f"starting with {', '.join(_DOTTED_ROOTS)} (e.g. \"scene.distance_m\")")
-    return Axis(name, lambda k, v: v, _set_path(*parts), "configuration path", table_valued=True)
+    return Axis(name, lambda k, v: v, _set_path(*parts), table_valued=True)
 
 
 def _axis(name: str) -> Axis:
@@ -623,7 +611,6 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
     if other in doc:
         raise SpecError(f"[{other}] is given but sweep.mode = {mode!r}: remove it")
     # methods
-    from platebench.bench.sweep.tasks import METHODS  # noqa: PLC0415
     if methods is None:
         methods = sweep.get("methods", ["paper"])
         where = "sweep.methods"
@@ -634,8 +621,10 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
     if not isinstance(methods, (list, tuple)) or not methods:
         raise SpecError(f"{where} = {methods!r}: give a non-empty list from {', '.join(METHODS)}")
     for m in methods:
-        if m not in METHODS:
-            raise SpecError(f"{where}: method {m!r} is unknown: allowed {', '.join(METHODS)}")
+        try:
+            get_method(m)
+        except UserValueError as e:
+            raise SpecError(f"{where}: {e}") from None
     methods = tuple(dict.fromkeys(methods))
     seed = _num("sweep.seed", sweep.get("seed", 0), True)
     if not 0 <= seed < 2**63:
@@ -704,7 +693,7 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
         seen.add(digest)
         samples.append((params, cfg, pose, digest))
     posed = [p for _, _, p, _ in samples if p and any(float(v) != 0.0 for k, v in p.items() if k == "tilt_deg")]
-    rerender = [m for m in methods if METHODS[m].rerenders_from_config]
+    rerender = [m for m in methods if get_method(m).rerenders_from_config]
     if posed and rerender:
         raise SpecError(f"{where}: {', '.join(rerender)} cannot run on samples with a pose axis (tilt_deg): "
                         "they re-create the scene from sample.json, which holds no pose; drop one or the other")

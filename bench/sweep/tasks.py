@@ -26,7 +26,7 @@ from pathlib import Path
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.sample_files import write_sample
-from platebench.bench.run.methods import METHODS, MethodContext
+from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
 from platebench.bench.sweep.dataset import (
     RESULT_FORMAT,
@@ -174,7 +174,7 @@ def _run_sample(task: SampleTask) -> dict:
             rdir = sdir / "recon" / name
             ctx = MethodContext(sdir / "sample", rdir, _STATE["renderer"], task.pose)
             try:
-                out = METHODS[name].run(ctx)
+                out = get_method(name).run(ctx)
                 row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
                        "time_recon_s": out.time_recon_s, "time_eval_s": out.time_eval_s,
                        "time_render_extra_s": out.time_render_extra_s}

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from platebench.errors import UserValueError
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
 
@@ -35,7 +36,7 @@ FREE_DISTORTION_FLAGS = cv2.CALIB_FIX_K3
 _CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, 1e-12)
 
 
-class CalibrationError(ValueError):
+class CalibrationError(UserValueError):
     """The calibration images do not allow a calibration (too few corners, squares missing...)."""
 
 

@@ -16,12 +16,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from platebench.errors import UserValueError
 from platebench.reconstruction.paper.threshold import tsai_moment_threshold
 
 HYSTERESIS = 0.1  # low threshold = z0 + HYSTERESIS (z1 - z0)
 
 
-class ReconstructionError(ValueError):
+class ReconstructionError(UserValueError):
     """The images do not allow the requested reconstruction step (message says which and why)."""
 
 

@@ -26,11 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.errors import UserValueError
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane, plane_frame
 from platebench.scenes.camera import Camera
 
 
-class PoseError(ValueError):
+class PoseError(UserValueError):
     """A sensing pose that cannot work (refused before rendering)."""
 
 

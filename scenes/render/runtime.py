@@ -22,12 +22,14 @@ import os
 import sys
 from dataclasses import dataclass
 
+from platebench.errors import PlateBenchError
+
 _MIN_LLVM = 16
 _NO_LLVM = "/nonexistent/platebench-found-no-libLLVM-16-or-newer"
 _state: dict = {}
 
 
-class RendererUnavailable(RuntimeError):
+class RendererUnavailable(PlateBenchError, RuntimeError):
     """The requested Mitsuba variant cannot run on this machine."""
 
 
