@@ -24,13 +24,7 @@ Importing ``platebench`` is cheap: nothing here imports Mitsuba until a function
 """
 from __future__ import annotations
 
-from importlib import metadata as _metadata
-
-try:
-    __version__ = _metadata.version("platebench")
-except _metadata.PackageNotFoundError:  # pragma: no cover - running from an uninstalled tree
-    __version__ = "0+unknown"
-
-from platebench.api import reconstruct, render, report, score, sense, sweep  # noqa: E402
+from platebench.api import reconstruct, render, report, score, sense, sweep
+from platebench.version import __version__
 
 __all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report"]

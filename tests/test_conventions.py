@@ -16,6 +16,8 @@ from platebench.scenes.pattern import Pattern
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings, reference_scene
 
+pytestmark = pytest.mark.render
+
 TOL_PX = 0.05
 
 

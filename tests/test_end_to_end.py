@@ -10,6 +10,14 @@ import pytest
 
 from tests.conftest import run_cli
 
+pytestmark = [pytest.mark.render, pytest.mark.slow]
+
+# Golden bands: the reference experiment's figures as measured (1280 x 960, spp 16, seed 0, noise-free,
+# llvm_ad_rgb), each with a +-20 % band, so that a 3x regression (or a suspicious 3x "improvement")
+# fails. Measured: depth RMS 0.0102 mm, boundary mean 0.037 mm, surface RMS 0.018 mm.
+GOLDEN = {"depth_rms_mm": 0.0102, "boundary_mean_mm": 0.037, "surface_rms_mm": 0.018}
+BAND = 0.20
+
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
@@ -37,6 +45,17 @@ def test_reference_experiment_meets_paper_bound_and_reports_goals(reference):
     assert score["boundary_3d"]["mean_sym_mm"] <= 0.2
     assert score["false_boundary"]["agrees"] and not score["false_boundary"]["detected"]
     assert score["surface"]["coverage_frac"] > 0.95
+
+
+def test_reference_figures_stay_in_their_golden_bands(reference):
+    sample, recon = reference
+    from platebench.bench.run.score import score_files
+    from platebench.evaluation.metrics_row import MetricsRow
+    row = MetricsRow.from_score(score_files(sample, recon))
+    for name, value in GOLDEN.items():
+        got = getattr(row, name)
+        assert abs(got - value) <= BAND * value, f"{name} = {got:.4f}, golden {value} +- {BAND:.0%}"
+    assert row.coverage_frac > 0.99 and row.matched_count == row.correct_match_count == 16
 
 
 def test_mismatched_sample_and_reconstruction_is_refused(reference, small_sample_dir):

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 import trimesh
 
 from platebench.bench.io.images import read_exr, read_pfm, read_png
@@ -13,6 +14,8 @@ from platebench.scenes.camera import Camera
 from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import reference_scene
+
+pytestmark = pytest.mark.render
 
 
 def test_gt_depth_equals_trimesh_ray_cast_of_written_sample(small_sample_dir):

@@ -27,6 +27,8 @@ from platebench.reconstruction.paper.squares import Square
 from platebench.scenes.scene_spec import RenderSettings
 from tests.conftest import run_cli
 
+pytestmark = pytest.mark.render
+
 
 def _run(sample):
     rig = sample.scene.rig

@@ -13,6 +13,8 @@ from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.scenes.scene_spec import RenderSettings
 from platebench.scenes.sensor_model import SensorModel
 
+pytestmark = pytest.mark.render
+
 
 @pytest.mark.parametrize("level", [0.1, 0.5, 0.8])
 def test_noise_mean_and_variance_follow_the_camera_model(level):

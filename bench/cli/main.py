@@ -14,8 +14,8 @@ import importlib
 import os
 import sys
 
-from platebench import __version__
 from platebench.errors import PlateBenchError
+from platebench.version import __version__
 
 # name -> module exposing add_parser(subparsers) and run(args) -> int
 COMMANDS = {name: f"platebench.bench.cli.{name}" for name in (
