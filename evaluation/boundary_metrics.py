@@ -46,6 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from platebench.tolerances import ceil_count
+
 from .point_metrics import pruned_min_distance
 from .stats import ErrorStats, check_array
 
@@ -230,7 +232,7 @@ def _directed(src: list[np.ndarray], dst: _SegmentSet, closed: bool, spacing: fl
     pos, poly, is_sample, weights = [], [], [], []
     for i, pa in enumerate(params):
         if pa.L > 0:
-            n = max(1, math.ceil(pa.L / spacing - 1e-9))
+            n = max(1, ceil_count(pa.L / spacing))
             s = (np.arange(n) + 0.5) * (pa.L / n)
         else:
             n, s = 1, np.zeros(1)

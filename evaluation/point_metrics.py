@@ -29,6 +29,8 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from platebench.tolerances import is_rotation
+
 from .stats import ErrorStats, check_array
 
 __all__ = [
@@ -77,7 +79,7 @@ class PointScore:
 
 def _check_rotation(R, name: str = "R_left") -> np.ndarray:
     R = check_array(R, name, shape=(3, 3))
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
+    if not is_rotation(R):
         raise ValueError(
             f"{name}: not a proper rotation matrix (R R^T != I or det <= 0); pass the "
             "world-to-camera rotation R of x_cam = R x_world + t, not K or [R|t]"

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.tolerances import ceil_count
+
 __all__ = [
     "ErrorStats",
     "check_array",
@@ -84,7 +86,7 @@ def nearest_rank_quantile(values: np.ndarray, q_pct: float) -> float:
         return math.nan
     if not 0.0 <= q_pct <= 100.0:
         raise ValueError(f"q_pct: quantile must be in [0, 100], got {q_pct}")
-    rank = max(1, math.ceil(q_pct / 100.0 * v.size - 1e-9))
+    rank = max(1, ceil_count(q_pct / 100.0 * v.size))
     return float(np.partition(v, rank - 1)[rank - 1])
 
 

@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from platebench.tolerances import ceil_count, tol
+
 from .deformations import surface_derivatives
 from .spec import CylindricalBend, Dent, Dome, Fold, PlateSpec, Twist, bending_extent_m
 
@@ -39,7 +41,7 @@ def _nodes(breaks: list[float], spacing) -> np.ndarray:
     out = [breaks[:1]]
     for a, b in zip(breaks[:-1], breaks[1:]):
         h = spacing(a, b)
-        n = max(1, math.ceil((b - a) / h - 1e-9)) if math.isfinite(h) else 1
+        n = max(1, ceil_count((b - a) / h)) if math.isfinite(h) else 1
         out.append(np.linspace(a, b, n + 1)[1:])
     return np.concatenate(out)
 
@@ -102,7 +104,7 @@ def _strip_layout(spec: PlateSpec, tol_m: float, refine: float):
     lengths = ranges[:, 1] - ranges[:, 0]
     longest = lengths.max()
     h_t = min(longest / MIN_SEGMENTS, max(MAX_RULING_ASPECT * fine, longest / 64)) / refine
-    counts = np.where(lengths > 1e-9 * max(L, W), np.maximum(1, np.ceil(lengths / h_t - 1e-9)), 0)
+    counts = np.where(lengths > 1e-9 * max(L, W), np.maximum(1, np.ceil(lengths / h_t - tol.step_count)), 0)
     counts = counts.astype(int) + 1
     if counts.sum() > MAX_VERTICES:
         raise ValueError(f"plate mesh would need {counts.sum()} vertices; use a larger max_facet_error_m")

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.tolerances import is_rotation, tol
+
 
 def _as_matrix(a, shape, name):
     arr = np.asarray(a, dtype=np.float64)
@@ -57,7 +59,7 @@ def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     z = forward / n
     x = np.cross(z, np.asarray(up, float))
     nx = np.linalg.norm(x)
-    if nx < 1e-9:
+    if nx < tol.unit_norm:
         raise ValueError(f"look_at: up {tuple(up)} is parallel to the viewing direction")
     x /= nx
     y = np.cross(z, x)
@@ -83,7 +85,7 @@ class Camera:
             if int(v) != v or not (1 <= v <= 16384):
                 raise ValueError(f"camera {name} = {v} is out of range: allowed 1 to 16384 px")
             object.__setattr__(self, name, int(v))
-        if not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-9) or np.linalg.det(self.R) < 0:
+        if not is_rotation(self.R):
             raise ValueError("R must be a proper rotation matrix (orthonormal, det +1)")
 
     # -- construction ---------------------------------------------------------

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from platebench.scenes.camera import Camera, intrinsics, look_at_rotation
+from platebench.tolerances import tol
 
 # World -X appears up in the image, so image x (and the baseline) runs along world +Y:
 # across the reference plate's bend, as the paper's exploring strategy asks.
@@ -29,10 +30,10 @@ class StereoRig:
     def __post_init__(self):
         if not (np.isfinite(self.baseline_m) and self.baseline_m > 0):
             raise ValueError(f"baseline_m = {self.baseline_m} is out of range: allowed > 0")
-        if not np.allclose(self.left.R, self.right.R, atol=1e-12):
+        if not np.allclose(self.left.R, self.right.R, atol=tol.stereo_pose_m):
             raise ValueError("conventional stereo needs both cameras to share R")
         expected = self.left.t - np.array([self.baseline_m, 0.0, 0.0])
-        if not np.allclose(self.right.t, expected, atol=1e-12):
+        if not np.allclose(self.right.t, expected, atol=tol.stereo_pose_m):
             raise ValueError("right camera must be the left one moved by the baseline along its +x")
 
     @classmethod

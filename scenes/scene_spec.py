@@ -12,6 +12,7 @@ import numpy as np
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.projector import Projector
 from platebench.scenes.rig import StereoRig
+from platebench.tolerances import tol
 
 MATERIAL_KINDS = ("diffuse", "roughconductor")
 
@@ -125,7 +126,7 @@ def up_for_baseline(view_dir, baseline_dir) -> np.ndarray:
     b = np.asarray(baseline_dir, float)
     b = b - f * (b @ f)
     nb = np.linalg.norm(b)
-    if nb < 1e-9:
+    if nb < tol.unit_norm:
         raise ValueError("baseline direction is parallel to the viewing direction")
     return np.cross(b / nb, f)
 

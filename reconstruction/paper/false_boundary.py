@@ -25,6 +25,7 @@ import numpy as np
 
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane, plane_frame
 from platebench.reconstruction.paper.surface_interpolation import points_in_polygon
+from platebench.tolerances import tol
 
 
 @dataclass(frozen=True)
@@ -62,7 +63,7 @@ def rays_on_plane(rays: FeatureRays, plane: BoundaryPlane) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (plane.offset - rays.origins @ plane.normal) / denom
     hit = rays.origins + rays.directions * t[:, None]
-    hit[~(np.abs(denom) > 1e-12) | ~(t > 0)] = np.nan
+    hit[~(np.abs(denom) > tol.parallel) | ~(t > 0)] = np.nan
     return hit
 
 

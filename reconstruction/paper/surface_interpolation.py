@@ -34,6 +34,8 @@ import scipy.sparse as sp
 from matplotlib.path import Path
 from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
+from platebench.tolerances import ceil_count, is_rotation
+
 __all__ = ["SurfaceGrid", "interpolate_surface", "surface_grid_to_mesh", "points_in_polygon"]
 
 
@@ -180,8 +182,8 @@ def interpolate_surface(points_xy, heights, domain_polygon, grid_step: float, sm
     both = np.vstack([pts, poly])
     x0, y0 = both.min(axis=0) - margin
     x1, y1 = both.max(axis=0) + margin
-    nx = int(np.ceil((x1 - x0) / grid_step - 1e-9)) + 1
-    ny = int(np.ceil((y1 - y0) / grid_step - 1e-9)) + 1
+    nx = ceil_count((x1 - x0) / grid_step) + 1
+    ny = ceil_count((y1 - y0) / grid_step) + 1
     nx, ny = max(nx, 3), max(ny, 3)
     x = x0 + grid_step * np.arange(nx)
     y = y0 + grid_step * np.arange(ny)
@@ -247,7 +249,7 @@ def surface_grid_to_mesh(grid: SurfaceGrid, frame=None) -> tuple[np.ndarray, np.
         rotation, origin = (np.asarray(v, dtype=np.float64) for v in frame)
         if rotation.shape != (3, 3) or origin.shape != (3,):
             raise ValueError(f"frame must be (R (3, 3), origin (3,)), got shapes {rotation.shape}, {origin.shape}")
-        if not (np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-9) and np.linalg.det(rotation) > 0):
+        if not is_rotation(rotation):
             raise ValueError("frame rotation R must be orthonormal with det +1")
         vertices = local @ rotation + origin
     return vertices, remap[faces].astype(np.int64)

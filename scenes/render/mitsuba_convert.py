@@ -14,15 +14,16 @@ from __future__ import annotations
 import numpy as np
 
 from platebench.scenes.camera import Camera, centred_principal_point
+from platebench.tolerances import tol
 
 
 def _check_centred_square(cam: Camera, what: str, square: bool = True) -> None:
     K = cam.K
     cx, cy = centred_principal_point(cam.width, cam.height)
-    if abs(K[0, 2] - cx) > 1e-9 or abs(K[1, 2] - cy) > 1e-9 or K[0, 1] != 0:
+    if abs(K[0, 2] - cx) > tol.pixel or abs(K[1, 2] - cy) > tol.pixel or K[0, 1] != 0:
         raise ValueError(f"{what}: Mitsuba needs a centred principal point (cx={cx}, cy={cy}) and no skew, "
                          f"got cx={K[0, 2]}, cy={K[1, 2]}")
-    if square and abs(K[0, 0] - K[1, 1]) > 1e-9 * K[0, 0]:
+    if square and abs(K[0, 0] - K[1, 1]) > tol.pixel * K[0, 0]:
         raise ValueError(f"{what}: Mitsuba's perspective model needs square pixels, got fx={K[0, 0]}, fy={K[1, 1]}")
 
 
@@ -54,6 +55,6 @@ def spot_cutoff_deg(cam: Camera, cutoff_rad: float) -> float:
     """Cutoff (degrees) of a textured spot whose texture spans +-cutoff; checks K agrees."""
     _check_centred_square(cam, "spot projector", square=False)
     tc = np.tan(cutoff_rad)
-    if abs(cam.K[0, 0] - cam.width / (2 * tc)) > 1e-6 or abs(cam.K[1, 1] - cam.height / (2 * tc)) > 1e-6:
+    if abs(cam.K[0, 0] - cam.width / (2 * tc)) > tol.pixel * cam.K[0, 0] or abs(cam.K[1, 1] - cam.height / (2 * tc)) > tol.pixel * cam.K[1, 1]:
         raise ValueError("spot projector K does not match its cutoff angle")
     return float(np.degrees(cutoff_rad))
