@@ -68,11 +68,6 @@ class Projector:
             raise ValueError("a replacement pattern must keep the projector's size")
         return Projector(self.camera, pattern, self.kind, self.cutoff_rad)
 
-    def feature_rays(self) -> tuple[np.ndarray, np.ndarray]:
-        """Centre ray (origin (3,), unit directions (N,3)) of each pattern feature, world frame."""
-        centers = np.array([f.center for f in self.pattern.features]).reshape(-1, 2)
-        return self.camera.rays(centers)
-
     def to_dict(self) -> dict:
         d = self.camera.to_dict()
         d["kind"] = self.kind

@@ -200,8 +200,12 @@ def test_import_platebench_does_not_load_the_renderer(tmp_path):
 @pytest.mark.slow
 def test_the_wheel_installs_only_the_platebench_namespace(tmp_path):
     """A regular (non-editable) wheel: every file under platebench/, the examples as package data."""
+    import shutil
     import zipfile
-    r = _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path), str(REPO)], tmp_path)
+    src = tmp_path / "src"  # build from a copy: setuptools writes build/ into the source tree
+    shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(".venv", ".git", "build", "out", "__pycache__", "*.egg-info",
+                                                             ".pytest_cache"))
+    r = _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path), str(src)], tmp_path)
     assert r.returncode == 0, r.stderr
     wheel = next(tmp_path.glob("platebench-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
