@@ -65,12 +65,21 @@ class Lighting:
     area_height_m: float = 0.9
     plate_radiance: float = 0.85
     ambient: float = 0.0  # fraction of the passive light left on in active images
+    # False: the area light hangs level at area_height_m above the rig's centre, facing down.
+    # True: it rides with the sensor, on the rig's centre line behind_rig_m behind the cameras and
+    # facing along their view (the same place as False for a rig looking straight down from
+    # area_height_m - behind_rig_m). A tilted sensor then lights what it sees: with a fixed
+    # overhead light, surfaces facing away from it are black and their edges cannot be measured.
+    follows_rig: bool = False
+    behind_rig_m: float = 0.5
 
     def __post_init__(self):
         if not (0.0 <= self.ambient <= 1.0):
             raise ValueError(f"lighting ambient = {self.ambient} is out of range: allowed 0 to 1")
         if not (self.area_size_m > 0 and self.area_height_m > 0 and self.plate_radiance > 0):
             raise ValueError("lighting sizes and plate_radiance must be > 0")
+        if not (0.0 < self.behind_rig_m <= 10.0):
+            raise ValueError(f"lighting behind_rig_m = {self.behind_rig_m} is out of range: allowed > 0 to 10 m")
 
 
 @dataclass(frozen=True)

@@ -20,8 +20,11 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from platebench.reconstruction.paper.plate_region import (
+    PlateMask,
     PlateRegion,
     ReconstructionError,
+    plate_mask,
+    quadrilateral_corners,
 )
 from platebench.reconstruction.paper.subpixel_edges import column_edges, row_edges
 from platebench.scenes.camera import triangulate_rectified
@@ -31,6 +34,7 @@ SMOOTH_PX = 21  # Savitzky-Golay window (quadratic) along each edge: the outline
 CORNER_MARGIN_PX = 6  # edge samples this close to a corner are dropped (the area method needs a clean edge)
 CORNER_FIT_PX = 30  # edge length used to fit the curves that meet at a corner
 SEARCH_PX = 10
+STRAIGHT_PX = 1.5  # a top/bottom image edge this close to its corners' chord is straight (a straight 3D edge)
 
 
 @dataclass(frozen=True)
@@ -51,8 +55,9 @@ class BoundaryStereo:
     points: np.ndarray  # (N,3) world, metres, first point not repeated
     image_points_left: np.ndarray  # (N,2) left-image pixels of each 3D point
     disparity: np.ndarray  # (N,)
-    source: np.ndarray  # (N,) str: corner / side / top-bottom
-    corner_row_mismatch_px: np.ndarray  # (4,) |v_left - v_right| of the matched corners
+    source: np.ndarray  # (N,) str: corner / side / top-bottom (corners); row / fill (contour-rows)
+    corner_row_mismatch_px: np.ndarray  # (4,) |v_left - v_right| of the matched corners; (0,) for contour-rows
+    method: str = "corners"  # "corners": the paper's quadrilateral stereo; "contour-rows": outline_stereo
 
 
 def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
@@ -175,3 +180,42 @@ def match_boundary(left: ImageOutline, right: ImageOutline, rig: StereoRig) -> B
     P = triangulate_rectified(uv[:, 0], uv[:, 1], uv[:, 0] - d, rig.left, rig.baseline_m)
     ok = np.all(np.isfinite(P), axis=1)
     return BoundaryStereo(P[ok], uv[ok], d[ok], np.array(src)[ok], np.abs(cl[:, 1] - cr[:, 1]))
+
+
+def _max_chord_deviation_px(edge, c0, c1) -> float:
+    """Largest distance (px) of a top/bottom edge's samples from the line through its corners."""
+    u, v = edge
+    d = np.asarray(c1, float) - np.asarray(c0, float)
+    n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-12)
+    return float(np.max(np.abs((np.column_stack([u, v]) - c0) @ n))) if len(u) else 0.0
+
+
+def corner_method_applies(outline: ImageOutline) -> bool:
+    """The paper's corner-based stereo interpolates disparity linearly between corners along the
+    top and bottom edges: exact only when those edges are straight in 3D, hence in the image."""
+    tl, tr, br, bl = outline.corners
+    return max(_max_chord_deviation_px(outline.top, tl, tr),
+               _max_chord_deviation_px(outline.bottom, bl, br)) <= STRAIGHT_PX
+
+
+def boundary_stereo(left_image: np.ndarray, right_image: np.ndarray, rig: StereoRig
+                    ) -> tuple[dict, BoundaryStereo]:
+    """The plate regions of both passive images and the matched 3D boundary, by the paper's corner
+    method where it applies (a quadrilateral outline with straight top and bottom edges in both
+    images), else by the general outline stereo (``outline_stereo.match_outlines``). The method
+    used is ``BoundaryStereo.method``; ``regions`` maps camera -> PlateRegion or PlateMask."""
+    from platebench.reconstruction.paper.outline_stereo import match_outlines  # noqa: PLC0415 (cycle)
+
+    images = {"left": left_image, "right": right_image}
+    masks: dict[str, PlateMask] = {c: plate_mask(images[c], f"{c}_passive") for c in images}
+    corners = {c: quadrilateral_corners(m) for c, m in masks.items()}
+    if all(q is not None for q in corners.values()):
+        regions = {c: PlateRegion(m.mask, m.contour, corners[c], m.threshold, m.tsai_threshold,
+                                  m.background_level, m.plate_level) for c, m in masks.items()}
+        try:
+            outlines = {c: outline_edges(images[c], regions[c]) for c in images}
+            if all(corner_method_applies(o) for o in outlines.values()):
+                return regions, match_boundary(outlines["left"], outlines["right"], rig)
+        except ReconstructionError:
+            pass  # e.g. too few samples on an edge: the general method below does not need edges
+    return masks, match_outlines(images["left"], images["right"], masks["left"], masks["right"], rig)

@@ -31,14 +31,8 @@ from platebench.reconstruction.paper.false_boundary import (
     false_boundary_test,
     rays_on_plane,
 )
-from platebench.reconstruction.paper.passive_boundary import (
-    match_boundary,
-    outline_edges,
-)
-from platebench.reconstruction.paper.plate_region import (
-    ReconstructionError,
-    extract_plate_region,
-)
+from platebench.reconstruction.paper.passive_boundary import boundary_stereo
+from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.reconstruction.paper.square_matching import (
     check_fig6,
     group_squares,
@@ -197,14 +191,8 @@ def passive_stereo(left_passive: np.ndarray, right_passive: np.ndarray, rig: Ste
     """Plate regions, sub-pixel outlines, boundary stereo and the boundary plane (world, metres)."""
     timings = {}
     t = time.perf_counter()
-    images = {"left": left_passive, "right": right_passive}
-    regions = {c: extract_plate_region(images[c], f"{c}_passive") for c in ("left", "right")}
-    timings["plate_regions_s"] = time.perf_counter() - t
-    t = time.perf_counter()
-    outlines = {c: outline_edges(images[c], regions[c]) for c in ("left", "right")}
-    timings["outline_edges_s"] = time.perf_counter() - t
-    t = time.perf_counter()
-    stereo = match_boundary(outlines["left"], outlines["right"], rig)
+    # The paper's corner method where it applies, else the general outline stereo (stereo.method).
+    regions, stereo = boundary_stereo(left_passive, right_passive, rig)
     timings["boundary_stereo_s"] = time.perf_counter() - t
     t = time.perf_counter()
     toward = rig.center - stereo.points.mean(axis=0)

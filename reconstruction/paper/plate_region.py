@@ -64,8 +64,24 @@ def order_corners(pts: np.ndarray) -> np.ndarray:
     return np.roll(pts, -start, axis=0)
 
 
-def extract_plate_region(image: np.ndarray, name: str = "image") -> PlateRegion:
-    """Find the plate (the bright region on the dark background) in a passive image."""
+@dataclass(frozen=True)
+class PlateMask:
+    """The plate's region in one passive image, before any corner is looked for.
+
+    ``contour``: (N,2) float pixel coordinates of the region's outer border pixels (OpenCV
+    border following, every pixel kept, in OpenCV's order); thresholds in image units."""
+
+    mask: np.ndarray  # (H,W) bool, holes filled
+    contour: np.ndarray  # (N,2) float
+    threshold: float  # low (hysteresis) threshold
+    tsai_threshold: float
+    background_level: float  # Tsai's z0
+    plate_level: float  # Tsai's z1
+
+
+def plate_mask(image: np.ndarray, name: str = "image") -> PlateMask:
+    """The bright plate region on the dark background: Tsai threshold, largest region, hysteresis
+    growth down to ``HYSTERESIS`` of the contrast, holes filled. Refuses a region touching the border."""
     f = check_image(image, name)
     t = tsai_moment_threshold(f)
     binary = (f > t.threshold).astype(np.uint8)
@@ -87,14 +103,27 @@ def extract_plate_region(image: np.ndarray, name: str = "image") -> PlateRegion:
     touches = (filled[0].any() or filled[-1].any() or filled[:, 0].any() or filled[:, -1].any())
     if touches:
         raise ReconstructionError(f"{name}: the plate touches the image border (move the cameras back)")
+    return PlateMask(filled.astype(bool), outer[:, 0, :].astype(float), float(low), t.threshold, t.z0, t.z1)
+
+
+def quadrilateral_corners(region: PlateMask) -> np.ndarray | None:
+    """The outline's four corners (TL, TR, BR, BL) by ``approxPolyDP``, or None when the outline
+    is not a quadrilateral at any of the tried tolerances (1 to 8 % of the perimeter)."""
+    outer = region.contour.astype(np.int32).reshape(-1, 1, 2)
     peri = cv2.arcLength(outer, True)
-    approx = None
     for frac in (0.01, 0.02, 0.03, 0.05, 0.08):
         a = cv2.approxPolyDP(outer, frac * peri, True)
         if len(a) == 4:
-            approx = a
-            break
-    if approx is None:
+            return order_corners(a[:, 0, :])
+    return None
+
+
+def extract_plate_region(image: np.ndarray, name: str = "image") -> PlateRegion:
+    """Find the plate (the bright region on the dark background) in a passive image, with the four
+    corners the paper's boundary stereo needs (``plate_mask`` alone for any outline)."""
+    m = plate_mask(image, name)
+    corners = quadrilateral_corners(m)
+    if corners is None:
         raise ReconstructionError(f"{name}: plate outline is not a quadrilateral (corners not found)")
-    return PlateRegion(filled.astype(bool), outer[:, 0, :].astype(float), order_corners(approx[:, 0, :]),
-                       float(low), t.threshold, t.z0, t.z1)
+    return PlateRegion(m.mask, m.contour, corners, m.threshold, m.tsai_threshold, m.background_level,
+                       m.plate_level)

@@ -27,6 +27,36 @@ from platebench.scenes.render.mitsuba_convert import (
 from platebench.scenes.scene_spec import RenderSettings, SceneSpec
 
 
+def area_light_to_world(spec: SceneSpec) -> np.ndarray:
+    """4x4 to_world of the passive area light (Mitsuba's rectangle: [-1, 1]^2 in z = 0, normal +z).
+
+    Fixed (default): level at ``area_height_m`` above the rig's centre, facing -Z. Following the rig
+    (``lighting.follows_rig``): on the rig's centre line, ``behind_rig_m`` behind the mid-baseline
+    point, facing along the cameras' view (world X, Y edges for a rig looking straight down)."""
+    light = spec.lighting
+    a = light.area_size_m / 2
+    if not light.follows_rig:
+        cx, cy = (float(c) for c in spec.rig.center[:2])
+        return np.array([[a, 0, 0, cx], [0, a, 0, cy], [0, 0, -1.0, light.area_height_m], [0, 0, 0, 1]])
+    f = np.asarray(spec.rig.left.R[2], float)  # view direction (world)
+    c = spec.rig.center - f * light.behind_rig_m
+    seed = np.array([1.0, 0.0, 0.0]) if abs(f[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = seed - f * (seed @ f)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(f, e1)
+    M = np.eye(4)
+    M[:3, 0], M[:3, 1], M[:3, 2], M[:3, 3] = a * e1, a * e2, f, c
+    return M
+
+
+def area_light_distance_m(spec: SceneSpec) -> float:
+    """Distance (m) from the area light to the plate centre (the world origin) along its axis."""
+    light = spec.lighting
+    if not light.follows_rig:
+        return light.area_height_m
+    return float(max(spec.rig.left.depth(np.zeros((1, 3)))[0], 0.0) + light.behind_rig_m)
+
+
 def _structure(spec: SceneSpec) -> tuple:
     p = spec.projector
     m = spec.material
@@ -147,12 +177,7 @@ class PlateRenderer:
             p["projector.to_world"] = mi.Transform4f(spot_to_world(proj.camera).tolist())
         else:
             p["projector.to_world"] = mi.Transform4f(perspective_to_world(proj.camera).tolist())
-        # Area light: a square facing -Z, above the rig's centre.
-        light = spec.lighting
-        cx, cy = (float(c) for c in spec.rig.center[:2])
-        a = light.area_size_m / 2
-        M = np.array([[a, 0, 0, cx], [0, a, 0, cy], [0, 0, -1.0, light.area_height_m], [0, 0, 0, 1]])
-        p["light.to_world"] = mi.Transform4f(M.tolist())
+        p["light.to_world"] = mi.Transform4f(area_light_to_world(spec).tolist())
         if spec.material.kind == "diffuse":
             p["plate.bsdf.brdf_0.reflectance.value"] = [spec.material.albedo] * 3
         elif spec.material.kind == "roughconductor":
@@ -169,7 +194,7 @@ class PlateRenderer:
         # Mitsuba's projector gives E = pi * scale * texture / d^2 on axis; a spot I / d^2.
         d = max(float(spec.projector.camera.center[2]), 1e-3)  # height above the plate plane z = 0
         self._proj_scale = L * d ** 2 * (1.0 if spec.projector.kind == "pinhole" else np.pi)
-        h = spec.lighting.area_height_m
+        h = area_light_distance_m(spec)
         s = spec.lighting.area_size_m
         # Irradiance under a square of side s at height h (exact, on axis).
         a = s / 2.0
