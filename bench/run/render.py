@@ -20,7 +20,7 @@ from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
 
-__all__ = ["RenderedSample", "render_sample", "posed_scene"]
+__all__ = ["RenderedSample", "render_sample", "render_images", "ground_truth_at", "posed_scene"]
 
 
 @dataclass(frozen=True)
@@ -93,3 +93,32 @@ def posed_scene(scene: SceneSpec, distance_m: float, pose: dict) -> SceneSpec:
     center = distance_m * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
     baseline_dir = np.asarray(scene.rig.left.R[0], float)  # camera +x (the baseline) in the world frame
     return scene_for_pose(center, np.zeros(3), baseline_dir, scene)
+
+
+def render_images(cfg: SampleConfig, renderer: PlateRenderer | None, scene: SceneSpec, plate: Plate,
+                  names=IMAGE_NAMES) -> tuple[dict, dict, dict, PlateRenderer]:
+    """Only the images ``names`` of ``plate`` at ``scene`` (e.g. the passive pair of a sensing view),
+    and the true boundary's visibility from both cameras (cheap: no dense ground-truth maps).
+
+    Returns (radiance, digital, visibility: camera -> BoundaryVisibility, renderer); the plate is
+    swapped into a passed renderer only when it is another plate."""
+    if renderer is None:
+        renderer = PlateRenderer(scene, plate, cfg.variant)
+    else:
+        renderer.set_scene(scene)
+        if renderer.plate is not plate:
+            renderer.set_plate(plate)
+    radiance, digital = {}, {}
+    for name in names:
+        cam, light = name.split("_")
+        radiance[name] = renderer.render(cam, light, cfg.render)
+        digital[name] = cfg.sensor.digitize(radiance[name], seed=image_seed(cfg.render.seed, cam, light))
+    caster = GroundTruthCaster(renderer)
+    vis = {c: caster.boundary_visibility(c) for c in ("left", "right")}
+    return radiance, digital, vis, renderer
+
+
+def ground_truth_at(renderer: PlateRenderer) -> tuple[dict, dict]:
+    """Dense ground truth (camera -> CameraGroundTruth) and boundary visibility at the renderer's
+    current scene and plate."""
+    return GroundTruthCaster(renderer).all()

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.reconstruction.paper.boundary_types import BoundaryStereo
 from platebench.reconstruction.paper.plate_region import PlateMask, ReconstructionError
 from platebench.scenes.camera import triangulate_rectified
 from platebench.scenes.rig import StereoRig
@@ -195,9 +196,7 @@ def _fill_gaps(d: np.ndarray, known: np.ndarray, v: np.ndarray, arc: np.ndarray,
 def match_outlines(left_image: np.ndarray, right_image: np.ndarray, left: PlateMask, right: PlateMask,
                    rig: StereoRig):
     """Match the two outlines along rows (ordered crossings) and fill by continuity; returns a
-    ``passive_boundary.BoundaryStereo`` with ``method`` "contour-rows"."""
-    from platebench.reconstruction.paper.passive_boundary import BoundaryStereo  # noqa: PLC0415 (cycle)
-
+    ``BoundaryStereo`` with ``method`` "contour-rows"."""
     cl = image_contour(left_image, left)
     cr = image_contour(right_image, right)
     xl, xr = _row_crossings(left.mask), _row_crossings(right.mask)

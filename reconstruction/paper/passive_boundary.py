@@ -10,6 +10,9 @@ disparity along a top/bottom edge is interpolated linearly in u between its two 
 disparities. That is exact for a straight 3D edge (inverse depth, hence disparity, is
 affine along the image of a 3D line) and first-order for a gently curved one.
 
+Where the corner method does not apply (no four corners, or curved top/bottom edges), the general
+outline stereo of ``outline_stereo`` is used instead (``boundary_stereo`` chooses and records it).
+
 Pixel coordinates: OpenCV, pixel centres at integers. Output points: world frame, metres.
 """
 from __future__ import annotations
@@ -19,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_filter
 
+from platebench.reconstruction.paper.boundary_types import BoundaryStereo
+from platebench.reconstruction.paper.outline_stereo import match_outlines
 from platebench.reconstruction.paper.plate_region import (
     PlateMask,
     PlateRegion,
@@ -46,18 +51,6 @@ class ImageOutline:
     right: tuple[np.ndarray, np.ndarray]  # rows v, u  (TR -> BR)
     top: tuple[np.ndarray, np.ndarray]  # cols u, v  (TL -> TR)
     bottom: tuple[np.ndarray, np.ndarray]  # cols u, v  (BL -> BR)
-
-
-@dataclass(frozen=True)
-class BoundaryStereo:
-    """The matched 3D boundary: a closed polygon TL -> top -> TR -> right -> BR -> bottom -> BL -> left."""
-
-    points: np.ndarray  # (N,3) world, metres, first point not repeated
-    image_points_left: np.ndarray  # (N,2) left-image pixels of each 3D point
-    disparity: np.ndarray  # (N,)
-    source: np.ndarray  # (N,) str: corner / side / top-bottom (corners); row / fill (contour-rows)
-    corner_row_mismatch_px: np.ndarray  # (4,) |v_left - v_right| of the matched corners; (0,) for contour-rows
-    method: str = "corners"  # "corners": the paper's quadrilateral stereo; "contour-rows": outline_stereo
 
 
 def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
@@ -204,8 +197,6 @@ def boundary_stereo(left_image: np.ndarray, right_image: np.ndarray, rig: Stereo
     method where it applies (a quadrilateral outline with straight top and bottom edges in both
     images), else by the general outline stereo (``outline_stereo.match_outlines``). The method
     used is ``BoundaryStereo.method``; ``regions`` maps camera -> PlateRegion or PlateMask."""
-    from platebench.reconstruction.paper.outline_stereo import match_outlines  # noqa: PLC0415 (cycle)
-
     images = {"left": left_image, "right": right_image}
     masks: dict[str, PlateMask] = {c: plate_mask(images[c], f"{c}_passive") for c in images}
     corners = {c: quadrilateral_corners(m) for c, m in masks.items()}

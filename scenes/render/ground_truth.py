@@ -240,3 +240,13 @@ def summarise_visibility(P: np.ndarray, visible: np.ndarray) -> BoundaryVisibili
             else:
                 i += 1
     return BoundaryVisibility(visible, frac, tuple(runs), bool(hidden.any()))
+
+
+def combined_visibility(P: np.ndarray, visible: list[np.ndarray]) -> BoundaryVisibility:
+    """Visibility of a closed boundary polyline (N,3) seen by any of several cameras: a point counts
+    when any of the (N,) masks marks it (e.g. several poses' left cameras, each masked to the points
+    its pair triangulated)."""
+    v = np.zeros(len(P), bool)
+    for m in visible:
+        v |= np.asarray(m, bool)
+    return summarise_visibility(np.asarray(P, float), v)

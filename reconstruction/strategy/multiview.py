@@ -1,0 +1,397 @@
+"""Viewpoint consistency and the boundary verdict, from measurements only (no ground truth).
+
+Each pose measures the plate's outline by passive stereo (``ViewOutline``). A point of that outline
+is either a true edge of the plate or an occluding contour (where the surface turns away from the
+cameras and hides what lies beyond). The two behave differently when the viewpoint moves:
+
+* a true edge stays where it is: every pose that sees it puts it on its outline, at the same 3D
+  place;
+* an occluding contour slides over the surface, by about ``R dtheta`` for a rotation ``dtheta``
+  about the contour's direction (``R``: the surface's radius of curvature across the contour).
+
+So a measured outline point is *confirmed* when another pose, whose viewing ray at that point is
+turned by at least ``CONFIRM_ANGLE_RAD``, of which at least ``CONFIRM_SLIDE_ANGLE_RAD`` about the
+outline's local direction (the part that slides a contour), has a measured outline point within
+``CONFIRM_TOL_M`` of it. Only points whose disparity was measured on the row
+(not interpolated, ``ViewOutline.matched``) confirm or are confirmed: an interpolated stretch
+agrees with anything its ends agree with.
+
+The verdict (``verify``) asks whether the confirmed pieces of all poses close into one loop, as a
+plate's boundary does. A piece that stops where no other confirmed piece leads on is a *gap*:
+part of the boundary that no pose has shown to be a true edge. ``BoundaryVerdict.verified`` is
+true only without gaps.
+
+Limits (measured on the bench, see DESIGN.md): a contour slides less than ``CONFIRM_TOL_M`` when
+``R`` is under about 2.3 mm (a crease): such a contour cannot be told from an edge this way.
+World frame, metres, radians.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+MATCHED_SOURCES = ("row", "side")  # BoundaryStereo sources whose disparity was measured on the row
+CONFIRM_TOL_M = 1.0e-3  # two poses' points of a true edge agree within this (row-matched: ~0.3 mm each)
+CONFIRM_ANGLE_RAD = float(np.radians(25.0))  # ... when their rays differ by this much
+CONFIRM_SLIDE_ANGLE_RAD = float(np.radians(12.0))  # ... of which this much about the edge's own direction
+FACING_RAD = float(np.radians(20.0))  # ... unless the surface measured near it faces the pose this much
+TANGENT_HALF_POINTS = 4  # outline points on either side for the local 3D direction
+MIN_PIECE_M = 2e-3  # confirmed runs shorter than this are noise, not pieces
+BRIDGE_M = 6e-3  # unconfirmed runs this short inside one pose's outline are bridged (corners)
+LINK_M = 4e-3  # a piece's end links to another piece within this distance ...
+LEAD_M = 12e-3  # ... that leads on: has a point within this of the end, farther than LINK_M from the piece
+OUTLINE_BRIDGE_M = 12e-3  # or to one reached along some pose's measured outline within this arc length
+MERGE_SPACING_M = 1e-3  # the merged boundary keeps one point per this spacing
+REPORT_MIN_M = 8e-3  # unconfirmed outline runs at least this long are reported
+
+
+@dataclass(frozen=True)
+class ViewOutline:
+    """One pose's measured outline in the world frame (metres), closed and in outline order.
+
+    ``points``: (N,3); ``matched``: (N,) True where the disparity was measured on the row;
+    ``camera_center``: (3,) the pose's mid-baseline point; ``image_points``: (N,2) left-image
+    pixels; ``method``: the boundary stereo method (``BoundaryStereo.method``)."""
+
+    name: str
+    points: np.ndarray
+    matched: np.ndarray
+    camera_center: np.ndarray
+    image_points: np.ndarray
+    method: str
+
+    @classmethod
+    def from_stereo(cls, name: str, stereo, camera_center) -> "ViewOutline":
+        """From a ``BoundaryStereo`` measured at a pose whose mid-baseline point is ``camera_center``."""
+        return cls(name, np.asarray(stereo.points, float), np.isin(stereo.source, MATCHED_SOURCES),
+                   np.asarray(camera_center, float), np.asarray(stereo.image_points_left, float), stereo.method)
+
+    @property
+    def arc_m(self) -> np.ndarray:
+        """(N,) length of the segment from each point to the next (closed)."""
+        return np.linalg.norm(np.roll(self.points, -1, axis=0) - self.points, axis=1)
+
+    @property
+    def length_m(self) -> float:
+        return float(self.arc_m.sum())
+
+
+def outline_directions(points: np.ndarray, half: int = TANGENT_HALF_POINTS) -> np.ndarray:
+    """(N,3) unit local directions of a closed polyline (central differences over ``half`` points)."""
+    P = np.asarray(points, float)
+    d = np.roll(P, -half, axis=0) - np.roll(P, half, axis=0)
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    return d / np.where(n > 0, n, 1.0)
+
+
+def rotation_about(directions: np.ndarray, ray_a: np.ndarray, ray_b: np.ndarray) -> np.ndarray:
+    """(N,) angle (rad) between rays a and b after projecting both onto the plane perpendicular to
+    the given directions: the part of a change of viewpoint that slides an occluding contour."""
+    t = directions
+
+    def project(r):
+        r = r - t * np.einsum("ij,ij->i", r, t)[:, None]
+        n = np.linalg.norm(r, axis=1, keepdims=True)
+        return r / np.where(n > 0, n, 1.0)
+
+    a, b = project(ray_a), project(ray_b)
+    return np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0))
+
+
+def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_rad: float = CONFIRM_ANGLE_RAD,
+            min_slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD, facing: list[np.ndarray] | None = None
+            ) -> list[np.ndarray]:
+    """Per pose, (N,) bool: the row-matched points that another pose confirms (see module doc).
+
+    ``facing``: per pose, (N,) True where the surface measured by the *other* poses near the point
+    faces this pose by at least ``FACING_RAD`` (the occluding-contour condition is false there, so
+    the turn about the edge's own direction need not be large: nothing could slide)."""
+    trees = [cKDTree(v.points[v.matched]) if v.matched.any() else None for v in views]
+    out = []
+    for k, vk in enumerate(views):
+        P = vk.points
+        conf = np.zeros(len(P), bool)
+        if not vk.matched.any():
+            out.append(conf)
+            continue
+        tang = outline_directions(P)
+        for j, vj in enumerate(views):
+            if j == k or trees[j] is None:
+                continue
+            dist, _ = trees[j].query(P, distance_upper_bound=tol_m * (1 + 1e-9))
+            near = vk.matched & (dist <= tol_m)
+            if not near.any():
+                continue
+            ra, rb = P[near] - vk.camera_center, P[near] - vj.camera_center
+            about = rotation_about(tang[near], ra, rb)
+            cos = np.einsum("ij,ij->i", ra, rb) / (np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1))
+            slide_ok = about >= min_slide_angle_rad
+            if facing is not None:
+                slide_ok |= facing[k][near]
+            ok = (np.arccos(np.clip(cos, -1.0, 1.0)) >= min_angle_rad) & slide_ok
+            conf[np.nonzero(near)[0][ok]] = True
+        out.append(conf)
+    return out
+
+
+def cyclic_runs(mask: np.ndarray) -> list[np.ndarray]:
+    """Index runs of True in a cyclic boolean array, each in order (one run if all True)."""
+    mask = np.asarray(mask, bool)
+    n = len(mask)
+    if n == 0 or not mask.any():
+        return []
+    if mask.all():
+        return [np.arange(n)]
+    start = int(np.argmin(mask))  # begin on a False
+    order = (np.arange(n) + start) % n
+    m = mask[order]
+    out, i = [], 0
+    while i < n:
+        if m[i]:
+            j = i
+            while j < n and m[j]:
+                j += 1
+            out.append(order[i:j])
+            i = j
+        else:
+            i += 1
+    return out
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A stretch of one pose's outline shown to be a true edge: confirmed points, with unconfirmed
+    stretches shorter than ``BRIDGE_M`` between them bridged. ``closed``: the whole outline."""
+
+    view: str
+    indices: np.ndarray  # (K,) into that pose's outline, in order
+    points: np.ndarray  # (K,3)
+    closed: bool = False
+
+    @property
+    def length_m(self) -> float:
+        P = self.points
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1).sum() if len(P) > 1 else 0.0
+        return float(seg + (np.linalg.norm(P[-1] - P[0]) if self.closed else 0.0))
+
+
+def pieces(views: list[ViewOutline], confirmed: list[np.ndarray]) -> list[Piece]:
+    """Confirmed runs of at least ``MIN_PIECE_M``, joined across unconfirmed runs of at most ``BRIDGE_M``."""
+    out = []
+    for v, c in zip(views, confirmed):
+        arc = v.arc_m
+        keep = np.zeros(len(c), bool)
+        for r in cyclic_runs(c):
+            if arc[r[:-1]].sum() >= MIN_PIECE_M:
+                keep[r] = True
+        if not keep.any():
+            continue
+        joined = keep.copy()
+        for r in cyclic_runs(~keep):
+            if arc[np.concatenate([[r[0] - 1], r])].sum() <= BRIDGE_M:
+                joined[r] = True
+        for r in cyclic_runs(joined):
+            out.append(Piece(v.name, r, v.points[r], closed=bool(joined.all())))
+    return out
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Where a confirmed piece stops and no other confirmed piece leads on (world frame, metres)."""
+
+    position_m: np.ndarray  # (3,) the last confirmed point
+    direction: np.ndarray  # (3,) unit, from the piece into the gap
+    view: str  # the pose whose outline the piece belongs to
+
+    def to_dict(self) -> dict:
+        return {"position_mm": (self.position_m * 1e3).round(2).tolist(),
+                "direction": self.direction.round(4).tolist(), "piece_from": self.view,
+                "what": f"boundary not verified beyond ({', '.join(f'{x:.1f}' for x in self.position_m * 1e3)}) "
+                        f"mm, where the piece seen from {self.view} stops"}
+
+
+@dataclass(frozen=True)
+class UnconfirmedRun:
+    """A stretch of one pose's outline that no other pose confirmed (an occluding contour, an
+    interpolated edge, or an edge seen by one pose only)."""
+
+    view: str
+    length_m: float
+    start_m: np.ndarray
+    end_m: np.ndarray
+    covered: bool  # True when confirmed pieces of other poses run along it (within LINK_M)
+
+    def to_dict(self) -> dict:
+        return {"view": self.view, "length_mm": round(self.length_m * 1e3, 1),
+                "start_mm": (self.start_m * 1e3).round(1).tolist(), "end_mm": (self.end_m * 1e3).round(1).tolist(),
+                "covered_by_other_poses": self.covered}
+
+
+@dataclass(frozen=True)
+class BoundaryVerdict:
+    """Whether the confirmed pieces close into one loop (``verified``), and what is missing."""
+
+    verified: bool
+    pieces: tuple[Piece, ...]
+    gaps: tuple[Gap, ...]
+    unconfirmed: tuple[UnconfirmedRun, ...]
+    merged: np.ndarray  # (M,3) merged boundary points, one per MERGE_SPACING_M
+    components: int
+    reason: str
+    confirmed: tuple[np.ndarray, ...] = ()  # per pose, (N,) the confirmed outline points
+
+    @property
+    def confirmed_length_m(self) -> float:
+        return float(sum(p.length_m for p in self.pieces))
+
+    def to_dict(self) -> dict:
+        return {"boundary_verified": self.verified, "reason": self.reason, "components": self.components,
+                "pieces": [{"view": p.view, "length_mm": round(p.length_m * 1e3, 1), "closed": p.closed}
+                           for p in self.pieces],
+                "gaps": [g.to_dict() for g in self.gaps],
+                "unconfirmed_outline": [u.to_dict() for u in self.unconfirmed],
+                "merged_points": int(len(self.merged))}
+
+
+def _end_direction(P: np.ndarray, at_start: bool) -> np.ndarray:
+    """Unit direction leaving a piece at one end (from its last few millimetres)."""
+    Q = P if not at_start else P[::-1]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+    k = int(np.searchsorted(s, s[-1] - 3e-3))
+    d = Q[-1] - Q[min(k, len(Q) - 2)]
+    n = np.linalg.norm(d)
+    return d / n if n > 0 else np.zeros(3)
+
+
+def _leads_on(i: int, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], near_to: np.ndarray) -> bool:
+    """Piece ``i`` comes within LINK_M of ``near_to`` and has a point within LEAD_M of ``end`` that is
+    farther than LINK_M from the piece ``own`` the end belongs to."""
+    if trees[i].query(near_to)[0] > LINK_M:
+        return False
+    p = all_pieces[i]
+    near = p.points[np.linalg.norm(p.points - end, axis=1) <= LEAD_M + np.linalg.norm(near_to - end)]
+    return bool(len(near) and (trees[own].query(near)[0] > LINK_M).any())
+
+
+def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline]) -> list[int]:
+    """Pieces (other than ``own``) that an end links to: one that passes within LINK_M of the end
+    and leads on; else one reached from the end along a pose's measured outline within
+    OUTLINE_BRIDGE_M of arc (a steep corner confirmed by no pair of poses, say)."""
+    others = [i for i in range(len(all_pieces)) if i != own]
+    out = [i for i in others if _leads_on(i, end, own, trees, all_pieces, end)]
+    if out:
+        return out
+    for v in views:
+        d = np.linalg.norm(v.points - end, axis=1)
+        k = int(np.argmin(d))
+        if d[k] > LINK_M:
+            continue
+        arc, n = v.arc_m, len(v.points)
+        for step in (1, -1):
+            walked, j = 0.0, k
+            while walked <= OUTLINE_BRIDGE_M:
+                nxt = (j + step) % n
+                walked += arc[j if step > 0 else nxt]
+                j = nxt
+                hit = [i for i in others if _leads_on(i, end, own, trees, all_pieces, v.points[j])]
+                if hit:
+                    return hit
+    return []
+
+
+def _merge_points(ps: list[Piece]) -> np.ndarray:
+    kept: list[np.ndarray] = []
+    tree = None
+    for p in sorted(ps, key=lambda q: -q.length_m):
+        P = p.points
+        if tree is not None:
+            P = P[tree.query(P)[0] > MERGE_SPACING_M]
+        if len(P):
+            # thin along the piece itself
+            step = max(1, int(round(MERGE_SPACING_M / max(np.median(np.linalg.norm(np.diff(p.points, axis=0),
+                                                                                      axis=1)), 1e-6))))
+            kept.append(P[::step])
+            tree = cKDTree(np.vstack(kept))
+    return np.vstack(kept) if kept else np.zeros((0, 3))
+
+
+def facing_masks(views: list[ViewOutline], model) -> list[np.ndarray]:
+    """Per pose, (N,) True where the surface model built from the other poses (a
+    ``surface_model.SurfaceModel``) faces the pose by at least FACING_RAD near the outline point."""
+    out = []
+    for v in views:
+        n = model.normals_near(v.points, v.camera_center, exclude_view=v.name)
+        r = v.points - v.camera_center
+        r /= np.linalg.norm(r, axis=1, keepdims=True)
+        ok = np.all(np.isfinite(n), axis=1)
+        f = np.zeros(len(r), bool)
+        f[ok] = np.abs(np.einsum("ij,ij->i", n[ok], r[ok])) >= np.sin(FACING_RAD)
+        out.append(f)
+    return out
+
+
+def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | None = None) -> BoundaryVerdict:
+    """Confirm (with the surface model's facing test when ``model`` is given), cut into pieces, link
+    the pieces' ends and decide (see module doc)."""
+    if confirmed is None:
+        confirmed = confirm(views, facing=None if model is None else facing_masks(views, model))
+    ps = pieces(views, confirmed)
+    if not ps:
+        return BoundaryVerdict(False, (), (), _unconfirmed(views, confirmed, []), np.zeros((0, 3)), 0,
+                               "no outline point was confirmed by a second pose", tuple(confirmed))
+    trees = [cKDTree(p.points) for p in ps]
+    parent = list(range(len(ps)))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    gaps = []
+    for i, p in enumerate(ps):
+        if p.closed:
+            continue
+        for at_start in (True, False):
+            end = p.points[0] if at_start else p.points[-1]
+            links = _linked(end, i, trees, ps, views)
+            for j in links:
+                parent[find(i)] = find(j)
+            if not links:
+                gaps.append(Gap(end.copy(), _end_direction(p.points, at_start), p.view))
+    main = [i for i, p in enumerate(ps) if p.length_m >= LINK_M]
+    components = len({find(i) for i in main})
+    merged = _merge_points(ps)
+    unconf = _unconfirmed(views, confirmed, ps)
+    if gaps:
+        reason = f"{len(gaps)} piece end(s) where no confirmed piece leads on"
+    elif components != 1:
+        reason = f"the confirmed pieces form {components} separate groups, not one loop"
+    else:
+        reason = "the confirmed pieces close into one loop"
+    return BoundaryVerdict(not gaps and components == 1, tuple(ps), tuple(gaps), unconf, merged, components, reason,
+                           tuple(confirmed))
+
+
+def _unconfirmed(views: list[ViewOutline], confirmed: list[np.ndarray], ps: list[Piece]) -> tuple:
+    """Each pose's unconfirmed outline runs of at least REPORT_MIN_M (not bridged into a piece)."""
+    by_view: dict[str, np.ndarray] = {}
+    for p in ps:
+        m = by_view.setdefault(p.view, np.zeros(0, int))
+        by_view[p.view] = np.concatenate([m, p.indices])
+    others = {v.name: [p.points for p in ps if p.view != v.name] for v in views}
+    out = []
+    for v in views:
+        inside = np.zeros(len(v.points), bool)
+        inside[by_view.get(v.name, np.zeros(0, int))] = True
+        arc = v.arc_m
+        other = np.vstack(others[v.name]) if others[v.name] else None
+        for r in cyclic_runs(~inside):
+            length = float(arc[r[:-1]].sum())
+            if length < REPORT_MIN_M:
+                continue
+            covered = bool(other is not None and np.mean(cKDTree(other).query(v.points[r])[0] <= LINK_M) > 0.9)
+            out.append(UnconfirmedRun(v.name, length, v.points[r[0]].copy(), v.points[r[-1]].copy(), covered))
+    return tuple(out)
