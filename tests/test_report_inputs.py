@@ -287,3 +287,69 @@ def test_demo_like_folder_is_one_report(tmp_path):
         assert f'<section id="{anchor}">' in text
     _check_links(index)
     shutil.rmtree(tmp_path / "report")
+
+
+def test_report_of_a_dataset_sample_with_peer_outputs(tmp_path):
+    """A sweep sample's folder: the paper's reconstruction and a dense peer's output (score.json only,
+    Middlebury figures nested under "scores"); the paper's first, the shared sample shown once."""
+    _, recon = make_recon(tmp_path / "0003", bound_met=True)  # 0003/sample, 0003/recon
+    moved = recon.rename(tmp_path / "0003" / "moved")
+    recon.mkdir()
+    paper = moved.rename(recon / "paper")  # the dataset layout: 0003/recon/<method>
+    sgbm = tmp_path / "0003" / "recon" / "sgbm"
+    sgbm.mkdir()
+    (sgbm / "score.json").write_text(json.dumps({
+        "method": "sgbm", "scores": {"depth_rms_mm": 6.41, "depth_median_mm": 1.16, "coverage_pct": 15.5,
+                                     "middlebury": {"mb_all_bad_1_0_pct": 91.0}}}))
+    inp = detect_inputs(tmp_path / "0003")
+    assert inp.recons == [paper, sgbm] and inp.samples == []
+    index = write_report(tmp_path / "0003")
+    text = index.read_text()
+    head = _headline(text)
+    assert head.index("reference experiment (V)</h2>") < head.index("reference experiment (V): sgbm</h2>")
+    sg = head[head.index(": sgbm"):]
+    assert "6.41" in sg and "1.16" in sg and "Middlebury bad 1.0 (all) (%)" in sg and "15.5" in sg
+    assert len(list((index.parent / "thumbs").glob("*.png"))) == 4  # the sample's images once
+    assert "(shown above)" in text
+    _check_links(index)
+
+
+def test_sensing_report_links_its_stages(tmp_path):
+    d = make_sensing(tmp_path / "sense")
+    for n in ("stage1", "stage3_cure1"):
+        (d / n).mkdir()
+    index = write_report(d)
+    refs = _check_links(index)
+    assert {"../stage1/", "../stage3_cure1/", "../sensing.json"} <= set(refs)
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_render_reconstruct_evaluate_report_from_the_command_line(tmp_path):
+    """As a user would: render a small sample, reconstruct and evaluate it, then report the sample alone,
+    the reconstruction alone, and the folder holding both."""
+    from tests.conftest import run_cli
+    s, r = tmp_path / "s", tmp_path / "r"
+    for args in (("render", "--out", s, "--width", 320, "--height", 240, "--spp", 2),
+                 ("reconstruct", s, "--out", r), ("evaluate", s, r)):
+        proc = run_cli(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    score = json.loads((r / "score.json").read_text())
+    proc = run_cli("report", s)
+    assert proc.returncode == 0 and proc.stdout.strip() == str(s / "report" / "index.html"), proc.stderr[-2000:]
+    head = _headline((s / "report" / "index.html").read_text())
+    assert "Sample s" in head and "the whole true boundary is visible" in head  # 320x240: not the reference
+    assert len(list((s / "report" / "thumbs").glob("*.png"))) == 4
+    proc = run_cli("report", r)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    index = r / "report" / "index.html"
+    head = _headline(index.read_text())
+    met = score["paper_bound"]["met"]
+    assert f'<span class="badge {"met" if met else "not"}">' in head and "paper&#39;s bound (V-D)" in head
+    assert f"{score['matching']['matched_count']} / {score['matching']['expected_count_gt']}" in head
+    assert "../../s/" in _check_links(index)  # the sample it was made from, linked
+    assert (r / "report" / "plots" / "recon_error_map.png").is_file()
+    shutil.rmtree(s / "report")
+    shutil.rmtree(r / "report")
+    assert run_cli("report", tmp_path).returncode == 0
+    assert detect_inputs(tmp_path).samples == []  # shown with its reconstruction

@@ -29,15 +29,14 @@ from platebench.bench.report.values import finite, flag, fmt
 __all__ = ["recon_section", "sample_section", "compare_section", "is_reference", "score_figures"]
 
 _TITLES = {p.name: p.title for p in PARAMETERS}
-# key figures of a score, (path in score.json, label, unit); the first path present wins
+# key figures of a score: (name of the figure in score.json, at any depth; label; unit), in card order.
+# The paper's score.json nests them by part (points.depth_rms_mm), a dense method's under "scores".
 _SCORE_FIGURES = (
-    (("points.depth_rms_mm", "depth_rms_mm"), "depth RMS", "mm"),
-    (("points.depth_max_mm", "depth_max_mm"), "depth max", "mm"),
-    (("points.xy_radial_rms_mm",), "x/y radial RMS", "mm"),
-    (("paper_bound.xy_per_axis_max_mm",), "x/y max per axis", "mm"),
-    (("boundary_3d.mean_sym_mm",), "boundary mean", "mm"),
-    (("surface.dist_rms_mm",), "surface RMS", "mm"),
-    (("surface.coverage_frac", "coverage_frac"), "coverage of the plate", "fraction"),
+    ("depth_rms_mm", "depth RMS", "mm"), ("depth_median_mm", "depth median", "mm"),
+    ("depth_max_mm", "depth max", "mm"), ("xy_radial_rms_mm", "x/y radial RMS", "mm"),
+    ("xy_per_axis_max_mm", "x/y max per axis", "mm"), ("mean_sym_mm", "boundary mean", "mm"),
+    ("dist_rms_mm", "surface RMS", "mm"), ("coverage_frac", "coverage of the plate", "fraction"),
+    ("coverage_pct", "coverage of the plate", "%"), ("mb_all_bad_1_0_pct", "Middlebury bad 1.0 (all)", "%"),
 )
 
 
@@ -58,7 +57,8 @@ def is_reference(config: dict) -> bool:
 
 
 def score_figures(score: dict) -> list[dict]:
-    """The key figures of a score.json (cards): errors in mm, points matched of expected."""
+    """The key figures of a score.json (cards): points matched of expected, then each of
+    ``_SCORE_FIGURES`` found at any depth (its first occurrence)."""
     flat = _flatten(score)
     out = []
     m = score.get("matching") or {}
@@ -66,9 +66,11 @@ def score_figures(score: dict) -> list[dict]:
         out.append({"label": "points matched / expected", "value": f"{m['matched_count']} / "
                     f"{fmt(m.get('expected_count_gt'))}", "unit": "",
                     "status": "good" if m.get("matched_count") == m.get("expected_count_gt") else "bad"})
-    for paths, label, unit in _SCORE_FIGURES:
-        v = next((flat[p] for p in paths if finite(flat.get(p)) is not None), None)
-        if v is not None:
+    labels = set()
+    for name, label, unit in _SCORE_FIGURES:
+        v = next((v for k, v in flat.items() if k.rsplit(".", 1)[-1] == name and finite(v) is not None), None)
+        if v is not None and label not in labels:
+            labels.add(label)
             out.append({"label": label, "value": v, "unit": unit, "status": ""})
     return out
 
@@ -127,14 +129,14 @@ def _visibility(sample: Path) -> str | None:
             "the whole true boundary is visible: ") + ", ".join(parts)
 
 
-def _sample_part(page: Page, sample: Path, prefix: str) -> dict:
+def _sample_part(page: Page, sample: Path, prefix: str, thumbs: bool = True) -> dict:
     meta = load_sample_meta(sample)
     config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
     timings = meta.get("timings_s") if isinstance(meta.get("timings_s"), dict) else {}
     return {"href": page.link(sample), "rel": page.rel(sample), "facts": _config_facts(config),
             "variant": meta.get("variant"), "render_s": timings.get("total_s"),
             "visibility": _visibility(sample), "reference": is_reference(config),
-            "thumbs": page.thumbnails(sample, prefix),
+            "thumbs": page.thumbnails(sample, prefix) if thumbs else [],
             "packages": [(k, v if v is not None else "not installed")
                          for k, v in (meta.get("packages") or {}).items()]}
 
@@ -143,28 +145,37 @@ def sample_section(page: Page, sample: Path, prefix: str) -> dict:
     """A rendered sample on its own: parameters, ground-truth visibility, thumbnails, its folder."""
     part = _sample_part(page, sample, prefix)
     title = "The paper's reference experiment: sample" if part["reference"] else f"Sample {part['rel']}"
-    return {"kind": "experiment", "title": title, "sample": part, "recon": None,
+    return {"kind": "experiment", "title": title, "sample": part, "recon": None, "sample_link": None,
             "headline": {"label": title, "text": part["visibility"] or "no ground-truth visibility record",
                          "met": None}}
 
 
-def recon_section(page: Page, recon: Path, prefix: str) -> dict:
-    """A reconstruction with its score (when evaluated) and the sample it came from."""
-    meta, score = load_recon(recon)
-    sample = recon_sample_dir(recon, meta)
-    part = _sample_part(page, sample, prefix) if sample is not None else None
-    ref = bool(part and part["reference"])
-    title = "The paper's reference experiment (V)" if ref else f"Reconstruction {page.rel(recon)}"
+def _recon_facts(meta: dict) -> list[tuple[str, object]]:
+    """What recon.json (the paper's pipeline) says of itself; [] for other methods' folders."""
     fb = meta.get("false_boundary") if isinstance(meta.get("false_boundary"), dict) else {}
     timings = meta.get("timings_s") if isinstance(meta.get("timings_s"), dict) else {}
-    rec = {"href": page.link(recon), "rel": page.rel(recon), "method": meta.get("method"),
-           "facts": [("points triangulated", meta.get("n_points")), ("boundary points", meta.get("n_boundary_points")),
-                     ("squares detected per image", ", ".join(f"{k} {v}" for k, v in (fb.get("detected") or {}).items())),
-                     ("squares expected (method)", fb.get("expected")), ("counting test", fb.get("counting_test")),
-                     ("arrays disagree (Fig. 2)", fb.get("arrays_disagree")),
-                     ("false boundary detected", fb.get("false_boundary_detected")),
-                     ("unmatched", ", ".join(map(str, meta.get("unmatched") or [])) or None),
-                     ("reconstruction time (s)", timings.get("total_s"))],
+    if not meta:
+        return []
+    return [("points triangulated", meta.get("n_points")), ("boundary points", meta.get("n_boundary_points")),
+            ("squares detected per image", ", ".join(f"{k} {v}" for k, v in (fb.get("detected") or {}).items())),
+            ("squares expected (method)", fb.get("expected")), ("counting test", fb.get("counting_test")),
+            ("arrays disagree (Fig. 2)", fb.get("arrays_disagree")),
+            ("false boundary detected", fb.get("false_boundary_detected")),
+            ("unmatched", ", ".join(map(str, meta.get("unmatched") or [])) or None),
+            ("reconstruction time (s)", timings.get("total_s"))]
+
+
+def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True) -> dict:
+    """A reconstruction with its score (when evaluated) and the sample it came from (its details
+    only when ``show_sample``; a link otherwise, for a sample several reconstructions share)."""
+    meta, score = load_recon(recon)
+    sample = recon_sample_dir(recon, meta)
+    part = _sample_part(page, sample, prefix, thumbs=show_sample) if sample is not None else None
+    ref = bool(part and part["reference"])
+    method = meta.get("method") or (score or {}).get("method") or recon.name
+    title = (f"The paper's reference experiment (V){'' if method == 'paper' else f': {method}'}" if ref
+             else f"Reconstruction {page.rel(recon)} ({method})")
+    rec = {"href": page.link(recon), "rel": page.rel(recon), "method": method, "facts": _recon_facts(meta),
            "score_href": page.link(recon / "score.json") if score is not None else None,
            "figures": score_figures(score) if score else [], "verdicts": _verdicts(score) if score else [],
            "score_tables": _score_tables(score) if score else [], "plots": []}
@@ -182,7 +193,9 @@ def recon_section(page: Page, recon: Path, prefix: str) -> dict:
     headline = {"label": title, "figures": rec["figures"], "verdicts": rec["verdicts"],
                 "text": "" if score else "not scored yet (no score.json)", "met": None,
                 "paper": "The paper (V): 16 points, depth error within 2 mm, x/y error within 1 mm." if ref else ""}
-    return {"kind": "experiment", "title": title, "sample": part, "recon": rec, "notes": notes, "headline": headline}
+    return {"kind": "experiment", "title": title, "sample": part if show_sample else None,
+            "sample_link": None if show_sample or part is None else {"href": part["href"], "rel": part["rel"]},
+            "recon": rec, "notes": notes, "headline": headline}
 
 
 # ----------------------------------------------------------------------------- compare.json

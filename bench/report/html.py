@@ -29,7 +29,7 @@ import jinja2
 from platebench.bench.io.atomic import staged_directory, write_text
 from platebench.bench.report.dataset import dataset_section
 from platebench.bench.report.experiment import compare_section, recon_section, sample_section
-from platebench.bench.report.inputs import GENERATOR, Inputs, ReportInputError, detect_inputs
+from platebench.bench.report.inputs import GENERATOR, Inputs, ReportInputError, detect_inputs, recon_sample_dir
 from platebench.bench.report.interim import sensing_section, study_section  # until bench/report/sensing.py lands
 from platebench.bench.report.page import Page, normalise_section
 from platebench.bench.report.values import fmt
@@ -78,7 +78,7 @@ def _numbered(paths: list, kind: str) -> list[tuple[Path, str]]:
 
 
 def _generic(page: Page, builder, path: Path, anchor: str, nav: str) -> dict:
-    d = normalise_section(page, builder(path, page.section_dir(anchor)), page.section_dir(anchor))
+    d = normalise_section(page, builder(path, page.section_dir(anchor)), page.section_dir(anchor), path)
     head = {"label": f"{d['title']} ({page.rel(path)})", "figures": d["figures"][:6],
             "text": (f"Outcome: {d['outcome']}. " if d["outcome"] else "") + d["summary"], "met": None}
     return {**d, "kind": "generic", "rel": page.rel(path), "anchor": anchor, "nav": nav, "headline": head}
@@ -87,8 +87,13 @@ def _generic(page: Page, builder, path: Path, anchor: str, nav: str) -> dict:
 def _sections(page: Page, inp: Inputs) -> list[dict]:
     """One section per input: experiments first, then sensing runs, datasets, studies, comparisons."""
     out = []
+    shown: set = set()  # samples already shown with a reconstruction
     for path, a in _numbered(inp.recons, "recon"):
-        out.append({**recon_section(page, path, f"{a}_"), "anchor": a, "nav": f"reconstruction {page.rel(path)}"})
+        sample = recon_sample_dir(path)
+        key = None if sample is None else sample.resolve()
+        out.append({**recon_section(page, path, f"{a}_", show_sample=key not in shown), "anchor": a,
+                    "nav": f"reconstruction {page.rel(path)}"})
+        shown.add(key)
     for path, a in _numbered(inp.samples, "sample"):
         out.append({**sample_section(page, path, f"{a}_"), "anchor": a, "nav": f"sample {page.rel(path)}"})
     for path, a in _numbered(inp.sensing, "sensing"):

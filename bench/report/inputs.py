@@ -8,7 +8,8 @@ Kinds of input, each recognised by the file that defines it:
   else ``study.csv``;
 * ``sensing``  a sensing run (``platebench sense``): ``sensing.json``;
 * ``recon``    a reconstruction (``platebench reconstruct``): ``recon.json``, with
-  ``score.json`` beside it once ``platebench evaluate`` has scored it;
+  ``score.json`` beside it once ``platebench evaluate`` has scored it; or another method's
+  output with its ``score.json`` (a peer's folder in a dataset sample);
 * ``sample``   a rendered sample (``platebench render``): ``sample.json``;
 * ``compare``  ``compare.json`` files of ``platebench compare``.
 
@@ -138,7 +139,7 @@ def _kinds(d: Path) -> set:
         kinds.add("study")
     if (d / "sensing.json").is_file():
         kinds.add("sensing")
-    if (d / "recon.json").is_file():
+    if (d / "recon.json").is_file() or (d / "score.json").is_file():
         kinds.add("recon")
     if (d / "sample.json").is_file():
         kinds.add("sample")
@@ -156,7 +157,9 @@ def _subdirs(d: Path) -> list[Path]:
 def recon_sample_dir(recon: Path, meta: dict | None = None) -> Path | None:
     """The sample a reconstruction was made from: ``recon.json``'s ``sample_dir`` if it exists,
     else a ``sample/`` beside the reconstruction's folder (the dataset and demo layouts)."""
-    meta = meta if meta is not None else _read_dict(Path(recon) / "recon.json", "reconstruction summary")
+    if meta is None:
+        meta = _read_dict(Path(recon) / "recon.json", "reconstruction summary") \
+            if (Path(recon) / "recon.json").is_file() else {}
     cands = [Path(str(meta["sample_dir"]))] if isinstance(meta.get("sample_dir"), str) else []
     cands += [Path(recon).parent / "sample", Path(recon).parent.parent / "sample"]
     return next((c for c in cands if (c / "sample.json").is_file()), None)
@@ -180,6 +183,7 @@ def detect_inputs(input_dir: Path) -> Inputs:
                 bucket.append(d)
         if not kinds and depth < MAX_DEPTH:
             queue += [(s, depth + 1) for s in _subdirs(d)]
+    inp.recons.sort(key=lambda r: (str(r.parent), r.name != "paper", r.name))  # the paper's pipeline first
     shown = {p.resolve() for r in inp.recons if (p := recon_sample_dir(r)) is not None}
     inp.samples = [s for s in inp.samples if s.resolve() not in shown]
     inp.compares = _find_compares(root, inp.datasets)
@@ -346,9 +350,9 @@ def load_sensing(sensing_dir: Path) -> dict:
 
 
 def load_recon(recon_dir: Path) -> tuple[dict, dict | None]:
-    """(recon.json, score.json or None when not scored yet) of a reconstruction directory."""
+    """(recon.json or {} for another method's output, score.json or None when not scored yet)."""
     d = Path(recon_dir)
-    meta = _read_dict(d / "recon.json", "reconstruction summary")
+    meta = _read_dict(d / "recon.json", "reconstruction summary") if (d / "recon.json").is_file() else {}
     score = _read_dict(d / "score.json", "score") if (d / "score.json").is_file() else None
     return meta, score
 

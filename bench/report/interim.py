@@ -160,6 +160,7 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
     shown = [{k: v for k, v in r.items() if k not in const} for r in rows]
     return {"title": "False-boundary study", "summary": summary.strip(), "figures": _study_figures(rows),
             "tables": _study_tables(doc, shown), "plots": _study_plots(doc, rows, out_dir),
+            "links": [{"label": n, "path": n} for n in ("study.json", "study.csv")],
             "notes": [] if rows else ["the study holds no case rows"]}
 
 
@@ -215,9 +216,11 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
                + ("The loop reports a false boundary." if fb.get("false_boundary_detected") else
                   "The loop reports no false boundary."))
     steps = [s for s in doc.get("steps") or [] if isinstance(s, dict)]
+    stages = sorted(p.name for p in Path(sensing_dir).glob("stage*") if p.is_dir())
+    links = [{"label": "sensing.json", "path": "sensing.json"}] + [{"label": f"{n} folder", "path": n} for n in stages]
     return {"title": "Sensing run", "summary": summary, "outcome": outcome, "figures": figures,
             "tables": [{"title": "Steps", "rows": [_step_row(s) for s in steps],
                         "caption": "Every stage and decision of the loop in order; distances in m; GT visible: "
                                    "fraction (0..1) of the true boundary each camera sees (ground truth, for "
                                    "scoring only)."}],
-            "plots": [], "notes": []}
+            "plots": [], "links": links, "notes": []}

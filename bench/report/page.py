@@ -16,6 +16,8 @@ in ``bench.report.interim``) is::
      "figures": [{"label", "value", "unit", "status"}],   key figures; or {label: value}
      "tables":  [{"title", "caption", "rows": [dict, ...], "columns": [key or {"key", "label"}]}],
      "plots":   [{"file", "caption"}],                    PNG names in the out_dir handed to the builder
+     "links":   [{"label", "path"}],                      optional: folders or files, relative to the
+                                                          input folder handed to the builder
      "notes":   [str]}
 
 ``normalise_section`` accepts that form and a few obvious variants (``key_figures`` for
@@ -157,10 +159,21 @@ def _plots(page: Page, plots, out_dir: Path) -> list[dict]:
     return out
 
 
-def normalise_section(page: Page, d: dict, out_dir: Path) -> dict:
-    """A generic section dict (module doc) as ``templates/section.html`` renders it."""
+def _links(page: Page, links, base: Path) -> list[dict]:
+    out = []
+    for link in links or []:
+        label, path = (link if isinstance(link, (tuple, list)) else (link.get("label"), link.get("path")))
+        target = Path(base) / str(path)
+        if target.exists():
+            out.append({"label": str(label or path), "href": page.link(target)})
+    return out
+
+
+def normalise_section(page: Page, d: dict, out_dir: Path, base: Path) -> dict:
+    """A generic section dict (module doc) as ``templates/section_generic.html`` renders it; ``base``
+    is the input folder the section was made from (its links are relative to it)."""
     return {"title": str(d.get("title") or ""), "summary": d.get("summary") or "",
             "outcome": d.get("outcome"),
             "figures": _figures(d.get("figures", d.get("key_figures"))),
             "tables": _tables(d.get("tables")), "plots": _plots(page, d.get("plots"), out_dir),
-            "notes": [str(n) for n in d.get("notes") or []]}
+            "links": _links(page, d.get("links"), base), "notes": [str(n) for n in d.get("notes") or []]}

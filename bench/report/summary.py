@@ -55,11 +55,17 @@ def _has_values(frame: pd.DataFrame, c: str) -> bool:
 
 
 def extra_metric_columns(frame: pd.DataFrame) -> list[str]:
-    """Method-specific metric columns (Middlebury/ETH3D figures, a plug-in's own): numeric or flag
-    columns that no registry names, in table order, where some row has a value."""
-    return [c for c in frame.columns if c not in _KNOWN and _has_values(frame, c)
-            and (pd.api.types.is_numeric_dtype(frame[c]) or frame[c].map(lambda v: flag(v) is not None
-                                                                           or v is None).all())]
+    """Method-specific metric columns (Middlebury/ETH3D figures, a plug-in's own): the numeric or flag
+    columns that the results table places right after the shared metric columns (before the
+    timings), that no registry names, and where some row has a value."""
+    cols = list(frame.columns)
+    shared = [i for i, c in enumerate(cols) if c in METRIC_FIELDS]
+    if not shared:
+        return []
+    start = max(shared) + 1
+    end = next((i for i in range(start, len(cols)) if cols[i] in _KNOWN), len(cols))
+    return [c for c in cols[start:end] if _has_values(frame, c)
+            and (pd.api.types.is_numeric_dtype(frame[c]) or is_flag_column(frame[c]))]
 
 
 def metric_columns(frame: pd.DataFrame) -> list[str]:
