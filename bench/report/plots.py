@@ -723,82 +723,95 @@ def error_map_data(sample_dir, recon_dir) -> dict:
     return out
 
 
-def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: dict | None = None) -> Path:
-    """Error map over the plate, top view in world X/Y (mm): left, the reconstructed surface
-    coloured by its exact distance to the ground-truth mesh (mm), with the true boundary (black)
-    and the reconstructed one (white dashed); right, the triangulated square centres coloured by
-    their 3D error (mm) over the true outline."""
+def _outline(ax, d: dict) -> None:
+    """The true boundary (black), closed, in mm."""
+    if d["gt_boundary"] is not None and len(d["gt_boundary"]):
+        b = np.vstack([d["gt_boundary"], d["gt_boundary"][:1]]) * 1e3
+        ax.plot(b[:, 0], b[:, 1], "k-", lw=1.2, label="true boundary")
+
+
+def _draw_surface_panel(fig, ax, d: dict) -> None:
+    """The reconstructed surface coloured by its distance to the true mesh (mm), both boundaries."""
     from matplotlib.tri import Triangulation  # noqa: PLC0415
-    fig = _figure(11.0, 4.6)
-    a1, a2 = fig.subplots(1, 2)
-    try:
-        d = data if data is not None else error_map_data(sample_dir, recon_dir)
-    except (OSError, ValueError) as e:
-        for ax in (a1, a2):
-            _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
-        fig.tight_layout()
-        return _save(fig, path)
-
-    def outline(ax, lw=1.2):
-        if d["gt_boundary"] is not None and len(d["gt_boundary"]):
-            b = np.vstack([d["gt_boundary"], d["gt_boundary"][:1]]) * 1e3
-            ax.plot(b[:, 0], b[:, 1], "k-", lw=lw, label="true boundary")
-
     if d["surface_vertices"] is not None and len(d["surface_faces"]):
         v = d["surface_vertices"] * 1e3
-        tri = Triangulation(v[:, 0], v[:, 1], d["surface_faces"])
         dist = d["surface_dist_mm"]
         vmax = float(np.percentile(dist, 99)) if dist.size else 1.0
-        im = a1.tripcolor(tri, dist, shading="gouraud", cmap="viridis", vmin=0.0, vmax=max(vmax, 1e-3))
-        fig.colorbar(im, ax=a1, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
-        a1.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
+        im = ax.tripcolor(Triangulation(v[:, 0], v[:, 1], d["surface_faces"]), dist, shading="gouraud",
+                          cmap="viridis", vmin=0.0, vmax=max(vmax, 1e-3))
+        fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
+        ax.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
                      f"({len(v)} vertices)", fontsize=9)
     else:
-        a1.set_title("no reconstructed surface", fontsize=9)
-    outline(a1)
+        ax.set_title("no reconstructed surface", fontsize=9)
+    _outline(ax, d)
     if d["rec_boundary"] is not None:
         rb = np.vstack([d["rec_boundary"], d["rec_boundary"][:1]]) * 1e3
-        a1.plot(rb[:, 0], rb[:, 1], "--", color="red", lw=1.1, label="reconstructed boundary")
-    a1.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
+        ax.plot(rb[:, 0], rb[:, 1], "--", color="red", lw=1.1, label="reconstructed boundary")
+    ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
 
-    outline(a2)
+
+def _draw_centres_panel(fig, ax, d: dict) -> None:
+    """The square centres coloured by their 3D error against the true centres (mm; diamonds: identity
+    unknown, distance to the surface), values printed above each when there are few."""
+    _outline(ax, d)
     pts, err, kind = d["centres"], d["centre_err_mm"], d["centre_kind"]
-    if len(pts):
-        p = pts * 1e3
-        vmax = max(float(err.max()), 1e-3)
-        three = kind == "3d"
-        sc = None
-        if three.any():
-            sc = a2.scatter(p[three, 0], p[three, 1], c=err[three], cmap="plasma", vmin=0, vmax=vmax, s=70,
-                            edgecolors="k", linewidths=0.6, zorder=3, label="3D error vs true centre")
-        if (~three).any():
-            sc2 = a2.scatter(p[~three, 0], p[~three, 1], c=err[~three], cmap="plasma", vmin=0, vmax=vmax, s=70,
-                             marker="D", edgecolors="k", linewidths=0.6, zorder=3,
-                             label="identity unknown: distance to surface")
-            sc = sc if sc is not None else sc2
-        fig.colorbar(sc, ax=a2, fraction=0.046, pad=0.03, label="square-centre error (mm)")
-        if len(p) <= 40:
-            for (x, y, _), e in zip(p, err):
-                a2.annotate(f"{e:.2f}", (x, y), xytext=(0, 7), textcoords="offset points", ha="center", fontsize=6)
-        rms = float(np.sqrt(np.mean(err[three] ** 2))) if three.any() else float("nan")
-        a2.set_title(f"square centres: {len(p)} points, 3D RMS {rms:.3f} mm", fontsize=9)
-        a2.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
-    else:
-        a2.set_title("no triangulated square centres", fontsize=9)
+    if not len(pts):
+        ax.set_title("no triangulated square centres", fontsize=9)
+        return
+    p = pts * 1e3
+    style = dict(cmap="plasma", vmin=0, vmax=max(float(err.max()), 1e-3), s=70, edgecolors="k", linewidths=0.6,
+                 zorder=3)
+    three = kind == "3d"
+    sc = []
+    if three.any():
+        sc.append(ax.scatter(p[three, 0], p[three, 1], c=err[three], label="3D error vs true centre", **style))
+    if (~three).any():
+        sc.append(ax.scatter(p[~three, 0], p[~three, 1], c=err[~three], marker="D",
+                             label="identity unknown: distance to surface", **style))
+    fig.colorbar(sc[0], ax=ax, fraction=0.046, pad=0.03, label="square-centre error (mm)")
+    if len(p) <= 40:
+        for (x, y, _), e in zip(p, err):
+            ax.annotate(f"{e:.2f}", (x, y), xytext=(0, 7), textcoords="offset points", ha="center", fontsize=6)
+    rms = float(np.sqrt(np.mean(err[three] ** 2))) if three.any() else float("nan")
+    ax.set_title(f"square centres: {len(p)} points, 3D RMS {rms:.3f} mm", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
+
+
+def _same_window(axes, d: dict) -> None:
+    """The same window on every panel, equal scales, world X/Y in mm, headroom for the legend."""
     xy = [a[:, :2] for a in (d["gt_boundary"], d["rec_boundary"], d["surface_vertices"], d["centres"])
           if a is not None and len(a)]
-    if xy:
-        xy = np.vstack(xy) * 1e3
-        lo, hi = xy.min(axis=0), xy.max(axis=0)
-        pad = 0.08 * max(float((hi - lo).max()), 1.0)
-        for ax in (a1, a2):  # the same window on both panels, equal scales; headroom for the legend
+    for ax in axes:
+        if xy:
+            pts = np.vstack(xy) * 1e3
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            pad = 0.08 * max(float((hi - lo).max()), 1.0)
             ax.set_xlim(lo[0] - pad, hi[0] + pad)
             ax.set_ylim(lo[1] - pad, hi[1] + pad + 0.22 * max(float(hi[1] - lo[1]), 1.0))
-    for ax in (a1, a2):
         ax.set_xlabel("world X (mm)")
         ax.set_ylabel("world Y (mm)")
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, alpha=0.25)
+
+
+def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: dict | None = None) -> Path:
+    """Error map over the plate, top view in world X/Y (mm): left, the reconstructed surface
+    coloured by its exact distance to the ground-truth mesh (mm), with the true boundary (black)
+    and the reconstructed one (red dashed); right, the triangulated square centres coloured by
+    their 3D error (mm) over the true outline. Files that cannot be read give a figure saying so."""
+    fig = _figure(11.0, 4.6)
+    a1, a2 = fig.subplots(1, 2)
+    try:
+        d = data if data is not None else error_map_data(sample_dir, recon_dir)
+    except (OSError, ValueError) as e:  # missing or damaged sample / reconstruction files
+        for ax in (a1, a2):
+            _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
+        fig.tight_layout()
+        return _save(fig, path)
+    _draw_surface_panel(fig, a1, d)
+    _draw_centres_panel(fig, a2, d)
+    _same_window((a1, a2), d)
     where = f"{Path(recon_dir).resolve().parent.name}/{Path(recon_dir).name}"
     fig.suptitle(title or f"Error map of {where} against {Path(sample_dir).name}'s ground truth (top view)",
                  fontsize=10)
