@@ -353,3 +353,24 @@ def test_render_reconstruct_evaluate_report_from_the_command_line(tmp_path):
     shutil.rmtree(r / "report")
     assert run_cli("report", tmp_path).returncode == 0
     assert detect_inputs(tmp_path).samples == []  # shown with its reconstruction
+
+
+def test_parquet_and_csv_of_one_table_read_the_same(tmp_path):
+    """The sweep's typed parquet and its CSV give the same frame (one reading of flags and numbers)."""
+    from platebench.bench.report.inputs import records
+    from platebench.bench.report.summary import failure_table, method_summary
+    from platebench.bench.sweep.dataset import csv_text, parquet_bytes
+    from tests.test_report import make_realism_dataset
+    frame, _ = load_results(make_realism_dataset(tmp_path / "a"))
+    rows = records(frame)  # flags as bools, numbers as floats: what a sweep's rows carry
+    (tmp_path / "p").mkdir()
+    (tmp_path / "c").mkdir()
+    (tmp_path / "p" / "results.parquet").write_bytes(parquet_bytes(rows))
+    (tmp_path / "c" / "results.csv").write_text(csv_text(rows))
+    p, _ = load_results(tmp_path / "p")
+    c, _ = load_results(tmp_path / "c")
+    assert list(p.columns) == list(c.columns)
+    assert json.dumps(method_summary(p), sort_keys=True) == json.dumps(method_summary(c), sort_keys=True)
+    assert failure_table(p, "method").equals(failure_table(c, "method"))
+    assert records(p) == records(c)
+    assert set(map(type, p["paper_bound_met"].dropna())) <= {bool, np.bool_}
