@@ -374,3 +374,37 @@ def test_parquet_and_csv_of_one_table_read_the_same(tmp_path):
     assert failure_table(p, "method").equals(failure_table(c, "method"))
     assert records(p) == records(c)
     assert set(map(type, p["paper_bound_met"].dropna())) <= {bool, np.bool_}
+
+
+def test_a_generic_section_builder_renders_in_any_documented_shape(tmp_path):
+    """What bench.report.sensing's study_section / sensing_section will return (page.py's contract):
+    figures as a list or a dict, tables as dicts or bare lists of rows, plots as dicts or pairs."""
+    from platebench.bench.report import plots as P
+    from platebench.bench.report.html import _generic, render_page
+    from platebench.bench.report.page import Page
+
+    def builder(folder: Path, out_dir: Path) -> dict:
+        P.plot_l_formula([], out_dir / "l.png")
+        P.plot_l_formula([], out_dir / "m.png")
+        return {"title": "Study <of> plates", "outcome": "cured", "summary": "60 plates & more",
+                "key_figures": {"silent": 0, "cured": 12, "verified": True},
+                "tables": [{"title": "Outcomes", "rows": [{"family": "fold", "bend_deg": 170.0, "silent": 0}]},
+                           [{"detector": "viewpoint", "recall": 0.95}]],
+                "plots": [{"file": "l.png", "caption": "L <formula>"}, ("m.png", "second")],
+                "links": [{"label": "study.json", "path": "study.json"}, {"label": "gone", "path": "nothing"}],
+                "notes": ["a note"]}
+
+    folder = make_study(tmp_path / "study")
+    stage = tmp_path / "stage"
+    stage.mkdir()
+    page = Page(stage, tmp_path / "out", tmp_path)
+    sec = _generic(page, builder, folder, "study", "study")
+    assert [f["label"] for f in sec["figures"]] == ["silent", "cured", "verified"]
+    assert sec["figures"][2]["status"] == "good"
+    assert [t["columns"][1]["label"] for t in sec["tables"]] == ["bend angle (deg)", "recall"]
+    assert [p["caption"] for p in sec["plots"]] == ["L <formula>", "second"]
+    assert [lk["label"] for lk in sec["links"]] == ["study.json"]  # a link to nothing is left out
+    html = render_page("report.html", generator="g", name="n", input="i", found="f", version="v", notes=[],
+                       sections=[sec], headline=[sec["headline"]], generated="now")
+    assert "Study &lt;of&gt; plates" in html and "L &lt;formula&gt;" in html and "60 plates &amp; more" in html
+    assert "Outcome: cured" in html and "<td>viewpoint</td>" in html and html.count("data:image/png") == 2
