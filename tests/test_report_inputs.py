@@ -408,3 +408,12 @@ def test_a_generic_section_builder_renders_in_any_documented_shape(tmp_path):
                        sections=[sec], headline=[sec["headline"]], generated="now")
     assert "Study &lt;of&gt; plates" in html and "L &lt;formula&gt;" in html and "60 plates &amp; more" in html
     assert "Outcome: cured" in html and "<td>viewpoint</td>" in html and html.count("data:image/png") == 2
+
+
+def test_a_sample_holding_its_reconstruction(tmp_path):
+    """platebench reconstruct SAMPLE --out SAMPLE/recon: reporting SAMPLE finds the reconstruction."""
+    sample, recon = make_recon(tmp_path / "x")
+    inner = recon.rename(sample / "recon")
+    inp = detect_inputs(sample)
+    assert inp.recons == [inner] and inp.samples == []
+    assert "reference experiment (V)" in _headline(write_report(sample).read_text())

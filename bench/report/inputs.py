@@ -13,9 +13,9 @@ Kinds of input, each recognised by the file that defines it:
 * ``sample``   a rendered sample (``platebench render``): ``sample.json``;
 * ``compare``  ``compare.json`` files of ``platebench compare``.
 
-``detect_inputs`` looks at the directory itself, then (where it is none of the first three
-kinds) two levels of subdirectories, so that the demo's folder (``reference/{sample,recon}``,
-``sensing/``, sweeps, ``study/``) is one report. A sample that a reported reconstruction was
+``detect_inputs`` looks at the directory itself, then (where it is neither a dataset, a study,
+a sensing run nor a reconstruction) two levels of subdirectories, so that the demo's folder
+(``reference/{sample,recon}``, ``sensing/``, sweeps, ``study/``) is one report. A sample that a reported reconstruction was
 made from is shown with that reconstruction, not twice.
 
 Reading is strict: a truncated JSON file or a results table that is not one gives a one-line
@@ -181,7 +181,7 @@ def detect_inputs(input_dir: Path) -> Inputs:
                              ("recon", inp.recons), ("sample", inp.samples)):
             if kind in kinds:
                 bucket.append(d)
-        if not kinds and depth < MAX_DEPTH:
+        if not kinds - {"sample"} and depth < MAX_DEPTH:  # a sample may hold its reconstruction
             queue += [(s, depth + 1) for s in _subdirs(d)]
     inp.recons.sort(key=lambda r: (str(r.parent), r.name != "paper", r.name))  # the paper's pipeline first
     shown = {p.resolve() for r in inp.recons if (p := recon_sample_dir(r)) is not None}
