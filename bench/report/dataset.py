@@ -319,8 +319,9 @@ def _samples(page: Page, ds: Path, frame: pd.DataFrame, prefix: str, manifest: d
             thumbs = page.thumbnails(sample, f"{prefix}{_safe(sid)}_", _THUMB_IMAGES)
         out.append({"id": sid, "href": page.link(folder) if folder.is_dir() else None,
                     "values": [(parameter_label(c), first.get(c)) for c in shown],
-                    "methods": [(m, (by_method.get(m) or {}).get("status"), (by_method.get(m) or {}).get("depth_rms_mm"),
-                                 (by_method.get(m) or {}).get("paper_bound_met")) for m in methods],
+                    "methods": [(m, *((by_method.get(m) or {}).get(k) for k in ("status", "depth_rms_mm",
+                                                                                 "paper_bound_met")))
+                                for m in methods],
                     "thumbs": thumbs})
     note = (f"thumbnails of the first {MAX_THUMB_SAMPLES} samples only" if len(out) > MAX_THUMB_SAMPLES else "")
     return out[:MAX_TABLE_ROWS], note

@@ -94,8 +94,10 @@ def _verdicts(score: dict) -> list[dict]:
     fb = score.get("false_boundary")
     if isinstance(fb, dict):
         out.append({"label": "false-boundary verdict", "met": flag(fb.get("agrees")),
-                    "text": f"ground truth: {'part of the boundary hidden' if fb.get('ground_truth_any') else 'whole boundary visible'}; "
-                            f"the method: {'false boundary detected' if fb.get('detected') else 'none detected'}"})
+                    "text": "ground truth: " + ("part of the boundary hidden" if fb.get("ground_truth_any") else
+                                                "whole boundary visible")
+                            + "; the method: "
+                            + ("false boundary detected" if fb.get("detected") else "none detected")})
     return out
 
 

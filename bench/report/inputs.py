@@ -15,8 +15,8 @@ Kinds of input, each recognised by the file that defines it:
 
 ``detect_inputs`` looks at the directory itself, then (where it is neither a dataset, a study,
 a sensing run nor a reconstruction) two levels of subdirectories, so that the demo's folder
-(``reference/{sample,recon}``, ``sensing/``, sweeps, ``study/``) is one report. A sample that a reported reconstruction was
-made from is shown with that reconstruction, not twice.
+(``reference/{sample,recon}``, ``sensing/``, sweeps, ``study/``) is one report. A sample that a
+reported reconstruction was made from is shown with that reconstruction, not twice.
 
 Reading is strict: a truncated JSON file or a results table that is not one gives a one-line
 ``ReportInputError`` naming the file, never a report of half the input. Every ``sample_id``

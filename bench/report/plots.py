@@ -246,7 +246,8 @@ def _series_label(key: tuple, names: tuple) -> str:
     parts = []
     for k, v in zip(names, key):
         x = _num(v) if not isinstance(v, str) else None
-        parts.append(f"{units.get(k, '')}{x:g}{suffix.get(k, '')}" if x is not None else str(v if v is not None else "-"))
+        parts.append(f"{units.get(k, '')}{x:g}{suffix.get(k, '')}" if x is not None
+                     else str(v if v is not None else "-"))
     return ", ".join(parts)
 
 
