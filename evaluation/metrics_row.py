@@ -136,6 +136,8 @@ def metric_label(name: str) -> str:
     """Human label with unit, e.g. 'depth RMS (mm)'."""
     if name in METRIC_FIELDS:
         label, unit = METRIC_FIELDS[name].metadata["label"], METRIC_FIELDS[name].metadata["unit"]
-    else:
-        label, unit = name.replace("_", " "), metric_unit(name)
+    else:  # an extra column: its name without the unit suffix, then the unit
+        unit = metric_unit(name)
+        suffix = {"mm": "_mm", "px": "_px", "%": "_pct", "fraction": "_frac", "count": "_count"}.get(unit, "")
+        label = (name[: -len(suffix)] if suffix and name.endswith(suffix) else name).replace("_", " ")
     return f"{label} ({unit})" if unit and unit not in ("count",) else label
