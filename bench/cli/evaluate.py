@@ -147,6 +147,13 @@ def format_field_table(score) -> str:
 def run(args) -> int:
     kind, path = _kind(args)
     if kind == "recon":
+        if path.is_file():
+            raise UserValueError(f"{path}: is a file, not a reconstruction directory: score another program's output "
+                                 "with --disparity, --depth, --points or --mesh F")
+        if path.is_dir() and not (path / "recon.json").is_file():
+            raise UserValueError(f"{path / 'recon.json'}: file is missing (RECON_DIR comes from 'platebench "
+                                 "reconstruct'; score another program's output with --disparity, --depth, --points "
+                                 "or --mesh F)")
         score = score_files(args.sample_dir, args.recon_dir)
         out = args.out or (args.recon_dir / "score.json")
         write_json(out, score.to_dict())

@@ -7,7 +7,8 @@ disparity  ``.pfm`` (Middlebury, float32; inf/NaN or   left view, px, d = u_left
            <= 0 = no estimate); ``.png`` 16-bit with
            a scale S: d = value / S, 0 = no estimate
            (KITTI: S = 256)
-depth      ``.exr`` (one channel), ``.pfm``, ``.npy``  left view z-depth, metres
+depth      ``.exr`` (one channel, or Z/Y/depth/R), left view z-depth, metres
+           ``.pfm``, ``.npy``
 points     ``.ply``, ``.csv`` (x, y, z columns, see    world frame, metres
            ``bench.io.points``), ``.npy`` (N, 3)
 mesh       ``.ply`` (also ``.obj``, ``.stl``)          world frame, metres
@@ -22,10 +23,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import OpenEXR
 import trimesh
 
 from platebench.bench.io.atomic import write_bytes
-from platebench.bench.io.images import DatasetError, read_exr, read_pfm, write_exr, write_pfm
+from platebench.bench.io.images import DatasetError, read_pfm, write_exr, write_pfm
 from platebench.bench.io.points import read_points_csv
 
 __all__ = ["READ_FORMATS", "OUTPUT_FILES", "read_disparity", "read_depth", "read_points", "read_mesh",
@@ -83,13 +85,30 @@ def read_disparity(path: Path, scale: float | None = None) -> np.ndarray:
     return np.where(img > 0, img.astype(np.float64) / scale, np.inf)
 
 
+EXR_DEPTH_CHANNELS = ("Z", "Y", "depth", "Depth", "D", "R")
+
+
+def _read_exr_depth(path: Path) -> np.ndarray:
+    """The depth channel of an EXR: its only channel, else the first of ``EXR_DEPTH_CHANNELS`` present."""
+    try:
+        ch = OpenEXR.File(str(path)).channels()
+    except Exception as e:  # noqa: BLE001  (OpenEXR raises plain exceptions)
+        raise DatasetError(f"{path}: not a readable OpenEXR file ({e})") from None
+    names = list(ch)
+    pick = names[0] if len(names) == 1 else next((n for n in EXR_DEPTH_CHANNELS if n in ch), None)
+    if pick is None:
+        raise DatasetError(f"{path}: which channel is the depth? found {', '.join(sorted(names))}: allowed one "
+                           f"channel, or one named {', '.join(EXR_DEPTH_CHANNELS)}")
+    return np.asarray(ch[pick].pixels, np.float64)
+
+
 def read_depth(path: Path) -> np.ndarray:
-    """(H, W) float64 z-depth (metres) from EXR (one channel), PFM or NPY; no estimate stays as written
-    (NaN, inf or <= 0)."""
+    """(H, W) float64 z-depth (metres) from EXR (one channel, or Z/Y/depth/R), PFM or NPY; no estimate
+    stays as written (NaN, inf or <= 0)."""
     path = Path(path)
     ext = _check(path, "depth")
     if ext == ".exr":
-        z = read_exr(path)
+        z = _read_exr_depth(path)
     elif ext == ".pfm":
         z = read_pfm(path)
     else:
