@@ -50,6 +50,18 @@ def evaluate(capsys, sample, *args):
     return code, cap.out, cap.err
 
 
+UNITS = ("_mm", "_px", "_pct", "_frac", "_count", "_mm2")
+
+
+def assert_units(score: dict) -> None:
+    """Every figure of a score JSON names its unit."""
+    for k, v in score.items():
+        if isinstance(v, dict):
+            assert_units(v)
+        else:
+            assert k.endswith(UNITS), k
+
+
 def truth(sample):
     z = read_exr(sample / "gt" / "left_depth.exr")
     mask = np.isfinite(z)
@@ -108,10 +120,7 @@ def test_noisy_shifted_disparity_file_scores_near_analytic_values(small_sample_d
     assert doc["score"]["depth_mean_signed_mm"] == pytest.approx(1e3 * np.mean(zi - z[mask]), rel=1e-6)
     assert doc["score"]["depth_rms_mm"] == pytest.approx(1e3 * np.sqrt(np.mean((zi - z[mask]) ** 2)), rel=1e-6)
     assert "middlebury nonocc" in out and "eth3d all" in out
-    # every key of the JSON carries a unit
-    units = ("_mm", "_px", "_pct", "_frac", "_count", "_mm2")
-    for k in [*mb, *eth, *(k for k, v in doc["score"].items() if not isinstance(v, dict))]:
-        assert k.endswith(units), k
+    assert_units(doc["score"])
 
 
 def test_kitti_style_png_disparity_with_scale(small_sample_dir, tmp_path, capsys):
@@ -144,6 +153,7 @@ def test_depth_with_gaussian_noise_gives_its_rms(small_sample_dir, tmp_path, cap
     code, out, err = evaluate(capsys, small_sample_dir, "--depth", f)
     assert code == 0, err
     sc = json.loads((tmp_path / "depth.score.json").read_text())["score"]
+    assert_units(sc)
     assert sc["depth_rms_mm"] == pytest.approx(sigma * 1e3, rel=0.02)
     assert sc["depth_median_mm"] == pytest.approx(0.6745 * sigma * 1e3, rel=0.03)  # median |N(0, s)|
     assert sc["depth_a95_mm"] == pytest.approx(1.96 * sigma * 1e3, rel=0.03)
@@ -184,6 +194,7 @@ def test_points_moved_one_mm_along_the_normal_are_one_mm_away(small_sample_dir, 
     code, out, err = evaluate(capsys, small_sample_dir, "--points", f)
     assert code == 0, err
     sc = json.loads((tmp_path / "cloud.score.json").read_text())["score"]
+    assert_units(sc)
     assert sc["dist_median_mm"] == pytest.approx(1.0, abs=2e-3)
     assert sc["outlier_count"] == int(far.sum()) and sc["outlier_frac"] == pytest.approx(far.mean())
     assert sc["dist_max_mm"] == pytest.approx(10.0, abs=2e-3)
@@ -213,6 +224,7 @@ def test_mesh_offset_one_mm_has_accuracy_and_completeness_one_mm(small_sample_di
     code, out, err = evaluate(capsys, small_sample_dir, "--mesh", f)
     assert code == 0, err
     sc = json.loads((tmp_path / "offset.score.json").read_text())["score"]
+    assert_units(sc)
     for side in ("accuracy", "completeness"):
         for stat in ("mean", "median", "rms", "max"):
             assert sc[f"{side}_{stat}_mm"] == pytest.approx(1.0, abs=2e-3), (side, stat)
