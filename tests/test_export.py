@@ -71,6 +71,9 @@ def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_
     assert sorted(p.name for p in d.iterdir()) == ["calib.txt", "disp0GT.pfm", "disp1GT.pfm", "im0.png", "im1.png",
                                                     "mask0nocc.png"]
     c = read_calib(d / "calib.txt")
+    from platebench.bench.io.middlebury import read_calib as read_calib_ours
+    ours = read_calib_ours(d / "calib.txt")
+    assert (ours.doffs, ours.vmin, ours.vmax, ours.ndisp) == (c["doffs"], c["vmin"], c["vmax"], c["ndisp"])
     disp = read_pfm(d / "disp0GT.pfm")
     assert np.array_equal(cv2.imread(str(d / "disp0GT.pfm"), cv2.IMREAD_UNCHANGED).astype(np.float64), disp,
                           equal_nan=True)  # OpenCV reads the same map

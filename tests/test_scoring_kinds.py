@@ -267,6 +267,8 @@ def test_bad_outputs_are_one_line_errors_and_write_nothing(small_sample_dir, tmp
         (("--points", nanpts), "no finite point"),
         (("--depth", small, "--points", nanpts), "give exactly one of"),
         ((), "give exactly one of"),
+        (("--depth", small, "--outlier-mm", 1), "--outlier-mm goes with --points"),
+        (("--points", nanpts, "--radius-mm", 0), "--radius-mm = 0.0 is out of range"),
         (("--depth", tmp_path / "missing.npy"), "missing.npy: file is missing"),
     ]
     for args, needle in cases:

@@ -57,10 +57,10 @@ def add_parser(sub) -> None:
     g.add_argument("--points", type=Path, metavar="F", help="world points in METRES: .ply, .csv (x,y,z), .npy (N,3)")
     g.add_argument("--mesh", type=Path, metavar="F", help="surface mesh in METRES, world frame: .ply")
     p.add_argument("--name", default=None, help="the method's name in the score JSON (default: the file's stem)")
-    p.add_argument("--outlier-mm", type=float, default=OUTLIER_M * 1e3,
+    p.add_argument("--outlier-mm", type=float, default=None,
                    help=f"--points: a point farther than this from the true surface is an outlier, MILLIMETRES "
                         f"(default {OUTLIER_M * 1e3:g}, the paper's depth bound)")
-    p.add_argument("--radius-mm", type=float, default=COVERAGE_RADIUS_M * 1e3,
+    p.add_argument("--radius-mm", type=float, default=None,
                    help=f"--points: coverage radius on the plate, MILLIMETRES (default {COVERAGE_RADIUS_M * 1e3:g})")
     p.add_argument("--out", type=Path, help="score JSON path (default RECON_DIR/score.json, or F's name with "
                    ".score.json)")
@@ -78,6 +78,10 @@ def _kind(args) -> tuple[str | None, Path | None]:
         raise UserValueError("--disparity-scale goes with --disparity")
     for flag in ("outlier_mm", "radius_mm"):
         v = getattr(args, flag)
+        if v is None:
+            continue
+        if given[0][0] != "points":
+            raise UserValueError(f"--{flag.replace('_', '-')} goes with --points")
         if not (math.isfinite(v) and 0 < v <= 1000):
             raise UserValueError(f"--{flag.replace('_', '-')} = {v} is out of range: allowed > 0 to 1000 mm")
     return given[0]
@@ -164,8 +168,10 @@ def run(args) -> int:
     output = _read(kind, path, args)
     what = f"{path}"
     if kind == "points":
-        score = score_point_cloud(output.points, truth, outlier_m=args.outlier_mm / 1e3,
-                                  coverage_radius_m=args.radius_mm / 1e3, what=what)
+        score = score_point_cloud(
+            output.points, truth, what=what,
+            outlier_m=OUTLIER_M if args.outlier_mm is None else args.outlier_mm / 1e3,
+            coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
     else:
         score = score_output(output, truth, what)
     name = args.name or path.stem
