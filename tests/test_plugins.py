@@ -132,9 +132,12 @@ def test_plugins_run_in_compare_and_sweep_task(registry, plugin_module, small_sa
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
     """The example plug-in installed by pip (its pyproject's entry points) into a fresh folder."""
+    import shutil
     site = tmp_path_factory.mktemp("site")
+    src = tmp_path_factory.mktemp("src") / EXAMPLE.name  # a copy: the build leaves egg-info/ and build/ behind
+    shutil.copytree(EXAMPLE, src, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
     p = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(site),
-                        str(EXAMPLE)], capture_output=True, text=True, timeout=600)
+                        str(src)], capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
     eps = next(site.glob("platebench_blockmatch-*.dist-info")) / "entry_points.txt"
     assert "blockmatch = platebench_blockmatch:block_match" in eps.read_text()
