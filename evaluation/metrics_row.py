@@ -7,8 +7,8 @@ fills what applies to it and leaves the rest None; method-specific figures (a de
 Middlebury/ETH3D metrics, ...) go in ``extra`` (name -> number or bool, units in the names)
 and become further columns.
 
-``from_score`` flattens the paper pipeline's typed ``Score``; ``from_dense`` a dense method's
-``evaluation.dense.score_dense`` dict.
+``from_score`` flattens the paper pipeline's typed ``Score``; the other kinds' scores
+(``evaluation.field_scores``) build theirs with ``metrics_row()``.
 """
 from __future__ import annotations
 
@@ -84,23 +84,6 @@ class MetricsRow:
             false_boundary_detected=score.false_boundary.detected,
             paper_bound_met=score.paper_bound.met if score.paper_bound else None,
             **overrides)
-
-    @classmethod
-    def from_dense(cls, scores: Mapping[str, Any], **overrides) -> "MetricsRow":
-        """Flatten a dense method's ``evaluation.dense.score_dense`` dict; its Middlebury and ETH3D
-        figures go to ``extra`` under their own (unit-carrying) names."""
-        cov = scores.get("coverage_pct")
-        extra = {}
-        for group in ("middlebury", "eth3d"):
-            for k, v in (scores.get(group) or {}).items():
-                if isinstance(v, (int, float)) and not isinstance(v, bool):
-                    extra[k] = v
-        for k in ("depth_p95_mm", "depth_mean_signed_mm"):
-            if scores.get(k) is not None:
-                extra[k] = scores[k]
-        return cls(depth_rms_mm=scores.get("depth_rms_mm"), depth_max_mm=scores.get("depth_max_mm"),
-                   depth_median_mm=scores.get("depth_median_mm"),
-                   coverage_frac=None if cov is None else float(cov) / 100.0, extra=extra, **overrides)
 
 
 def _clean(v, kind: str):
