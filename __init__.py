@@ -19,6 +19,7 @@ This module is the short facade the README shows (see ``platebench.api``)::
     score = platebench.score(sample, rec)        # a typed Score against the truth
     platebench.sweep("examples/bend_sweep.toml", "ds", workers=2)
     platebench.report("ds")
+    for item in platebench.PlateBenchDataset("ds"): ...   # samples as numpy arrays (README)
 
 Importing ``platebench`` is cheap: nothing here imports Mitsuba until a function needs it.
 """
@@ -27,4 +28,12 @@ from __future__ import annotations
 from platebench.api import reconstruct, render, report, score, sense, sweep
 from platebench.version import __version__
 
-__all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report"]
+__all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report", "PlateBenchDataset"]
+
+
+def __getattr__(name: str):
+    """``platebench.PlateBenchDataset`` (samples as numpy arrays), imported on first use."""
+    if name == "PlateBenchDataset":
+        from platebench.bench.io.dataset_reader import PlateBenchDataset
+        return PlateBenchDataset
+    raise AttributeError(f"module 'platebench' has no attribute {name!r}")

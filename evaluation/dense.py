@@ -1,44 +1,18 @@
-"""Scores of dense maps and free point sets against ground truth (methods other than the paper's).
+"""Sparse world points scored by depth at their left-image projection (``compare``'s paper row).
 
-* ``score_dense``: a left-camera depth map and its disparity against the true depth, mask and
-  disparity: depth error (mm) over the plate pixels with an estimate (median, RMS, p95, max,
-  signed mean), coverage of the plate, and the Middlebury v3 and ETH3D two-view metrics.
 * ``score_points_depth``: sparse world points by their depth error at their left-image
   projection, and by their distance to the true surface.
 
+Dense maps, point clouds and meshes of any method are scored by ``evaluation.field_scores``.
 Inputs: metres, pixels (OpenCV, centres at integers); outputs: keys carry their unit.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from platebench.evaluation.disparity_metrics import eth3d_metrics, middlebury_metrics
 from platebench.evaluation.point_metrics import point_to_surface_distance
 
-__all__ = ["score_dense", "score_points_depth", "bilinear"]
-
-
-def score_dense(depth_est, disparity_est, valid, gt_depth, gt_mask, gt_disparity) -> dict:
-    """Depth error (mm), coverage and Middlebury/ETH3D disparity metrics of a dense left map."""
-    mask = np.asarray(gt_mask, bool)
-    est = np.asarray(valid, bool) & mask & np.isfinite(gt_depth)
-    n_plate = int(mask.sum())
-    err = (np.asarray(depth_est, np.float64)[est] - np.asarray(gt_depth, np.float64)[est]) * 1e3
-    a = np.abs(err)
-    out = {"plate_px": n_plate, "estimated_px": int(est.sum()),
-           "coverage_pct": 100.0 * est.sum() / n_plate if n_plate else float("nan"),
-           "off_plate_px": int((np.asarray(valid, bool) & ~mask).sum())}
-    if a.size:
-        out.update(depth_median_mm=float(np.median(a)), depth_rms_mm=float(np.sqrt(np.mean(a * a))),
-                   depth_p95_mm=float(np.percentile(a, 95)), depth_max_mm=float(a.max()),
-                   depth_mean_signed_mm=float(err.mean()))
-    else:
-        out.update(depth_median_mm=float("nan"), depth_rms_mm=float("nan"), depth_p95_mm=float("nan"),
-                   depth_max_mm=float("nan"), depth_mean_signed_mm=float("nan"))
-    disp = np.where(np.isfinite(disparity_est), disparity_est, np.inf)
-    out["middlebury"] = middlebury_metrics(disp, gt_disparity).to_dict()
-    out["eth3d"] = eth3d_metrics(disp, gt_disparity).to_dict()
-    return out
+__all__ = ["score_points_depth", "bilinear"]
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:

@@ -7,8 +7,8 @@ fills what applies to it and leaves the rest None; method-specific figures (a de
 Middlebury/ETH3D metrics, ...) go in ``extra`` (name -> number or bool, units in the names)
 and become further columns.
 
-``from_score`` flattens the paper pipeline's typed ``Score``; ``from_dense`` a dense method's
-``evaluation.dense.score_dense`` dict.
+``from_score`` flattens the paper pipeline's typed ``Score``; the other kinds' scores
+(``evaluation.field_scores``) build theirs with ``metrics_row()``.
 """
 from __future__ import annotations
 
@@ -85,23 +85,6 @@ class MetricsRow:
             paper_bound_met=score.paper_bound.met if score.paper_bound else None,
             **overrides)
 
-    @classmethod
-    def from_dense(cls, scores: Mapping[str, Any], **overrides) -> "MetricsRow":
-        """Flatten a dense method's ``evaluation.dense.score_dense`` dict; its Middlebury and ETH3D
-        figures go to ``extra`` under their own (unit-carrying) names."""
-        cov = scores.get("coverage_pct")
-        extra = {}
-        for group in ("middlebury", "eth3d"):
-            for k, v in (scores.get(group) or {}).items():
-                if isinstance(v, (int, float)) and not isinstance(v, bool):
-                    extra[k] = v
-        for k in ("depth_p95_mm", "depth_mean_signed_mm"):
-            if scores.get(k) is not None:
-                extra[k] = scores[k]
-        return cls(depth_rms_mm=scores.get("depth_rms_mm"), depth_max_mm=scores.get("depth_max_mm"),
-                   depth_median_mm=scores.get("depth_median_mm"),
-                   coverage_frac=None if cov is None else float(cov) / 100.0, extra=extra, **overrides)
-
 
 def _clean(v, kind: str):
     """None for missing/NaN/inf; else the value as its column's type."""
@@ -136,6 +119,8 @@ def metric_label(name: str) -> str:
     """Human label with unit, e.g. 'depth RMS (mm)'."""
     if name in METRIC_FIELDS:
         label, unit = METRIC_FIELDS[name].metadata["label"], METRIC_FIELDS[name].metadata["unit"]
-    else:
-        label, unit = name.replace("_", " "), metric_unit(name)
+    else:  # an extra column: its name without the unit suffix, then the unit
+        unit = metric_unit(name)
+        suffix = {"mm": "_mm", "px": "_px", "%": "_pct", "fraction": "_frac", "count": "_count"}.get(unit, "")
+        label = (name[: -len(suffix)] if suffix and name.endswith(suffix) else name).replace("_", " ")
     return f"{label} ({unit})" if unit and unit not in ("count",) else label

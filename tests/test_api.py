@@ -34,3 +34,11 @@ def test_render_reconstruct_score_in_memory_and_on_files(tmp_path):
 def test_render_refuses_what_is_not_a_config():
     with pytest.raises(TypeError, match="SampleConfig"):
         platebench.render(42)
+
+
+def test_the_dataset_class_is_on_the_facade_and_loaded_lazily():
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-c", "import sys, platebench; a = 'trimesh' in sys.modules; "
+                        "d = platebench.PlateBenchDataset; print(a, d.__name__)"], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.split() == ["False", "PlateBenchDataset"], r.stderr

@@ -293,6 +293,11 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     sub, sg = cmp.rows
     assert sub.scores["depth_median_mm"] < 1.0 and sub.scores["coverage_pct"] > 80
     assert sg.scores["middlebury"]["mb_all_bad_1_0_pct"] > sub.scores["middlebury"]["mb_all_bad_1_0_pct"]
+    # typed scores, non-occluded region included (the 10-degree plate is seen whole by both cameras)
+    assert sub.score.middlebury.nonocc.gt_count == sub.score.middlebury.all.gt_count > 1000
+    row = sub.score.metrics_row().columns()  # what a sweep's results table gets
+    assert row["mb_nonocc_bad_1_0_pct"] == sub.scores["middlebury"]["mb_nonocc_bad_1_0_pct"]
+    assert row["coverage_frac"] == pytest.approx(sub.scores["coverage_pct"] / 100)
     # The paper row: points.csv from a reconstruction (here: true plate points), CLI without renders.
     recon = tmp_path / "recon"
     recon.mkdir()
@@ -310,5 +315,8 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     assert doc["methods"]["paper"]["depth_median_mm"] < 0.01
     assert doc["methods"]["sgbm"]["n_images"] == 1
     assert (out / "compare.png").stat().st_size > 1000
-    with pytest.raises(SystemExit):
-        main(["compare", str(sample_dir), "--methods", "nonsense"])
+    capsys.readouterr()
+    assert main(["compare", str(sample_dir), "--methods", "nonsense"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown method 'nonsense': choose from paper, graycode" in err[0]
+    assert "or module:function" in err[0]

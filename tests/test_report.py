@@ -1,7 +1,8 @@
-"""Reports: self-contained HTML of sweep datasets, false-boundary studies and compare.json files.
+"""Reports: HTML of sweep datasets, false-boundary studies and compare.json files.
 
 Most tests build small inputs by hand (no rendering); one renders a tiny real sample for the
-error map, one renders the HTML with headless Chromium (skipped without it).
+error map, one renders the HTML with headless Chromium (skipped without it). Damaged inputs,
+single samples, reconstructions and sensing runs: tests/test_report_inputs.py.
 """
 from __future__ import annotations
 
@@ -19,14 +20,10 @@ import numpy as np
 import pytest
 
 from platebench.bench.report import plots as P
-from platebench.bench.report.html import (
-    GENERATOR,
-    ReportInputError,
-    detect_inputs,
-    load_results,
-    method_summary,
-    write_report,
-)
+from platebench.bench.report import summary as S
+from platebench.bench.report.html import GENERATOR, ReportInputError, write_report
+from platebench.bench.report.inputs import detect_inputs, load_results
+from platebench.bench.report.summary import method_summary
 
 PNG_SIG = b"\x89PNG\r\n\x1a\n"
 FAIL_MSG = "ReconstructionError: <left_active.png> found 0 squares & see http://example.invalid/x"
@@ -56,12 +53,13 @@ def make_dataset(root: Path, columns: list[str] | None = None) -> Path:
                      "distance_m": 0.4, "noise": "none", "width_px": 320,
                      "depth_rms_mm": None if failed else 0.02 + 0.01 * i,
                      "depth_max_mm": None if failed else 0.05 * (i + 1),
-                     "xy_rms_mm": None if failed else 0.03, "boundary_mean_mm": None if failed else 0.2 + 0.1 * i,
+                     "xy_radial_rms_mm": None if failed else 0.03,
+                     "boundary_mean_mm": None if failed else 0.2 + 0.1 * i,
                      "boundary_hausdorff_mm": None if failed else 0.8, "surface_rms_mm": None if failed else 0.1,
                      "coverage_frac": None if failed else 0.99, "matched_count": None if failed else 16,
                      "correct_match_count": None if failed else 16, "expected_count_gt": None if failed else 16,
                      "false_boundary_gt": gt, "false_boundary_detected": None if failed else gt,
-                     "time_recon_s": None if failed else 0.3})
+                     "paper_bound_met": None if failed else bend < 40, "time_recon_s": None if failed else 0.3})
         rows.append({"sample_id": sid, "index": i, "method": "sgbm", "status": "failed" if failed else "ok",
                      "error": FAIL_MSG if failed else None, "family": "cylinder", "bend_deg": bend,
                      "direction": "up" if i % 2 == 0 else "down", "axis_deg": 0.0, "material": "diffuse",
@@ -104,7 +102,7 @@ def make_study(root: Path, with_extras: bool = True) -> Path:
             else:
                 r.update(error="", detected=gt and bend > 90 or (not gt and bend == 60), counting_test=gt and bend > 90,
                          arrays_disagree=gt, squares_expected=16, squares_left=16 - int(gt) * 2,
-                         squares_right=16 - int(gt), depth_rms_mm=0.02 + bend / 1000, xy_rms_mm=0.03,
+                         squares_right=16 - int(gt), depth_rms_mm=0.02 + bend / 1000, xy_radial_rms_mm=0.03,
                          boundary_mean_mm=0.2 + bend / 100, matched=16)
                 if gt:
                     r.update(cure1_removed=bend < 120, cure1_hidden_frac=0.0 if bend < 120 else 0.05,
@@ -158,17 +156,30 @@ def _check_png(path: Path) -> tuple[int, int]:
     return img.shape[1], img.shape[0]
 
 
-def _check_self_contained(text: str) -> list[str]:
+def _check_self_contained(index: Path) -> list[str]:
+    """The page needs nothing outside itself and its folder: no scripts, no external assets or links;
+    plots embedded as PNG data URIs, every other image and every link a relative path that exists.
+    Returns the embedded images' URIs."""
+    text = index.read_text()
     assert text.startswith("<!DOCTYPE html>")
     assert f'content="{GENERATOR}"' in text
     low = text.lower()
-    for bad in ("<script", "<link", "<iframe", "src=\"http", "href=\"http", "url(http", "@import", "src='http"):
+    for bad in ("<script", "<link", "<iframe", 'src="http', 'href="http', "url(", "@import", 'src="file', 'href="file'):
         assert bad not in low, bad
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]*)"', text)
-    assert srcs and all(s.startswith("data:image/png;base64,") for s in srcs)
-    hrefs = re.findall(r'href="([^"]*)"', text)
-    assert all(h.startswith("#") for h in hrefs), hrefs
-    return srcs
+    embedded = [s for s in srcs if s.startswith("data:")]
+    assert embedded and all(s.startswith("data:image/png;base64,") for s in embedded)
+    for ref in [s for s in srcs if not s.startswith("data:")] + re.findall(r'href="([^"]*)"', text):
+        if ref.startswith("#"):
+            assert f'id="{ref[1:]}"' in text, ref
+            continue
+        assert not ref.startswith("/") and "://" not in ref, ref
+        assert (index.parent / ref).exists(), ref
+    return embedded
+
+
+def _plot_names(report: Path) -> set[str]:
+    return {p.relative_to(report / "plots").with_suffix("").as_posix() for p in (report / "plots").rglob("*.png")}
 
 
 # ----------------------------------------------------------------------------- tests
@@ -179,8 +190,8 @@ def test_dataset_report(tmp_path):
     index = write_report(ds)
     assert plt.get_fignums() == before  # plots use their own Figure objects
     assert index == ds / "report" / "index.html"
+    srcs = _check_self_contained(index)
     text = index.read_text()
-    srcs = _check_self_contained(text)
     for s in srcs:  # every embedded image decodes as a PNG
         import base64
         assert base64.b64decode(s.split(",", 1)[1])[:8] == PNG_SIG
@@ -191,46 +202,72 @@ def test_dataset_report(tmp_path):
     assert "ReconstructionError: &lt;left_active.png&gt; found 0 squares &amp; see" in text  # escaped, verbatim
     assert "<left_active.png>" not in text
     assert "By bend angle" in text
-    pngs = sorted((ds / "report" / "plots").glob("*.png"))
-    names = {p.stem for p in pngs}
+    assert "x/y radial RMS (mm)" in text  # labels from evaluation.metrics_row
+    names = _plot_names(ds / "report")
     assert {"dataset_method_comparison", "dataset_error_vs_bend", "dataset_detection_vs_bend"} <= names
-    assert len(srcs) == len(pngs)
-    for p in pngs:
+    assert len(srcs) == len(names)
+    for p in (ds / "report" / "plots").rglob("*.png"):
         _check_png(p)
     # a second run replaces the report (it is ours), leaving no temporary files behind
     write_report(ds)
     assert not [p for p in (ds / "report").rglob("*") if p.name.startswith(".")]
+    assert not [p for p in ds.iterdir() if p.name.startswith(".")]
 
 
 def test_method_summary_values(tmp_path):
     ds = make_dataset(tmp_path / "ds")
-    rows, source = load_results(ds)
-    assert source == "results.csv" and len(rows) == 8
-    assert rows[0]["sample_id"] == "0000" and rows[0]["false_boundary_gt"] is False
-    s = method_summary(rows)
+    frame, source = load_results(ds)
+    assert source == "results.csv" and len(frame) == 8
+    assert frame["sample_id"].iloc[0] == "0000"
+    assert [bool(v) for v in frame["false_boundary_gt"]] == [False] * 4 + [True] * 4  # typed flags
+    assert frame["false_boundary_detected"].map(lambda v: v is None or isinstance(v, (bool, np.bool_))).all()
+    s = method_summary(frame)
+    assert list(s) == ["paper", "sgbm"]
     assert s["paper"]["ok"] == 3 and s["paper"]["failed"] == 1
     d = s["paper"]["metrics"]["depth_rms_mm"]
     assert d["n"] == 3 and d["mean"] == pytest.approx(0.03) and d["median"] == pytest.approx(0.03)
     fb = s["paper"]["metrics"]["false_boundary_detected"]
-    assert fb["kind"] == "rate" and fb["mean"] == pytest.approx(1 / 3)
+    assert fb["kind"] == "rate" and fb["mean"] == pytest.approx(1 / 3) and fb["true"] == 1
     assert "boundary_mean_mm" not in s["sgbm"]["metrics"]
+
+
+def test_failures_are_counted_by_kind(tmp_path):
+    """Crashes, bound violations and mismatches are counted separately (a row can be several)."""
+    ds = make_dataset(tmp_path / "ds")
+    frame, _ = load_results(ds)
+    frame.loc[(frame["method"] == "paper") & (frame["sample_id"] == "0001"), "correct_match_count"] = 14.0
+    t = S.failure_table(frame, "method")
+    # by hand: paper rows 0..3; 0003 crashed; bound (bend < 40) met at 0 and 20, violated at 40; 0001 mismatched
+    assert t.loc["paper"].to_dict() == {"crashed": 1, "bound_known": 3, "bound_violated": 1, "match_known": 3,
+                                        "mismatched": 1, "rows": 4}
+    assert t.loc["sgbm"].to_dict() == {"crashed": 1, "bound_known": 0, "bound_violated": 0, "match_known": 0,
+                                       "mismatched": 0, "rows": 4}
+    text = write_report(ds).read_text()
+    part = text[text.index("Failures by kind"):]
+    assert "<td>paper</td><td>4</td><td>1 / 4</td><td>1 / 3</td><td>0 / 3</td>" in part
+    assert "<td>sgbm</td><td>4</td><td>1 / 4</td><td>–</td><td>–</td>" in part
+    head = text[text.index('id="headline"'):text.index("<nav>")]
+    assert "paper&#39;s bound met in 2 of 3 rows" in head and "2 crashed" in head
 
 
 def test_study_report(tmp_path):
     st = make_study(tmp_path / "study")
     index = write_report(st, tmp_path / "out")
     assert index == tmp_path / "out" / "index.html"
+    _check_self_contained(index)
     text = index.read_text()
-    _check_self_contained(text)
     assert "False-boundary study" in text
     assert "Smallest hiding bend" in text and "61.25" in text
-    assert "Detection precision / recall" in text and "0.667" in text
-    assert "L formula" in text and "&infin;" in text  # the never-visible GT distance
+    assert "Detection precision / recall" in text and "0.6667" in text
+    assert "L formula" in text and "\u221e" in text  # the never-visible GT distance
     assert "Cases (10)" in text and "no plate region" in text
-    names = {p.stem for p in (tmp_path / "out" / "plots").glob("*.png")}
-    assert {"study_hidden_fraction_vs_bend", "study_detection_vs_bend", "study_cure_success_vs_bend",
-            "study_l_formula", "study_error_vs_bend"} <= names
-    for p in (tmp_path / "out" / "plots").glob("*.png"):
+    assert "x/y radial RMS (mm)" in text and "bend angle (deg)" in text  # labels from the registries
+    head = text[text.index('id="headline"'):text.index("<nav>")]
+    assert "False-boundary study" in head and "GT false boundary" in head
+    names = _plot_names(tmp_path / "out")
+    assert {"study/hidden_fraction_vs_bend", "study/detection_vs_bend", "study/cure_success_vs_bend",
+            "study/l_formula", "study/error_vs_bend"} <= names
+    for p in (tmp_path / "out" / "plots").rglob("*.png"):
         _check_png(p)
 
 
@@ -238,8 +275,9 @@ def test_study_csv_only_and_missing_columns(tmp_path):
     """A study with only study.csv, and a dataset with only a few columns: a report, no crash."""
     st = make_study(tmp_path / "study", with_extras=False)
     (st / "study.json").unlink()
-    text = write_report(st).read_text()
-    _check_self_contained(text)
+    index = write_report(st)
+    _check_self_contained(index)
+    text = index.read_text()
     assert "study.csv" in text and "Detection precision / recall" in text  # computed from the rows
     ds = make_dataset(tmp_path / "ds", columns=["sample_id", "method", "status", "error"])
     text = write_report(ds).read_text()
@@ -259,18 +297,20 @@ def test_parent_dir_with_dataset_study_and_compare(tmp_path):
     inp = detect_inputs(tmp_path)
     assert [p.name for p in inp.datasets] == ["sweep"] and [p.name for p in inp.studies] == ["study"]
     assert len(inp.compares) == 1
-    text = write_report(tmp_path).read_text()
-    _check_self_contained(text)
+    index = write_report(tmp_path)
+    _check_self_contained(index)
+    text = index.read_text()
     assert "Sweep dataset: fake_sweep" in text and "False-boundary study" in text
     assert "Method comparison: s1/compare/compare.json" in text and "Gray code" in text
-    assert 'href="#dataset1"' in text and 'href="#study1"' in text and 'href="#compare1"' in text
-    names = {p.stem for p in (tmp_path / "report" / "plots").glob("*.png")}
-    assert "compare1_compare" in names and "dataset1_error_vs_bend" in names and "study1_l_formula" in names
+    assert 'href="#dataset"' in text and 'href="#study"' in text and 'href="#compare1"' in text
+    names = _plot_names(tmp_path / "report")
+    assert "compare1_compare" in names and "dataset_error_vs_bend" in names and "study/l_formula" in names
+    assert detect_inputs(tmp_path).datasets == inp.datasets  # the report folder is not an input
 
 
 def test_nothing_to_report_and_foreign_out_dir(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
-    with pytest.raises(ValueError, match="neither a sweep dataset .* nor a false-boundary study") as e:
+    with pytest.raises(ReportInputError, match="neither a sweep dataset .* nor a false-boundary study") as e:
         write_report(tmp_path / "empty")
     assert "\n" not in str(e.value)
     from platebench.bench.cli.main import main
@@ -298,9 +338,11 @@ def test_cli_report_prints_index(tmp_path, capsys):
 
 def test_plots_on_empty_inputs(tmp_path):
     """Every plot function draws something sensible (a note) on empty input, and returns its path."""
+    import pandas as pd
     calls = [(P.plot_error_vs_bend, ([],)), (P.plot_detection_vs_bend, ([],)),
              (P.plot_hidden_fraction_vs_bend, ([],)), (P.plot_cure_success_vs_bend, ([],)),
              (P.plot_l_formula, ([],)), (P.plot_method_comparison, ({},)),
+             (P.plot_metric_vs_axis, (pd.DataFrame({"method": [], "noise": []}), "noise")),
              (P.plot_error_map, (tmp_path / "nosample", tmp_path / "norecon"))]
     for i, (fn, args) in enumerate(calls):
         path = tmp_path / f"p{i}.png"
@@ -312,9 +354,10 @@ def test_bend_bins_and_precision_recall():
     e = P.bend_bins([0, 10, 20, 20])
     assert np.allclose(e, [-5, 5, 15, 25])
     assert len(P.bend_bins(range(100), max_bins=10)) == 11
-    pr = P.precision_recall_counts([{"false_boundary_gt": True, "d": True}, {"false_boundary_gt": False, "d": True},
-                                    {"false_boundary_gt": True, "d": False}, {"false_boundary_gt": True, "d": None},
-                                    {"false_boundary_gt": "false", "d": "false"}], "d")
+    pr = S.precision_recall([{"false_boundary_gt": True, "d": True}, {"false_boundary_gt": False, "d": True},
+                             {"false_boundary_gt": True, "d": False}, {"false_boundary_gt": True, "d": None},
+                             {"false_boundary_gt": False, "d": False},
+                             {"false_boundary_gt": "false", "d": "false"}], "d")  # text is never a flag
     assert (pr["true_positive"], pr["false_positive"], pr["false_negative"], pr["true_negative"]) == (1, 1, 1, 1)
     assert pr["precision"] == 0.5 and pr["recall"] == 0.5
 
@@ -381,11 +424,19 @@ def test_error_map_on_a_real_tiny_sample(tmp_path):
     out = P.plot_error_map(sdir, rdir, tmp_path / "map.png", data=data)
     w, h = _check_png(out)
     assert w >= 800 and h >= 300
-    # the dataset report finds the reconstruction and draws its map
-    text = write_report(ds).read_text()
-    _check_self_contained(text)
+    # the dataset report finds the reconstruction and draws its map; the sample is linked, with thumbnails
+    index = write_report(ds)
+    _check_self_contained(index)
+    text = index.read_text()
     assert "Per-sample error maps" in text
     _check_png(ds / "report" / "plots" / "dataset_error_map_0000_paper.png")
+    assert 'href="../samples/0000/"' in text
+    thumbs = sorted((ds / "report" / "thumbs").glob("*.png"))
+    assert [t.name for t in thumbs] == ["dataset_0000_left_active.png", "dataset_0000_left_passive.png"]
+    import cv2
+    t = cv2.imread(str(thumbs[0]), cv2.IMREAD_UNCHANGED)
+    assert t.dtype == np.uint8 and t.shape[1] == 160  # images narrower than a thumbnail are kept as they are
+    assert 'src="thumbs/dataset_0000_left_active.png"' in text
 
 
 # ----------------------------------------------------------------------------- swept axes (realism study)
@@ -396,9 +447,12 @@ def make_realism_dataset(root: Path, with_manifest: bool = True) -> Path:
     """A fake realism sweep: roughness (0.05, 0.2, 0.5) x noise (none, high), bend 10 deg throughout,
     3 methods. Failures, each of another kind:
 
-    * paper, roughness 0.05, noise high: status ok but 12 of 16 squares matched (incomplete);
-    * sgbm, roughness 0.05, noise high: status failed;
-    * graycode-subpx, roughness 0.5: noise none status failed, noise high ok but no depth RMS.
+    * paper, roughness 0.05, noise high: status ok, 12 of 16 squares matched: the paper's bound violated;
+    * paper, roughness 0.2, noise none: status ok, 15 of 16 matched squares matched correctly (a mismatch),
+      bound met all the same (the counts are independent);
+    * sgbm, roughness 0.05, noise high: status failed (crashed);
+    * graycode-subpx, roughness 0.5: noise none crashed, noise high ok but no depth RMS;
+    * graycode-subpx carries a method-specific metric, mb_all_bad_1_0_pct (Middlebury bad 1.0, %).
     Depth RMS (mm): the method's base x (1 + 10 x roughness) x (2 with noise high)."""
     root.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -413,18 +467,26 @@ def make_realism_dataset(root: Path, with_manifest: bool = True) -> Path:
                      "roughness": rough, "distance_m": 0.4, "noise": noise, "width_px": 320, "height_px": 240,
                      "spp": 4, "seed": 0, "depth_rms_mm": depth}
                 if m == "paper":
-                    r.update(matched_count=12 if (rough, noise) == (0.05, "high") else 16, expected_count_gt=16,
-                             boundary_mean_mm=0.3)
+                    incomplete = (rough, noise) == (0.05, "high")
+                    r.update(matched_count=12 if incomplete else 16, expected_count_gt=16,
+                             correct_match_count=15 if (rough, noise) == (0.2, "none") else 12 if incomplete else 16,
+                             paper_bound_met=not incomplete, boundary_mean_mm=0.3)
                 if m == "sgbm" and (rough, noise) == (0.05, "high"):
                     r.update(status="failed", error="RuntimeError: SGBM found no disparity", depth_rms_mm=None)
-                if m == "graycode-subpx" and rough == 0.5:
-                    if noise == "none":
-                        r.update(status="failed", error="ValueError: decode failed", depth_rms_mm=None)
-                    else:
-                        r.update(depth_rms_mm=None)
+                if m == "graycode-subpx":
+                    r["mb_all_bad_1_0_pct"] = 10.0 * rough
+                    if rough == 0.5:
+                        if noise == "none":
+                            r.update(status="failed", error="ValueError: decode failed", depth_rms_mm=None,
+                                     mb_all_bad_1_0_pct=None)
+                        else:
+                            r.update(depth_rms_mm=None)
                 rows.append(r)
             i += 1
-    _write_csv(root / "results.csv", rows, list(dict.fromkeys(k for r in rows for k in r)))
+    columns = list(dict.fromkeys(k for r in rows for k in r))
+    columns.remove("mb_all_bad_1_0_pct")
+    columns.append("mb_all_bad_1_0_pct")  # after the shared metric columns, as the sweep writes it
+    _write_csv(root / "results.csv", rows, columns)
     if with_manifest:
         manifest = {"format": "platebench-sweep", "version": 1, "state": "complete",
                     "spec": {"name": "fake_realism", "mode": "grid", "methods": ["paper", "graycode-subpx", "sgbm"],
@@ -434,94 +496,105 @@ def make_realism_dataset(root: Path, with_manifest: bool = True) -> Path:
     return root
 
 
-def test_axis_stats_failure_rates_by_hand(tmp_path):
-    rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
-    st = P.axis_stats(rows, "roughness")
+def test_axis_stats_failure_kinds_by_hand(tmp_path):
+    frame, _ = load_results(make_realism_dataset(tmp_path / "ds"))
+    st = S.axis_stats(frame, "roughness")
     assert st["numeric"] and [lv["key"] for lv in st["levels"]] == [0.05, 0.2, 0.5]
     assert st["methods"] == ["paper", "graycode-subpx", "sgbm"]  # the paper's pipeline first
     c = st["cells"][("paper", 0.05)]
-    # by hand: 2 rows (noise none, high); the high one matched 12 < 16 squares -> 1 failure of 2 = 0.5;
-    # its depth RMS still counts in the median: median(0.2 x 1.5, 0.2 x 1.5 x 2) = (0.3 + 0.6) / 2 = 0.45 mm
-    assert (c["rows"], c["failed"], c["failure_rate"]) == (2, 1, 0.5)
+    # by hand: 2 rows (noise none, high); the high one matched 12 < 16 squares: bound violated 1 of 2 verdicts,
+    # no crash, no mismatch; its depth RMS still counts in the median: median(0.3, 0.6) = 0.45 mm
+    assert (c["rows"], c["crashed"], c["bound_violated"], c["bound_known"], c["mismatched"], c["match_known"]) \
+        == (2, 0, 1, 2, 0, 2)
     assert c["median"] == pytest.approx(0.45)
-    c = st["cells"][("graycode-subpx", 0.5)]  # one failed, one ok without a depth RMS: both count, no value
-    assert (c["failed"], c["rows"], c["failure_rate"], c["median"]) == (2, 2, 1.0, None)
-    assert st["cells"][("sgbm", 0.2)]["failure_rate"] == 0.0
-    sn = P.axis_stats(rows, "noise")
+    c = st["cells"][("paper", 0.2)]  # a mismatch with the bound met: counted as a mismatch only
+    assert (c["crashed"], c["bound_violated"], c["mismatched"], c["match_known"]) == (0, 0, 1, 2)
+    c = st["cells"][("graycode-subpx", 0.5)]  # one crashed, one ok without a depth RMS; no verdicts
+    assert (c["crashed"], c["rows"], c["bound_known"], c["match_known"], c["median"]) == (1, 2, 0, 0, None)
+    assert st["cells"][("sgbm", 0.2)]["crashed"] == 0
+    sn = S.axis_stats(frame, "noise")
     assert not sn["numeric"] and [lv["key"] for lv in sn["levels"]] == ["none", "high"]
-    c = sn["cells"][("sgbm", "high")]  # failed at 0.05; ok at 0.2 and 0.5 -> 1/3
-    assert (c["failed"], c["rows"]) == (1, 3) and c["failure_rate"] == pytest.approx(1 / 3)
+    c = sn["cells"][("sgbm", "high")]  # crashed at 0.05; ok at 0.2 and 0.5 -> 1/3
+    assert (c["crashed"], c["rows"]) == (1, 3)
     assert c["median"] == pytest.approx(statistics.median([3.0 * 3 * 2, 3.0 * 6 * 2]))
-    assert sn["cells"][("paper", "high")]["failure_rate"] == pytest.approx(1 / 3)
-    assert sn["cells"][("paper", "none")]["failure_rate"] == 0.0
-    # row_failed on its own
-    assert P.row_failed({"status": "ok", "depth_rms_mm": 0.1, "matched_count": 16, "expected_count_gt": 16}) is False
-    assert P.row_failed({"status": "ok", "depth_rms_mm": float("nan")}) is True
-    assert P.row_failed({"status": "failed", "depth_rms_mm": 0.1}) is True
+    assert (sn["cells"][("paper", "high")]["bound_violated"], sn["cells"][("paper", "none")]["mismatched"]) == (1, 1)
 
 
 def test_axis_levels_order_and_bins():
-    levels, key_of, numeric = P.axis_levels([{"noise": n} for n in ("high", "none", "medium", "low", None)], "noise")
+    import pandas as pd
+    frame = pd.DataFrame({"noise": ["high", "none", "medium", "low", None]})
+    levels, keys, numeric = S.axis_levels(frame, "noise")
     assert not numeric and [lv["label"] for lv in levels] == ["none", "low", "medium", "high"]
-    assert key_of({"noise": None}) is None and key_of({"noise": "low"}) == "low"
-    rows = [{"bend_deg": float(b)} for b in range(0, 100, 4)]  # 25 distinct values (random draws): binned
-    levels, key_of, numeric = P.axis_levels(rows, "bend_deg", max_levels=5)
+    assert keys.iloc[4] is None and keys.iloc[3] == "low"
+    frame = pd.DataFrame({"bend_deg": [float(b) for b in range(0, 100, 4)]})  # 25 distinct values: binned
+    levels, keys, numeric = S.axis_levels(frame, "bend_deg", max_levels=5)
     assert numeric and len(levels) == 5 and levels[0]["label"] == "0\u201319.2"
-    assert key_of({"bend_deg": 0.0}) == 0 and key_of({"bend_deg": 96.0}) == 4
+    assert keys.iloc[0] == 0 and keys.iloc[-1] == 4
 
 
 def test_swept_axes_from_manifest_and_columns(tmp_path):
-    from platebench.bench.report.html import swept_axes
-    rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
-    axes, varying = swept_axes({"spec": {"axes": {"noise": ["none", "high"], "roughness": [0.05, 0.2, 0.5]}}}, rows)
+    import pandas as pd
+    frame, _ = load_results(make_realism_dataset(tmp_path / "ds"))
+    axes, varying = S.swept_axes({"spec": {"axes": {"noise": ["none", "high"], "roughness": [0.05, 0.2, 0.5]}}},
+                                 frame)
     assert axes == ["noise", "roughness"]  # spec order; bend_deg, spp, width_px take one value: not swept
     assert varying["roughness"] == ["0.05", "0.2", "0.5"]
-    assert swept_axes({}, rows)[0] == ["roughness", "noise"]  # no manifest: the candidate columns that vary
-    more = [dict(r, seed=s, width_px=w, height_px=w * 3 // 4) for r in rows for s in (0, 1) for w in (320, 640)]
-    axes, varying = swept_axes({"spec": {"axes": {"scene.material.alpha": [0.05], "resolution": ["320x240"],
-                                                  "seed": [0, 1]}}}, more)
+    assert S.swept_axes({}, frame)[0] == ["roughness", "noise"]  # no manifest: the parameter columns that vary
+    more = pd.concat([frame.assign(seed=float(s), width_px=float(w), height_px=float(w * 3 // 4),
+                                   read_noise_dn=frame["noise"].map({"none": 0.0, "high": 2.0}))
+                      for s in (0, 1) for w in (320, 640)], ignore_index=True)
+    axes, varying = S.swept_axes({"spec": {"axes": {"scene.material.alpha": [0.05], "resolution": ["320x240"],
+                                                    "seed": [0, 1]}}}, more)
     assert axes == ["roughness", "width_px", "noise"]  # seed varies (pooled) but is never plotted against
-    assert "seed" in varying and "height_px" not in varying  # resolution: its width stands for it
+    # height_px follows width_px and read noise follows the noise preset: neither is an axis of its own
+    assert "seed" in varying and "height_px" not in varying and "read_noise_dn" not in varying
 
 
 def test_dataset_report_swept_axes(tmp_path):
     ds = make_realism_dataset(tmp_path / "ds")
-    text = write_report(ds).read_text()
-    srcs = _check_self_contained(text)
+    index = write_report(ds)
+    srcs = _check_self_contained(index)
+    text = index.read_text()
     assert "Against the swept axes" in text
-    assert "<h4>roughness (GGX alpha)</h4>" in text and "<h4>sensor noise preset</h4>" in text
-    names = {p.stem for p in (ds / "report" / "plots").glob("*.png")}
+    assert "<h4>roughness (GGX alpha)</h4>" in text and "<h4>sensor noise</h4>" in text
+    names = _plot_names(ds / "report")
     assert {"dataset_vs_roughness", "dataset_vs_noise"} <= names
     assert "dataset_vs_bend_deg" not in names and "dataset_error_vs_bend" not in names  # one bend: not swept
     assert "By bend angle" not in text
     assert len(srcs) == len(names)
     for n in ("dataset_vs_roughness", "dataset_vs_noise"):
         w, h = _check_png(ds / "report" / "plots" / f"{n}.png")
-        assert w >= 800 and h >= 350
-    # the tables: failure rates with their counts, medians in mm
-    rough = text[text.index("<h4>roughness (GGX alpha)</h4>"):text.index("<h4>sensor noise preset</h4>")]
-    assert "0.50 (1/2)" in rough and "1.00 (2/2)" in rough and "<td>0.45</td>" in rough
-    noise = text[text.index("<h4>sensor noise preset</h4>"):]
-    assert "0.33 (1/3)" in noise
+        assert w >= 800 and h >= 500
+    # the tables: each kind of failure with its count, medians in mm
+    rough = text[text.index("<h4>roughness (GGX alpha)</h4>"):text.index("<h4>sensor noise</h4>")]
+    # roughness 0.05: paper median 0.45, no crash, bound violated 1 of 2, mismatched 0 of 2
+    assert "<td>0.05</td><td>0.45</td><td>0 / 2</td><td>1 / 2</td><td>0 / 2</td>" in rough
+    assert "<td>1 / 2</td><td>–</td><td>–</td>" in rough  # graycode at 0.5: 1 crash of 2, no verdicts
+    noise = text[text.index("<h4>sensor noise</h4>"):]
+    assert "<td>1 / 3</td>" in noise
     assert noise.index("<td>none</td>") < noise.index("<td>high</td>")  # natural order, not alphabetical
     # each caption says what else is pooled into a point
-    assert "every point pools their samples: sensor noise preset (none, high)" in rough
+    assert "every point pools their samples: sensor noise (none, high)" in rough
     assert "every point pools their samples: roughness (GGX alpha) (0.05, 0.2, 0.5)" in noise
+    # the method-specific metric is shown for the method that has it, and only for it
+    extra = text[text.index("Method-specific metrics"):text.index("Failures by kind")]
+    assert "mb all bad 1 0 (%)" in extra and ">graycode-subpx<" in extra and ">sgbm<" not in extra
+    assert "mb all bad 1 0 (%)</td><td>2</td><td>2</td><td>5</td>" in extra  # (.5+.5+2+2+5)/5
     # without a manifest the same axes are found from the columns
     ds2 = make_realism_dataset(tmp_path / "ds2", with_manifest=False)
     write_report(ds2)
-    assert {"dataset_vs_roughness", "dataset_vs_noise"} <= {p.stem for p in (ds2 / "report" / "plots").glob("*.png")}
+    assert {"dataset_vs_roughness", "dataset_vs_noise"} <= _plot_names(ds2 / "report")
 
 
 def test_plot_metric_vs_axis_edge_cases(tmp_path):
-    rows, _ = load_results(make_realism_dataset(tmp_path / "ds"))
-    # every row of one method failed: drawn (a cross, failure rate 1), no exception; two metrics: three panels
-    out = P.plot_metric_vs_axis([r for r in rows if r["method"] != "paper" or r["roughness"] == 0.05], "roughness",
-                                tmp_path / "a.png", metrics=("depth_rms_mm", "boundary_mean_mm"),
+    frame, _ = load_results(make_realism_dataset(tmp_path / "ds"))
+    # every row of one method failed: drawn (a cross, crash rate 1), no exception; two metrics: five panels
+    sub = frame[(frame["method"] != "paper") | (frame["roughness"] == 0.05)]
+    out = P.plot_metric_vs_axis(sub, "roughness", tmp_path / "a.png", metrics=("depth_rms_mm", "boundary_mean_mm"),
                                 pooled={"noise": ["none", "high"]})
-    w, _ = _check_png(out)
-    assert w > 1200
-    _check_png(P.plot_metric_vs_axis(rows, "noise", tmp_path / "b.png", title="t"))
+    w, h = _check_png(out)
+    assert w >= 1000 and h > 900
+    _check_png(P.plot_metric_vs_axis(frame, "noise", tmp_path / "b.png", title="t"))
     # an axis no row has: a note, not an exception
-    assert P.plot_metric_vs_axis(rows, "distance_mm", tmp_path / "c.png").read_bytes()[:8] == PNG_SIG
-    assert P.plot_metric_vs_axis([], "noise", tmp_path / "d.png").read_bytes()[:8] == PNG_SIG
+    assert P.plot_metric_vs_axis(frame, "distance_mm", tmp_path / "c.png").read_bytes()[:8] == PNG_SIG
+    assert P.plot_metric_vs_axis(frame.iloc[:0], "noise", tmp_path / "d.png").read_bytes()[:8] == PNG_SIG

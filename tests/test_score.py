@@ -134,3 +134,9 @@ def test_metrics_row_columns_and_units():
     assert cols["depth_rms_mm"] is None and cols["matched_count"] == 4 and cols["mb_all_bad_1_0_pct"] == 3.5
     with pytest.raises(ValueError, match="depth_rms_mm"):
         MetricsRow(extra={"depth_rms_mm": 1.0})
+
+
+def test_metric_labels_carry_the_unit_once():
+    assert metric_label("depth_rms_mm") == "depth RMS (mm)"
+    assert metric_label("eth_all_a50_px") == "eth all a50 (px)"
+    assert metric_label("mb_all_bad_1_0_pct") == "mb all bad 1 0 (%)"

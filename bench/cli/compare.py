@@ -7,9 +7,14 @@ with one renderer (``bench.pattern_sequences``), runs each method (``reconstruct
 pure functions of images and calibration) and scores it against the sample's ground truth:
 
 * depth: |Z_est - Z_gt| (left camera z-depth, mm) over plate pixels with an estimate:
-  median, RMS, p95, max, signed mean; coverage = those pixels / plate pixels (gt mask);
-  estimates off the plate are counted separately (the disparity metrics ignore them);
-* disparity: Middlebury v3 and ETH3D two-view metrics against ``gt/disp0GT.pfm``.
+  mean, median, RMS, max, A50-A99, signed mean; coverage = those pixels / plate pixels (gt
+  mask); estimates off the plate are counted separately (the disparity metrics ignore them);
+* disparity: Middlebury v3 and ETH3D two-view metrics on all and on non-occluded pixels.
+
+Plug-in methods (an installed entry point of ``platebench.methods``, or ``module:function``)
+run on the sample's images and calibration and are scored by the kind they return
+(``bench.run.plugins``): a disparity or depth map as above, points by their distance to the
+true surface, a mesh by accuracy and completeness.
 
 The "paper" row is read, not computed: ``--recon DIR`` (or the sample's parent
 directory) holding ``points.csv`` (world x, y, z in metres) and optionally
@@ -40,21 +45,35 @@ from platebench.errors import UserValueError
 
 
 # ----------------------------------------------------------------------------- reporting
+def _cells(r) -> tuple[str, float, float, str, str]:
+    """(kind, median mm, RMS mm, coverage, bad-1 %) of a row: depth error for maps and the paper's
+    points, distance to the surface for point clouds, accuracy for meshes."""
+    s = r.scores
+    if r.kind == "paper":
+        return "points", s["depth_median_mm"], s["depth_rms_mm"], f"{s['points_on_plate']} pts", "-"
+    if r.kind in ("disparity", "depth"):
+        bad = f"{s['middlebury']['mb_all_bad_1_0_pct']:.1f}" if r.kind == "disparity" else "-"
+        return r.kind, s["depth_median_mm"], s["depth_rms_mm"], f"{s['coverage_pct']:.1f} %", bad
+    if r.kind == "points":
+        return "cloud", s["dist_median_mm"], s["dist_rms_mm"], f"{100 * s['coverage_frac']:.1f} %", "-"
+    return "mesh", s["accuracy_median_mm"], s["accuracy_rms_mm"], f"{s['recall_1_0_mm_pct']:.1f} %", "-"
+
+
 def format_table(cmp: Comparison) -> str:
-    head = (f"{'method':16s} {'img/cam':>7s} {'depth med mm':>12s} {'depth RMS mm':>12s} {'coverage':>9s} "
+    head = (f"{'method':24s} {'kind':9s} {'img/cam':>7s} {'median mm':>10s} {'RMS mm':>10s} {'coverage':>9s} "
             f"{'bad1 %':>7s} {'time s':>7s} {'render s':>8s}")
     lines = [head, "-" * len(head)]
     for r in cmp.rows:
-        s = r.scores
-        if r.name == "paper":
-            cov = f"{s['points_on_plate']} pts"
-            bad = "-"
-        else:
-            cov = f"{s['coverage_pct']:.1f} %"
-            bad = f"{s['middlebury']['mb_all_bad_1_0_pct']:.1f}"
-        lines.append(f"{r.name:16s} {r.n_images:7d} {s['depth_median_mm']:12.4f} {s['depth_rms_mm']:12.4f} "
-                     f"{cov:>9s} {bad:>7s} {r.time_s:7.3f} {r.render_s:8.1f}")
+        kind, med, rms, cov, bad = _cells(r)
+        lines.append(f"{r.name:24s} {kind:9s} {r.n_images:7d} {_num(med):>10s} {_num(rms):>10s} {cov:>9s} {bad:>7s} "
+                     f"{r.time_s:7.3f} {r.render_s:8.1f}")
+    lines.append("median/RMS: |depth error| (maps, the paper's points), distance to the true surface (clouds), "
+                 "accuracy (meshes; coverage = recall at 1 mm)")
     return "\n".join(lines)
+
+
+def _num(x) -> str:
+    return "-" if x is None or x != x else f"{x:.4f}"
 
 
 
@@ -65,23 +84,24 @@ def format_table(cmp: Comparison) -> str:
 
 # ----------------------------------------------------------------------------- CLI
 def _method_list(text: str) -> tuple:
+    """Names as given; unknown ones are refused by ``compare_sample`` (plug-ins resolve there)."""
     names = tuple(m.strip() for m in text.split(",") if m.strip())
-    bad = [m for m in names if m not in ALL_METHODS]
-    if bad or not names:
-        raise argparse.ArgumentTypeError(f"unknown method {bad[0] if bad else text!r}: choose from "
-                                         f"{', '.join(ALL_METHODS)}")
+    if not names:
+        raise argparse.ArgumentTypeError(f"--methods {text!r} names no method: choose from {', '.join(ALL_METHODS)}, "
+                                         "an installed plug-in or module:function")
     return names
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("compare", help="score peer methods (Gray code, phase shifting, SGBM) side by side",
+    p = sub.add_parser("compare", help="score peer methods (Gray code, phase shifting, SGBM) and plug-ins side by side",
                        description="Re-render a sample's scene under each peer method's projector sequence, "
                                    "reconstruct, and score against the sample's exact ground truth (depth error "
                                    "in mm, coverage of the plate, Middlebury/ETH3D disparity metrics). "
                                    "Writes compare.json and compare.png.")
     p.add_argument("sample", type=Path, metavar="SAMPLE_DIR", help="sample directory from 'platebench render'")
     p.add_argument("--methods", type=_method_list, default=METHODS,
-                   help=f"comma-separated list from {', '.join(ALL_METHODS)} (default: {','.join(METHODS)})")
+                   help=f"comma-separated list from {', '.join(ALL_METHODS)}, installed plug-ins (entry points "
+                        f"of platebench.methods) and module:function plug-ins (default: {','.join(METHODS)})")
     p.add_argument("--out", type=Path, help="output directory (default SAMPLE_DIR/compare)")
     p.add_argument("--recon", type=Path, help="directory with the paper pipeline's points.csv / recon.json "
                    "(default: the sample's parent directory)")

@@ -1,28 +1,185 @@
-"""``platebench evaluate``: score a reconstruction directory against its sample's ground truth."""
+"""``platebench evaluate``: score a method's output against a sample's exact ground truth.
+
+Either a PlateBench reconstruction directory (``platebench reconstruct``: the paper's metrics),
+or exactly one file of another program's output, scored with the metrics of its kind
+(``evaluation.field_scores``; formats in ``bench.io.method_outputs``):
+
+* ``--disparity F``: left-view disparity, PFM, or 16-bit PNG with ``--disparity-scale``;
+* ``--depth F``: left-view z-depth in metres, EXR/PFM/NPY;
+* ``--points F``: world points in metres, PLY/CSV/NPY;
+* ``--mesh F``: surface mesh in metres, PLY.
+"""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from platebench.bench.io.atomic import write_json
+from platebench.bench.io.field_truth import load_field_truth
+from platebench.bench.io.method_outputs import read_depth, read_disparity, read_mesh, read_points
+from platebench.bench.run.plugins import Depth, Disparity, Mesh, Points, score_document, score_output
 from platebench.bench.run.score import score_files
+from platebench.errors import UserValueError
+from platebench.evaluation.field_scores import (
+    COVERAGE_RADIUS_M,
+    OUTLIER_M,
+    DepthScore,
+    DisparityScore,
+    MeshScore,
+    PointCloudScore,
+    score_point_cloud,
+)
 from platebench.evaluation.score import format_table
+
+KIND_FLAGS = ("disparity", "depth", "points", "mesh")
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("evaluate", help="score a reconstruction against exact ground truth",
-                       description="Score RECON_DIR (from 'platebench reconstruct') against SAMPLE_DIR's ground "
-                                   "truth: point, boundary, surface and false-boundary metrics, the paper's bound "
-                                   "and the bench's goals. Prints a table; writes JSON (units in every key).")
-    p.add_argument("sample_dir", type=Path)
-    p.add_argument("recon_dir", type=Path)
-    p.add_argument("--out", type=Path, help="score JSON path (default RECON_DIR/score.json)")
+    p = sub.add_parser(
+        "evaluate", help="score a reconstruction or another program's disparity/depth/points/mesh against exact truth",
+        description="Score a method's output against SAMPLE_DIR's exact ground truth and write a score JSON (units in "
+                    "every key). Give RECON_DIR (from 'platebench reconstruct': point, boundary, surface and "
+                    "false-boundary metrics, the paper's bound), or exactly one file of another program: --disparity "
+                    "(Middlebury and ETH3D metrics on all and non-occluded pixels, and the depth error they imply), "
+                    "--depth (absolute errors, quantiles, coverage of the plate), --points (distance to the true "
+                    "surface, outliers, coverage at a radius) or --mesh (accuracy and completeness both ways, "
+                    "precision/recall/F-score at thresholds, as DTU and Tanks and Temples). Maps are the LEFT view "
+                    "at the sample's resolution; points and meshes are in the world frame, metres.")
+    p.add_argument("sample_dir", type=Path, metavar="SAMPLE_DIR")
+    p.add_argument("recon_dir", type=Path, nargs="?", metavar="RECON_DIR",
+                   help="reconstruction directory from 'platebench reconstruct'")
+    g = p.add_argument_group("another program's output (exactly one)")
+    g.add_argument("--disparity", type=Path, metavar="F", help="left disparity in px: .pfm, or 16-bit .png with "
+                   "--disparity-scale; inf/NaN/<= 0 (PNG: 0) = no estimate")
+    g.add_argument("--disparity-scale", type=float, metavar="S", help="16-bit PNG disparity: px = value / S "
+                   "(KITTI: 256)")
+    g.add_argument("--depth", type=Path, metavar="F", help="left z-depth in METRES: .exr (one channel), .pfm, .npy")
+    g.add_argument("--points", type=Path, metavar="F", help="world points in METRES: .ply, .csv (x,y,z), .npy (N,3)")
+    g.add_argument("--mesh", type=Path, metavar="F", help="surface mesh in METRES, world frame: .ply")
+    p.add_argument("--name", default=None, help="the method's name in the score JSON (default: the file's stem)")
+    p.add_argument("--outlier-mm", type=float, default=None,
+                   help=f"--points: a point farther than this from the true surface is an outlier, MILLIMETRES "
+                        f"(default {OUTLIER_M * 1e3:g}, the paper's depth bound)")
+    p.add_argument("--radius-mm", type=float, default=None,
+                   help=f"--points: coverage radius on the plate, MILLIMETRES (default {COVERAGE_RADIUS_M * 1e3:g})")
+    p.add_argument("--out", type=Path, help="score JSON path (default RECON_DIR/score.json, or F's name with "
+                   ".score.json)")
     p.set_defaults(run=run)
 
 
+def _kind(args) -> tuple[str | None, Path | None]:
+    given = [(k, getattr(args, k)) for k in KIND_FLAGS if getattr(args, k) is not None]
+    if args.recon_dir is not None:
+        given.insert(0, ("recon", args.recon_dir))
+    if len(given) != 1:
+        what = ", ".join("RECON_DIR" if k == "recon" else f"--{k}" for k, _ in given) or "none"
+        raise UserValueError(f"give exactly one of RECON_DIR, --disparity, --depth, --points, --mesh (got {what})")
+    if args.disparity_scale is not None and given[0][0] != "disparity":
+        raise UserValueError("--disparity-scale goes with --disparity")
+    for flag in ("outlier_mm", "radius_mm"):
+        v = getattr(args, flag)
+        if v is None:
+            continue
+        if given[0][0] != "points":
+            raise UserValueError(f"--{flag.replace('_', '-')} goes with --points")
+        if not (math.isfinite(v) and 0 < v <= 1000):
+            raise UserValueError(f"--{flag.replace('_', '-')} = {v} is out of range: allowed > 0 to 1000 mm")
+    return given[0]
+
+
+def _read(kind: str, path: Path, args):
+    if kind == "disparity":
+        return Disparity(read_disparity(path, args.disparity_scale))
+    if kind == "depth":
+        return Depth(read_depth(path))
+    if kind == "points":
+        return Points(read_points(path))
+    return Mesh(read_mesh(path))
+
+
+def _f(x: float, fmt: str = ".4f") -> str:
+    return "-" if x is None or not math.isfinite(x) else format(x, fmt)
+
+
+def format_field_table(score) -> str:
+    """A readable summary of a field score (millimetres, pixels, percent)."""
+    lines = []
+    if isinstance(score, DisparityScore):
+        for reg in (score.middlebury.all, score.middlebury.nonocc):
+            if reg is None:
+                continue
+            bad = ", ".join(f"bad{t:g} {_f(v, '.2f')} %" for t, v in reg.bad_pct)
+            q = ", ".join(f"A{k} {_f(v, '.3f')}" for k, v in reg.quantiles)
+            lines.append(f"{'middlebury ' + reg.region:16s} {reg.gt_count} px: {bad}; invalid {_f(reg.invalid_pct, '.2f')} "
+                         f"%; avgerr {_f(reg.avgerr)} px, rms {_f(reg.rms)} px; {q} px")
+        for reg in (score.eth3d.all, score.eth3d.nonocc):
+            if reg is None:
+                continue
+            bad = ", ".join(f"bad{t:g} {_f(v, '.2f')} %" for t, v in reg.bad_pct)
+            lines.append(f"{'eth3d ' + reg.region:16s} coverage {_f(reg.coverage, '.4f')}; {bad}; avgerr "
+                         f"{_f(reg.avgerr)} px, rms {_f(reg.rms)} px")
+        depth = score.depth
+    else:
+        depth = score if isinstance(score, DepthScore) else None
+    if depth is not None:
+        e = depth.errors
+        q = ", ".join(f"A{k} {_f(v * 1e3)}" for k, v in e.quantiles_m)
+        lines.append(f"{'depth':16s} {depth.estimated_px}/{depth.plate_px} plate px (coverage "
+                     f"{_f(depth.coverage_frac, '.4f')}), {depth.off_plate_px} off the plate; |error| mean "
+                     f"{_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
+                     f"{_f(e.max_m * 1e3)} mm; {q} mm; bias {_f(e.signed_mean_m * 1e3)} mm")
+    if isinstance(score, PointCloudScore):
+        e, c = score.distance, score.coverage
+        lines.append(f"{'points':16s} {score.count} (+{score.dropped_count} non-finite dropped); distance to the "
+                     f"surface mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
+                     f"{_f(e.max_m * 1e3)} mm")
+        lines.append(f"{'outliers':16s} {score.outlier_count} beyond {score.outlier_threshold_m * 1e3:g} mm "
+                     f"({_f(100 * score.outlier_frac, '.2f')} %)")
+        lines.append(f"{'coverage':16s} {_f(c.coverage_frac, '.4f')} of the plate's top within "
+                     f"{c.coverage_radius_m * 1e3:g} mm")
+    if isinstance(score, MeshScore):
+        for name, e in (("accuracy", score.accuracy), ("completeness", score.completeness)):
+            lines.append(f"{name:16s} mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS "
+                         f"{_f(e.rms_m * 1e3)}, max {_f(e.max_m * 1e3)} mm ({e.count} samples)")
+        lines.append(f"{'overall':16s} {_f(score.overall_m * 1e3)} mm (DTU: mean of the two)")
+        for t, p, r, f in score.thresholds:
+            lines.append(f"{'at ' + format(t * 1e3, 'g') + ' mm':16s} precision {100 * p:.2f} %, recall "
+                         f"{100 * r:.2f} %, F-score {100 * f:.2f} %")
+    return "\n".join(lines)
+
+
 def run(args) -> int:
-    score = score_files(args.sample_dir, args.recon_dir)
-    out = args.out or (args.recon_dir / "score.json")
-    write_json(out, score.to_dict())
-    print(format_table(score))
+    kind, path = _kind(args)
+    if kind == "recon":
+        if path.is_file():
+            raise UserValueError(f"{path}: is a file, not a reconstruction directory: score another program's output "
+                                 "with --disparity, --depth, --points or --mesh F")
+        if path.is_dir() and not (path / "recon.json").is_file():
+            raise UserValueError(f"{path / 'recon.json'}: file is missing (RECON_DIR comes from 'platebench "
+                                 "reconstruct'; score another program's output with --disparity, --depth, --points "
+                                 "or --mesh F)")
+        score = score_files(args.sample_dir, args.recon_dir)
+        out = args.out or (args.recon_dir / "score.json")
+        write_json(out, score.to_dict())
+        print(format_table(score))
+        print(f"{'written':16s} {out}")
+        return 0
+    truth = load_field_truth(args.sample_dir)
+    output = _read(kind, path, args)
+    what = f"{path}"
+    if kind == "points":
+        score = score_point_cloud(
+            output.points, truth, what=what,
+            outlier_m=OUTLIER_M if args.outlier_mm is None else args.outlier_mm / 1e3,
+            coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
+    else:
+        score = score_output(output, truth, what)
+    name = args.name or path.stem
+    out = args.out or path.with_name(f"{path.stem}.score.json")
+    doc = score_document(name, kind, score, args.sample_dir)
+    doc["input"] = str(path)
+    write_json(out, doc)
+    print(f"{'method':16s} {name} ({kind}: {path})")
+    print(format_field_table(score))
     print(f"{'written':16s} {out}")
     return 0

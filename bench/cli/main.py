@@ -20,7 +20,7 @@ from platebench.version import __version__
 # name -> module exposing add_parser(subparsers) and run(args) -> int
 COMMANDS = {name: f"platebench.bench.cli.{name}" for name in (
     "render", "reconstruct", "evaluate", "compare", "sense", "study", "sweep", "calibrate", "report", "demo",
-    "perf", "info")}
+    "perf", "info", "export")}
 
 
 def build_parser() -> argparse.ArgumentParser:

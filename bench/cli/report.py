@@ -1,5 +1,6 @@
-"""``platebench report``: a self-contained HTML report of a sweep dataset, a false-boundary study
-or compare.json files (see ``bench/report.py``)."""
+"""``platebench report``: the HTML report of a sweep dataset, a false-boundary study, a sensing run,
+a reconstruction, a sample, compare.json files, or a folder holding some of them (see
+``bench/report/html.py``)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,17 +8,24 @@ from pathlib import Path
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
-        "report", help="self-contained HTML report (tables + plots) of a sweep dataset or false-boundary study",
-        description="Read DIR (a sweep dataset from 'platebench sweep', a study from 'platebench study "
-                    "false-boundary', compare.json files from 'platebench compare', or a directory holding some of "
-                    "them) and write one self-contained HTML page: counts, package versions, per-method tables "
-                    "(mean / median of each metric), failures with their messages, detection precision / recall, "
-                    "the L-formula table, and plots (error against bend, detection against bend, hidden boundary, "
-                    "cures, L formula, per-sample error maps, method comparison) embedded as images. Errors in mm, "
-                    "bends in degrees, distances in m. Prints the path of index.html.")
-    p.add_argument("input", type=Path, metavar="DATASET_OR_STUDY", help="sweep dataset or study directory")
+        "report", help="HTML report (headline, tables, plots, thumbnails) of a dataset, study, sensing run, "
+                       "reconstruction or sample",
+        description="Read PATH (a sweep dataset from 'platebench sweep', a study from 'platebench study "
+                    "false-boundary', a sensing run from 'platebench sense', a reconstruction from 'platebench "
+                    "reconstruct' with the score.json of 'platebench evaluate', a sample from 'platebench render', "
+                    "compare.json files from 'platebench compare', or a folder holding some of them, such as the "
+                    "demo's) and write one HTML page. It starts with a headline (the experiment's key figures and "
+                    "whether the paper's bound is met, each dataset's and study's summary, a sensing run's "
+                    "outcome), then per input: per-method tables, failures counted by kind (crashes, bound "
+                    "violations, mismatched points), plots against every swept axis, error maps, and samples "
+                    "linked to their folders with thumbnails of their images. Plots are embedded; thumbnails sit "
+                    "in OUT/thumbs. Errors in mm, bends in degrees, distances in m. A damaged input (a truncated "
+                    "JSON file, a results table that is not one, a sample_id leading out of its dataset) is refused "
+                    "with one line and exit status 2. Prints the path of index.html.")
+    p.add_argument("input", type=Path, metavar="PATH", help="dataset, study, sensing run, reconstruction or sample "
+                                                           "directory, or a folder holding some of them")
     p.add_argument("--out", type=Path, metavar="DIR",
-                   help="output directory (default DATASET_OR_STUDY/report); must be new, empty or an earlier report")
+                   help="output directory (default PATH/report); must be new, empty or an earlier report")
     p.set_defaults(run=run)
 
 

@@ -42,6 +42,7 @@ from platebench.bench.io.images import (
     write_pfm,
     write_png,
 )
+from platebench.bench.io.middlebury import calib_txt
 from platebench.bench.io.versions import package_versions
 from platebench.scenes.camera import Camera
 from platebench.scenes.naming import CAMERAS, IMAGE_NAMES
@@ -56,14 +57,6 @@ def calib_dict(rig: StereoRig, projector: Projector) -> dict:
     return {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
             "projector": projector.to_dict(), "frames": "OpenCV camera frames, x_cam = R x_world + t; "
             "world right-handed +Z up; metres; pixel centres at integers"}
-
-
-def middlebury_calib(rig: StereoRig, max_disp: float) -> str:
-    def mat(K):
-        return "[" + "; ".join(" ".join(f"{v:.10g}" for v in row) for row in K) + "]"
-    return (f"cam0={mat(rig.left.K)}\ncam1={mat(rig.right.K)}\ndoffs=0\n"
-            f"baseline={rig.baseline_m * 1000:.10g}\nwidth={rig.left.width}\nheight={rig.left.height}\n"
-            f"ndisp={int(np.ceil(max_disp))}\nisint=0\nvmin=0\nvmax={int(np.ceil(max_disp))}\n")
 
 
 def _mesh_ply_bytes(mesh: trimesh.Trimesh) -> bytes:
@@ -87,7 +80,6 @@ def write_sample(out: Path, s, overwrite: bool = False) -> Path:
         write_json(d / "calib.json", calib_dict(rig, s.scene.projector))
         write_bytes(d / "plate.ply", _mesh_ply_bytes(s.plate.mesh))
         np.save(d / "boundary.npy", np.asarray(s.plate.boundary, np.float64))
-        max_disp = 1.0
         for cam in CAMERAS:
             g = s.gt[cam]
             write_exr(d / "gt" / f"{cam}_depth.exr", g.depth)
@@ -97,10 +89,8 @@ def write_sample(out: Path, s, overwrite: bool = False) -> Path:
             write_exr(d / "gt" / f"{cam}_proj.exr", g.proj_uv)
             write_png(d / "gt" / f"{cam}_feature.png", (g.feature + 1).astype(np.uint16))
         disp = np.where(s.gt["left"].mask, rig.disparity(s.gt["left"].depth64), np.inf).astype(np.float32)
-        if np.isfinite(disp).any():
-            max_disp = float(np.nanmax(np.where(np.isfinite(disp), disp, np.nan))) * 1.1
         write_pfm(d / "gt" / "disp0GT.pfm", disp)
-        write_text(d / "calib.txt", middlebury_calib(rig, max_disp))
+        write_text(d / "calib.txt", calib_txt(rig, disp))
         write_json(d / "gt" / "visibility.json", {c: v.to_dict() for c, v in s.visibility.items()})
         meta = {"layout_version": LAYOUT_VERSION, "config": s.config.to_dict(), "variant": s.variant,
                 "packages": package_versions(), "timings_s": s.timings_s,

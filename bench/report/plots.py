@@ -1,9 +1,11 @@
 """Report plots (matplotlib, Agg): each function draws one figure and writes it as a PNG.
 
-Every function takes plain data (table rows as dicts, study rows, file paths), draws on
-its own ``matplotlib.figure.Figure`` (no pyplot, so no global figure state and no
-display), writes the PNG atomically (``bench.atomic.write_bytes``) and returns the path.
-Missing columns or empty inputs give a figure that says so rather than an exception.
+Every function takes plain data (table rows as dicts, a results frame, study rows, file
+paths), draws on its own ``matplotlib.figure.Figure`` (no pyplot, so no global figure state
+and no display), writes the PNG atomically (``bench.io.atomic.write_bytes``) and returns the
+path. Missing columns or empty inputs give a figure that says so rather than an exception.
+Labels of metrics come from ``evaluation.metrics_row.metric_label``, of parameters and axes
+from ``bench.config.axes.parameter_label``; a flag is a bool (``values.flag``).
 
 Units: errors in millimetres, bend angles in degrees, sensing distances in metres,
 fractions in 0..1 (as the table columns name them).
@@ -11,45 +13,28 @@ fractions in 0..1 (as the table columns name them).
 from __future__ import annotations
 
 import io
-import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.config.axes import parameter_label
 from platebench.bench.io.atomic import write_bytes
+from platebench.bench.report.summary import FAILURE_KINDS, axis_stats, precision_recall
+from platebench.bench.report.values import finite as _num
+from platebench.bench.report.values import flag as _flag
+from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
-           "plot_metric_vs_axis", "axis_levels", "axis_stats", "row_failed", "axis_label",
-           "error_map_data", "bend_bins", "precision_recall_counts", "METRIC_LABELS", "AXIS_LABELS",
-           "CATEGORY_ORDER"]
+           "plot_metric_vs_axis", "error_map_data", "bend_bins", "compare_error_figure"]
 
 DPI = 100
-METRIC_LABELS = {
-    "depth_rms_mm": "depth RMS (mm)", "depth_max_mm": "depth max (mm)", "depth_median_mm": "depth median (mm)",
-    "xy_rms_mm": "x/y RMS (mm)", "err3d_rms_mm": "3D error RMS (mm)", "boundary_mean_mm": "boundary mean (mm)",
-    "boundary_hausdorff_mm": "boundary Hausdorff (mm)", "surface_rms_mm": "surface RMS (mm)",
-    "coverage_frac": "coverage (fraction of plate)",
-}
-AXIS_LABELS = {
-    "roughness": "roughness (GGX alpha)", "noise": "sensor noise preset", "bend_deg": "bend angle (deg)",
-    "distance_m": "sensing distance (m)", "material": "material", "spp": "samples per pixel",
-    "width_px": "camera width (px)", "height_px": "camera height (px)", "direction": "bend direction",
-    "family": "deformation family", "tilt_deg": "tilt (deg)", "azimuth_deg": "azimuth (deg)",
-    "axis_deg": "bend axis (deg)", "metal": "metal", "albedo": "albedo", "baseline_m": "baseline (m)",
-    "f_px": "focal length (px)", "full_well_e": "full well (e-)", "read_noise_dn": "read noise (DN)",
-    "bit_depth": "bit depth", "aperture_radius_m": "aperture radius (m)",
-}
-# natural order of categorical axes (anything else: alphabetical, after these)
-CATEGORY_ORDER = {
-    "noise": ("none", "low", "medium", "high", "custom"),
-    "direction": ("up", "down"),
-    "material": ("diffuse", "roughconductor"),
-    "family": ("flat", "cylinder", "fold", "twist", "dome", "dent"),
-}
 _DIRECTION_STYLE = {"up": "-", "down": "--"}
 _FLAG_LABELS = {"detected": "detected (either symptom)", "counting_test": "counting test",
                 "arrays_disagree": "arrays disagree (Fig. 2)", "false_boundary_detected": "detected"}
+# error metrics (mm) a method-comparison bar chart shows, in the results table's order
+_BAR_METRICS = tuple(n for n, f in METRIC_FIELDS.items() if f.metadata["unit"] == "mm")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -70,36 +55,6 @@ def _save(fig, path) -> Path:
     return path
 
 
-def _num(v) -> float | None:
-    """A finite float, or None (None, NaN, inf, '', non-numbers)."""
-    if v is None or isinstance(v, str) and not v.strip():
-        return None
-    if isinstance(v, bool):
-        return float(v)
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
-
-
-def _flag(v) -> bool | None:
-    """True / False / None (unknown) from bools, 0/1, 'true'/'false' strings."""
-    if v is None:
-        return None
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, str):
-        s = v.strip().lower()
-        if s in ("true", "1", "yes"):
-            return True
-        if s in ("false", "0", "no"):
-            return False
-        return None
-    x = _num(v)
-    return None if x is None else bool(x)
-
-
 def _bend_key(v) -> float | None:
     x = _num(v)
     return None if x is None else round(x, 6)
@@ -110,10 +65,6 @@ def _empty(ax, text: str) -> None:
             wrap=True)
     ax.set_xticks([])
     ax.set_yticks([])
-
-
-def _label_of(metric: str) -> str:
-    return METRIC_LABELS.get(metric, metric)
 
 
 def _ok(row) -> bool:
@@ -185,12 +136,12 @@ def plot_error_vs_bend(rows, path, metrics=("depth_rms_mm", "boundary_mean_mm"),
                         transform=ax.get_xaxis_transform(), label=f"{label}: failed")
                 drawn = True
         if not drawn:
-            _empty(ax, f"no {_label_of(metric)} values")
+            _empty(ax, f"no {metric_label(metric)} values")
             continue
         if _positive_span(allv):
             ax.set_yscale("log")
         ax.set_xlabel("bend angle (deg)")
-        ax.set_ylabel(_label_of(metric))
+        ax.set_ylabel(metric_label(metric))
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     fig.suptitle(title or "Error against bend angle (dots: samples, line: median per bend)", fontsize=10)
@@ -210,21 +161,6 @@ def bend_bins(bends, max_bins: int = 10) -> np.ndarray:
         mids = 0.5 * (b[1:] + b[:-1])
         return np.concatenate([[b[0] - (mids[0] - b[0])], mids, [b[-1] + (b[-1] - mids[-1])]])
     return np.linspace(b[0], b[-1] + 1e-9, max_bins + 1)
-
-
-def precision_recall_counts(rows, flag: str, gt_key: str = "false_boundary_gt") -> dict:
-    """TP/FP/FN/TN, precision and recall of ``flag`` against ``gt_key`` over rows where both are known."""
-    tp = fp = fn = tn = 0
-    for r in rows:
-        g, d = _flag(r.get(gt_key)), _flag(r.get(flag))
-        if g is None or d is None:
-            continue
-        tp += g and d
-        fp += d and not g
-        fn += g and not d
-        tn += (not g) and (not d)
-    return {"true_positive": tp, "false_positive": fp, "false_negative": fn, "true_negative": tn,
-            "precision": tp / (tp + fp) if tp + fp else None, "recall": tp / (tp + fn) if tp + fn else None}
 
 
 def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arrays_disagree"),
@@ -261,7 +197,7 @@ def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arra
         ax.patch.set_visible(False)
         defined = False
         for j, f in enumerate(flags):
-            vals = [precision_recall_counts(b, f, gt_key)[what] for b in bins]
+            vals = [precision_recall(b, f, gt_key)[what] for b in bins]
             y = np.array([np.nan if v is None else v for v in vals], float)
             defined |= bool(np.isfinite(y).any())
             dodge = (j - (len(flags) - 1) / 2) * 0.06 * width  # overlapping flags stay visible
@@ -310,7 +246,8 @@ def _series_label(key: tuple, names: tuple) -> str:
     parts = []
     for k, v in zip(names, key):
         x = _num(v) if not isinstance(v, str) else None
-        parts.append(f"{units.get(k, '')}{x:g}{suffix.get(k, '')}" if x is not None else str(v if v is not None else "-"))
+        parts.append(f"{units.get(k, '')}{x:g}{suffix.get(k, '')}" if x is not None
+                     else str(v if v is not None else "-"))
     return ", ".join(parts)
 
 
@@ -512,9 +449,7 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
     table = {str(m): dict(v or {}) for m, v in (table or {}).items()}
     methods = list(table)
     if metrics is None:
-        metrics = [k for k in ("depth_rms_mm", "depth_median_mm", "depth_max_mm", "xy_rms_mm", "err3d_rms_mm",
-                               "surface_rms_mm", "boundary_mean_mm") if any(_num(t.get(k)) is not None
-                                                                           for t in table.values())]
+        metrics = [k for k in _BAR_METRICS if any(_num(t.get(k)) is not None for t in table.values())]
     err_metrics = [m for m in metrics if m != "coverage_frac"]
     has_cov = any(_num(t.get("coverage_frac")) is not None for t in table.values())
     fig = _figure(9.5 if has_cov else 7.5, 4.2)
@@ -542,7 +477,7 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
         if _positive_span(allv):
             ax.set_yscale("log")
         ax.set_xticks(x)
-        ax.set_xticklabels([_label_of(k).replace(" (mm)", "") for k in err_metrics], rotation=20, ha="right",
+        ax.set_xticklabels([metric_label(k).replace(" (mm)", "") for k in err_metrics], rotation=20, ha="right",
                            fontsize=8)
         ax.set_ylabel("error (mm)")
         ax.margins(y=0.15)
@@ -566,274 +501,173 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
 
 
 # ----------------------------------------------------------------------------- metric against a swept axis
-def axis_label(axis: str) -> str:
-    return AXIS_LABELS.get(axis, axis)
+@dataclass(frozen=True)
+class _XAxis:
+    """Where the levels of a swept axis go on the x axis, and each method's small sideways offset
+    (so that equal values, such as a failure rate of 0, stay visible)."""
+
+    levels: list
+    xs: np.ndarray
+    numeric: bool
+    logx: bool
+    step: float
+    methods: tuple
+
+    @classmethod
+    def of(cls, stats: dict) -> "_XAxis":
+        xs = np.array([lv["x"] for lv in stats["levels"]], float)
+        numeric = stats["numeric"]
+        logx = bool(numeric and xs.min() > 0 and xs.max() / xs.min() > 20)
+        if numeric and len(xs) > 1:
+            step = 0.012 * ((np.log10(xs.max() / xs.min()) if logx else xs.max() - xs.min()) or 1.0)
+        else:
+            step = 0.06 if not numeric else 0.01 * (abs(xs[0]) or 1.0)
+        return cls(stats["levels"], xs, numeric, logx, float(step), tuple(stats["methods"]))
+
+    def x(self, level_x: float, method: str) -> float:
+        d = (self.methods.index(method) - (len(self.methods) - 1) / 2) * self.step
+        return level_x * 10 ** d if self.logx else level_x + d
+
+    def format(self, ax, label: str) -> None:
+        if self.logx:
+            ax.set_xscale("log")
+        if not self.numeric or len(self.levels) <= 12:
+            ax.set_xticks(self.xs)
+            ax.set_xticklabels([lv["label"] for lv in self.levels], fontsize=8,
+                               rotation=30 if any(len(lv["label"]) > 6 for lv in self.levels) else 0)
+            if self.logx:
+                ax.xaxis.set_minor_formatter(_null_formatter())
+        lo, hi = float(self.xs.min()), float(self.xs.max())
+        if not self.numeric:
+            ax.set_xlim(lo - 0.5, hi + 0.5)
+        elif self.logx:
+            f = (hi / lo) ** 0.06
+            ax.set_xlim(lo / f, hi * f)
+        else:
+            pad = 0.06 * (hi - lo) if hi > lo else 0.1 * (abs(lo) or 1.0)
+            ax.set_xlim(lo - pad, hi + pad)
+        ax.set_xlabel(label)
 
 
-def row_failed(row, metric: str = "depth_rms_mm") -> bool:
-    """Whether a results row counts as a failure of its method: status not "ok", or no finite
-    ``metric``, or (the paper's pipeline, the one method that reports both) fewer squares matched
-    than ground truth puts on the plate (``matched_count < expected_count_gt``)."""
-    if not _ok(row):
-        return True
-    if _num(row.get(metric)) is None:
-        return True
-    matched, expected = _num(row.get("matched_count")), _num(row.get("expected_count_gt"))
-    return matched is not None and expected is not None and matched < expected
+def _any_failure(cell: dict) -> bool:
+    return any(cell[kind] for kind, _, _ in FAILURE_KINDS)
 
 
-def _axis_value(row, axis):
-    """A row's value on ``axis``: a finite float, a non-empty string, or None (unknown)."""
-    v = row.get(axis)
-    if v is None or isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, str):
-        s = v.strip()
-        if not s:
-            return None
-        x = _num(s)
-        return x if x is not None else s
-    if isinstance(v, (bool, np.bool_)):
-        return str(bool(v)).lower()
-    x = _num(v)
-    return x if x is not None else str(v)
+def _draw_metric_panel(ax, st: dict, xa: _XAxis, style: dict) -> None:
+    """Median of the metric per level and method (line), the samples (faint dots), a hollow median
+    marker where some rows at that level failed in any way, a cross on the bottom edge where no
+    row of the method gave a value."""
+    allv, drawn = [], False
+    for m in xa.methods:
+        cells = [(lv, st["cells"].get((m, lv["key"]))) for lv in xa.levels]
+        cells = [(xa.x(lv["x"], m), c) for lv, c in cells if c is not None]
+        if not any(c["values"] for _, c in cells):
+            continue  # the method never gives this metric: nothing to draw
+        color, marker = style[m]
+        med = [(x, c["median"], _any_failure(c)) for x, c in cells if c["median"] is not None]
+        dots = [(x, v) for x, c in cells for v in c["values"]]
+        none_x = [x for x, c in cells if c["median"] is None]
+        allv += [v for _, v in dots]
+        if len(dots) > len(med):
+            ax.plot(*zip(*dots), marker, color=color, ms=3, alpha=0.35, mfc="none")
+        ax.plot([x for x, _, _ in med], [y for _, y, _ in med], "-", marker=marker, color=color, ms=6, lw=1.7,
+                label=m)
+        hollow = [(x, y) for x, y, bad in med if bad]
+        if hollow:
+            ax.plot(*zip(*hollow), marker, color=color, ms=6, mfc="white", mew=1.5)
+        if none_x:
+            ax.plot(none_x, [0.0] * len(none_x), "x", color=color, ms=9, mew=2, clip_on=False,
+                    transform=ax.get_xaxis_transform(), label=f"{m}: no value")
+        drawn = True
+    label = metric_label(st["metric"])
+    if not drawn:
+        _empty(ax, f"no {label} values")
+        return
+    pos = [v for v in allv if v > 0]
+    if len(pos) >= 2 and max(pos) / min(pos) > 10:
+        ax.set_yscale("log")
+        ax.grid(True, which="minor", axis="y", alpha=0.1)
+    ax.set_ylabel(label + ", median")
+    ax.set_title(f"{label} (line: median, dots: samples)", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
 
 
-def axis_levels(rows, axis: str, max_levels: int = 10) -> tuple[list[dict], object, bool]:
-    """The ordered levels of ``axis`` over ``rows``: ([{"key", "label", "x"}], key_of(row), numeric).
-
-    Numeric axes: one level per distinct value (x = the value), or, with more than
-    ``max_levels`` distinct values (random draws), equal-width bins (x = bin centre, label
-    "lo to hi" joined by an en dash; empty bins left out). Categorical axes: one level per
-    value in its natural order (``CATEGORY_ORDER``: noise none < low < medium < high), x = 0,
-    1, ... ``key_of`` gives a row's level key, or None where the row has no value on the axis."""
-    vals = [_axis_value(r, axis) for r in rows]
-    known = [v for v in vals if v is not None]
-    numeric = bool(known) and all(isinstance(v, float) for v in known)
-    if not known:
-        return [], (lambda r: None), False
-    if numeric:
-        uniq = sorted({round(v, 9) for v in known})
-        if len(uniq) <= max_levels:
-            levels = [{"key": u, "label": f"{u:g}", "x": u} for u in uniq]
-
-            def key_of(r):
-                v = _axis_value(r, axis)
-                return round(v, 9) if isinstance(v, float) else None
-            return levels, key_of, True
-        edges = np.linspace(uniq[0], uniq[-1], max_levels + 1)
-
-        def key_of(r):
-            v = _axis_value(r, axis)
-            if not isinstance(v, float):
-                return None
-            return int(np.clip(np.searchsorted(edges, v, side="right") - 1, 0, max_levels - 1))
-        used = sorted({key_of(r) for r in rows} - {None})
-        levels = [{"key": i, "label": f"{edges[i]:.3g}\u2013{edges[i + 1]:.3g}",
-                   "x": float(0.5 * (edges[i] + edges[i + 1]))} for i in used]
-        return levels, key_of, True
-    def cat(v):
-        return f"{v:g}" if isinstance(v, float) else str(v)
-
-    order = CATEGORY_ORDER.get(axis, ())
-    names = sorted({cat(v) for v in known}, key=lambda s: (order.index(s) if s in order else len(order), s))
-    levels = [{"key": n, "label": n, "x": float(i)} for i, n in enumerate(names)]
-
-    def key_of(r):
-        v = _axis_value(r, axis)
-        return None if v is None else cat(v)
-    return levels, key_of, False
-
-
-def _method_order(methods) -> list[str]:
-    """The paper's pipeline first, then the peers alphabetically."""
-    return sorted(set(methods), key=lambda m: (m != "paper", m))
-
-
-def axis_stats(rows, axis: str, metric: str = "depth_rms_mm", max_levels: int = 10) -> dict:
-    """Per method and level of ``axis``: rows, failures (``row_failed``), failure rate (0..1),
-    and the median / values of ``metric`` over the rows with status ok and a finite value
-    (a paper row that matched fewer squares than expected still gives its value here).
-
-    Returns {"axis", "metric", "levels", "numeric", "methods", "cells": {(method, key): {...}},
-    "no_value": rows without a value on the axis}."""
-    rows = list(rows or [])
-    levels, key_of, numeric = axis_levels(rows, axis, max_levels)
-    cells: dict = {}
-    no_value = 0
-    for r in rows:
-        k = key_of(r)
-        if k is None:
-            no_value += 1
-            continue
-        m = str(r.get("method") or "-")
-        c = cells.setdefault((m, k), {"rows": 0, "failed": 0, "values": []})
-        c["rows"] += 1
-        c["failed"] += row_failed(r, metric)
-        v = _num(r.get(metric)) if _ok(r) else None
-        if v is not None:
-            c["values"].append(v)
-    for c in cells.values():
-        c["failure_rate"] = c["failed"] / c["rows"] if c["rows"] else None
-        c["median"] = float(np.median(c["values"])) if c["values"] else None
-    methods = _method_order(m for m, _ in cells)
-    return {"axis": axis, "metric": metric, "levels": levels, "numeric": numeric, "methods": methods,
-            "cells": cells, "no_value": no_value}
-
-
-def plot_metric_vs_axis(rows, axis: str, path, metrics=("depth_rms_mm",), title: str | None = None,
-                        pooled: dict | None = None, max_levels: int = 10) -> Path:
-    """One panel per metric: the median over samples (line) of the metric at each value of the
-    swept ``axis``, one line per method, samples as faint dots, log y when the medians and samples
-    span more than a decade; and a last panel: each method's failure rate (0..1) at each value
-    (``row_failed`` on the first metric: status failed, no value, or for the paper's pipeline
-    fewer squares matched than expected), with the count "k/n" printed where it is not zero. A
-    hollow median marker: some of the rows at that value count as failed (the median is over
-    those that gave a value); a cross on the bottom edge: none gave a value there.
-
-    Numeric axes (roughness, bend_deg, ...) are drawn on their values (log x when all are positive and
-    span more than a factor 20), categorical ones (noise none < low < medium < high, material, ...) as ordered
-    categories. ``pooled`` ({axis: [values]}) names the other axes that vary and are pooled into
-    each point; it goes under the title."""
-    rows = list(rows or [])
-    metrics = [m for m in metrics if any(_num(r.get(m)) is not None for r in rows)] or list(metrics[:1])
-    n_panels = len(metrics) + 1
-    fig = _figure(4.6 * n_panels + 0.6, 4.3)
-    axes = fig.subplots(1, n_panels, squeeze=False)[0]
-    stats = axis_stats(rows, axis, metrics[0], max_levels)
-    levels = stats["levels"]
-    label_x = axis_label(axis)
-    if not levels:
-        for ax in axes:
-            _empty(ax, f"no rows with a value of {label_x}")
-        fig.suptitle(title or f"Against {label_x}", fontsize=10)
-        fig.tight_layout()
-        return _save(fig, path)
-    numeric = stats["numeric"]
-    xs = np.array([lv["x"] for lv in levels], float)
-    logx = numeric and xs.min() > 0 and xs.max() / xs.min() > 20
-    methods = stats["methods"]
-    colors = dict(zip(methods, _colors(len(methods))))
-    markers = dict(zip(methods, "osD^v<>p*h" * 3))
-    # a small sideways offset per method so that equal values (failure rate 0) stay visible
-    if numeric and len(xs) > 1:
-        span = (np.log10(xs.max() / xs.min()) if logx else xs.max() - xs.min()) or 1.0
-        step = 0.012 * span
-    else:
-        step = 0.06 if not numeric else 0.01 * (abs(xs[0]) or 1.0)
-
-    def shifted(x, j):
-        d = (j - (len(methods) - 1) / 2) * step
-        return x * 10 ** d if logx else x + d
-
-    for ax, metric in zip(axes[:-1], metrics):
-        st = stats if metric == metrics[0] else axis_stats(rows, axis, metric, max_levels)
-        allv, drawn = [], False
-        for j, m in enumerate(methods):
-            if not any(c["values"] for (mm, _), c in st["cells"].items() if mm == m):
-                continue  # the method never gives this metric: nothing to draw, no "no value" marks
-            xm, med, bad, dots_x, dots_y, none_x = [], [], [], [], [], []
-            for lv in levels:
-                c = st["cells"].get((m, lv["key"]))
-                if c is None:
-                    continue
-                x = shifted(lv["x"], j)
-                if c["median"] is None:
-                    none_x.append(x)
-                    continue
-                xm.append(x)
-                med.append(c["median"])
-                bad.append(c["failed"] > 0)
-                dots_x += [x] * len(c["values"])
-                dots_y += c["values"]
-            allv += dots_y
-            if dots_y and len(dots_y) > len(med):
-                ax.plot(dots_x, dots_y, markers[m], color=colors[m], ms=3, alpha=0.35, mfc="none")
-            if med:
-                ax.plot(xm, med, "-", marker=markers[m], color=colors[m], ms=6, lw=1.7, label=m)
-                hollow = [(x, y) for x, y, f in zip(xm, med, bad) if f]
-                if hollow:  # a median over rows some of which count as failed (e.g. squares missing)
-                    ax.plot(*zip(*hollow), markers[m], color=colors[m], ms=6, mfc="white", mew=1.5)
-                drawn = True
-            if none_x:
-                ax.plot(none_x, [0.0] * len(none_x), "x", color=colors[m], ms=9, mew=2, clip_on=False,
-                        transform=ax.get_xaxis_transform(), label=f"{m}: no value")
-                drawn = True
-        if not drawn:
-            _empty(ax, f"no {_label_of(metric)} values")
-            continue
-        pos = [v for v in allv if v > 0]
-        if len(pos) >= 2 and max(pos) / min(pos) > 10:
-            ax.set_yscale("log")
-        ax.set_ylabel(_label_of(metric) + ", median")
-        ax.set_title(f"{_label_of(metric)} (line: median, dots: samples)", fontsize=9)
-        ax.grid(True, alpha=0.3)
-        if ax.get_yscale() == "log":
-            ax.grid(True, which="minor", axis="y", alpha=0.1)
-        ax.legend(fontsize=7, loc="best")
-    axf = axes[-1]
+def _draw_rate_panel(ax, st: dict, xa: _XAxis, style: dict, kind: str, denominator: str, title: str) -> None:
+    """The fraction (0..1) of each method's rows at each level that failed in one way, "k/n" printed
+    where k > 0; a method without a single row that can say (no verdict) is left out."""
     stacked: dict = {}  # labels at the same point go one above the other
-    for j, m in enumerate(methods):
-        pts = [(shifted(lv["x"], j), lv["key"], stats["cells"][(m, lv["key"])]) for lv in levels
-               if (m, lv["key"]) in stats["cells"]]
+    drawn = False
+    for m in xa.methods:
+        pts = [(xa.x(lv["x"], m), lv["key"], st["cells"].get((m, lv["key"]))) for lv in xa.levels]
+        pts = [(x, key, c[kind], c[denominator]) for x, key, c in pts if c is not None and c[denominator]]
         if not pts:
             continue
-        axf.plot([p[0] for p in pts], [p[2]["failure_rate"] for p in pts], "-", marker=markers[m],
-                 color=colors[m], ms=6, lw=1.5, label=m)
-        for xx, key, c in pts:
-            if c["failed"]:
-                at = (key, round(c["failure_rate"], 6))
-                k = stacked[at] = stacked.get(at, -1) + 1
-                axf.annotate(f"{c['failed']}/{c['rows']}", (xx, c["failure_rate"]), xytext=(4, 3 + 9 * k),
-                             textcoords="offset points", fontsize=7, color=colors[m])
-    axf.set_ylim(-0.05, 1.08)
-    axf.set_ylabel("failure rate (0..1)")
-    axf.set_title("failure rate: failed, no value, or squares missing", fontsize=9)
-    axf.grid(True, alpha=0.3)
-    axf.legend(fontsize=7, loc="best")
-    for ax in axes:
-        if logx:
-            ax.set_xscale("log")
-        if not numeric or len(levels) <= 12:
-            ax.set_xticks(xs)
-            ax.set_xticklabels([lv["label"] for lv in levels], fontsize=8,
-                               rotation=30 if any(len(lv["label"]) > 6 for lv in levels) else 0)
-            if logx:
-                ax.xaxis.set_minor_formatter(_null_formatter())
-        if not numeric:
-            ax.set_xlim(xs.min() - 0.5, xs.max() + 0.5)
-        else:
-            _pad_x(ax, xs, logx)
-        ax.set_xlabel(label_x)
-    sub = ""
+        color, marker = style[m]
+        ax.plot([p[0] for p in pts], [k / n for _, _, k, n in pts], "-", marker=marker, color=color, ms=6, lw=1.5,
+                label=m)
+        for x, key, k, n in pts:
+            if k:
+                at = (key, round(k / n, 6))
+                j = stacked[at] = stacked.get(at, -1) + 1
+                ax.annotate(f"{k}/{n}", (x, k / n), xytext=(4, 3 + 9 * j), textcoords="offset points", fontsize=7,
+                            color=color)
+        drawn = True
+    ax.set_title(f"{title} (fraction of rows)", fontsize=9)
+    if not drawn:
+        _empty(ax, f"no row can say: {title}")
+        return
+    ax.set_ylim(-0.05, 1.08)
+    ax.set_ylabel("rate (0..1)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+
+
+def plot_metric_vs_axis(frame, axis: str, path, metrics=("depth_rms_mm",), title: str | None = None,
+                        pooled: dict | None = None, max_levels: int = 10) -> Path:
+    """A results frame against one swept ``axis`` (a results column): per metric, the median over
+    samples at each level, one line per method (``_draw_metric_panel``); then one panel per kind
+    of failure (``summary.FAILURE_KINDS``: crashed, paper's bound violated, points mismatched),
+    each method's rate at each level (``_draw_rate_panel``).
+
+    Numeric axes are drawn on their values (log x when all are positive and span more than a
+    factor 20), categorical ones (noise none < low < medium < high, ...) as ordered categories.
+    ``pooled`` ({column: [labels]}) names the other axes that vary and are pooled into each
+    point; it goes under the title."""
+    metrics = [m for m in metrics if m in frame.columns and frame[m].notna().any()] or list(metrics[:1])
+    stats = [axis_stats(frame, axis, m, max_levels) for m in metrics]
+    n_panels = len(metrics) + len(FAILURE_KINDS)
+    rows = -(-n_panels // 2)
+    fig = _figure(11.0, 3.5 * rows + 0.7)
+    axes = fig.subplots(rows, 2, squeeze=False).ravel()
+    for ax in axes[n_panels:]:
+        ax.set_axis_off()
+    label_x = parameter_label(axis)
+    head = title or f"Error and failures against {label_x}"
     if pooled:
-        sub = "pooled over " + "; ".join(f"{axis_label(k)}: {', '.join(_short(v) for v in vals)}"
-                                          for k, vals in pooled.items())
-    head = title or f"Depth error and failure rate against {label_x}"
-    fig.suptitle(head + (f"\n({sub})" if sub else ""), fontsize=10)
+        head += "\n(pooled over " + "; ".join(f"{parameter_label(k)}: {', '.join(map(str, v))}"
+                                               for k, v in pooled.items()) + ")"
+    fig.suptitle(head, fontsize=10)
+    if not stats[0]["levels"]:
+        for ax in axes[:n_panels]:
+            _empty(ax, f"no rows with a value of {label_x}")
+        fig.tight_layout()
+        return _save(fig, path)
+    xa = _XAxis.of(stats[0])
+    style = {m: (c, mk) for m, c, mk in zip(xa.methods, _colors(len(xa.methods)), "osD^v<>p*h" * 3)}
+    for ax, st in zip(axes, stats):
+        _draw_metric_panel(ax, st, xa, style)
+    for ax, (kind, denominator, label) in zip(axes[len(metrics):], FAILURE_KINDS):
+        _draw_rate_panel(ax, stats[0], xa, style, kind, denominator, label)
+    for ax in axes[:n_panels]:
+        xa.format(ax, label_x)
     fig.tight_layout()
     return _save(fig, path)
-
-
-def _short(v) -> str:
-    x = _num(v) if not isinstance(v, str) else None
-    return f"{x:g}" if x is not None else str(v)
 
 
 def _null_formatter():
     from matplotlib.ticker import NullFormatter  # noqa: PLC0415
     return NullFormatter()
-
-
-def _pad_x(ax, xs, logx: bool) -> None:
-    lo, hi = float(xs.min()), float(xs.max())
-    if logx:
-        f = (hi / lo) ** 0.06
-        ax.set_xlim(lo / f, hi * f)
-    else:
-        pad = 0.06 * (hi - lo) if hi > lo else 0.1 * (abs(lo) or 1.0)
-        ax.set_xlim(lo - pad, hi + pad)
-
 
 
 # ----------------------------------------------------------------------------- error map
@@ -890,82 +724,95 @@ def error_map_data(sample_dir, recon_dir) -> dict:
     return out
 
 
-def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: dict | None = None) -> Path:
-    """Error map over the plate, top view in world X/Y (mm): left, the reconstructed surface
-    coloured by its exact distance to the ground-truth mesh (mm), with the true boundary (black)
-    and the reconstructed one (white dashed); right, the triangulated square centres coloured by
-    their 3D error (mm) over the true outline."""
+def _outline(ax, d: dict) -> None:
+    """The true boundary (black), closed, in mm."""
+    if d["gt_boundary"] is not None and len(d["gt_boundary"]):
+        b = np.vstack([d["gt_boundary"], d["gt_boundary"][:1]]) * 1e3
+        ax.plot(b[:, 0], b[:, 1], "k-", lw=1.2, label="true boundary")
+
+
+def _draw_surface_panel(fig, ax, d: dict) -> None:
+    """The reconstructed surface coloured by its distance to the true mesh (mm), both boundaries."""
     from matplotlib.tri import Triangulation  # noqa: PLC0415
-    fig = _figure(11.0, 4.6)
-    a1, a2 = fig.subplots(1, 2)
-    try:
-        d = data if data is not None else error_map_data(sample_dir, recon_dir)
-    except (OSError, ValueError) as e:
-        for ax in (a1, a2):
-            _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
-        fig.tight_layout()
-        return _save(fig, path)
-
-    def outline(ax, lw=1.2):
-        if d["gt_boundary"] is not None and len(d["gt_boundary"]):
-            b = np.vstack([d["gt_boundary"], d["gt_boundary"][:1]]) * 1e3
-            ax.plot(b[:, 0], b[:, 1], "k-", lw=lw, label="true boundary")
-
     if d["surface_vertices"] is not None and len(d["surface_faces"]):
         v = d["surface_vertices"] * 1e3
-        tri = Triangulation(v[:, 0], v[:, 1], d["surface_faces"])
         dist = d["surface_dist_mm"]
         vmax = float(np.percentile(dist, 99)) if dist.size else 1.0
-        im = a1.tripcolor(tri, dist, shading="gouraud", cmap="viridis", vmin=0.0, vmax=max(vmax, 1e-3))
-        fig.colorbar(im, ax=a1, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
-        a1.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
+        im = ax.tripcolor(Triangulation(v[:, 0], v[:, 1], d["surface_faces"]), dist, shading="gouraud",
+                          cmap="viridis", vmin=0.0, vmax=max(vmax, 1e-3))
+        fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
+        ax.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
                      f"({len(v)} vertices)", fontsize=9)
     else:
-        a1.set_title("no reconstructed surface", fontsize=9)
-    outline(a1)
+        ax.set_title("no reconstructed surface", fontsize=9)
+    _outline(ax, d)
     if d["rec_boundary"] is not None:
         rb = np.vstack([d["rec_boundary"], d["rec_boundary"][:1]]) * 1e3
-        a1.plot(rb[:, 0], rb[:, 1], "--", color="red", lw=1.1, label="reconstructed boundary")
-    a1.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
+        ax.plot(rb[:, 0], rb[:, 1], "--", color="red", lw=1.1, label="reconstructed boundary")
+    ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
 
-    outline(a2)
+
+def _draw_centres_panel(fig, ax, d: dict) -> None:
+    """The square centres coloured by their 3D error against the true centres (mm; diamonds: identity
+    unknown, distance to the surface), values printed above each when there are few."""
+    _outline(ax, d)
     pts, err, kind = d["centres"], d["centre_err_mm"], d["centre_kind"]
-    if len(pts):
-        p = pts * 1e3
-        vmax = max(float(err.max()), 1e-3)
-        three = kind == "3d"
-        sc = None
-        if three.any():
-            sc = a2.scatter(p[three, 0], p[three, 1], c=err[three], cmap="plasma", vmin=0, vmax=vmax, s=70,
-                            edgecolors="k", linewidths=0.6, zorder=3, label="3D error vs true centre")
-        if (~three).any():
-            sc2 = a2.scatter(p[~three, 0], p[~three, 1], c=err[~three], cmap="plasma", vmin=0, vmax=vmax, s=70,
-                             marker="D", edgecolors="k", linewidths=0.6, zorder=3,
-                             label="identity unknown: distance to surface")
-            sc = sc if sc is not None else sc2
-        fig.colorbar(sc, ax=a2, fraction=0.046, pad=0.03, label="square-centre error (mm)")
-        if len(p) <= 40:
-            for (x, y, _), e in zip(p, err):
-                a2.annotate(f"{e:.2f}", (x, y), xytext=(0, 7), textcoords="offset points", ha="center", fontsize=6)
-        rms = float(np.sqrt(np.mean(err[three] ** 2))) if three.any() else float("nan")
-        a2.set_title(f"square centres: {len(p)} points, 3D RMS {rms:.3f} mm", fontsize=9)
-        a2.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
-    else:
-        a2.set_title("no triangulated square centres", fontsize=9)
+    if not len(pts):
+        ax.set_title("no triangulated square centres", fontsize=9)
+        return
+    p = pts * 1e3
+    style = dict(cmap="plasma", vmin=0, vmax=max(float(err.max()), 1e-3), s=70, edgecolors="k", linewidths=0.6,
+                 zorder=3)
+    three = kind == "3d"
+    sc = []
+    if three.any():
+        sc.append(ax.scatter(p[three, 0], p[three, 1], c=err[three], label="3D error vs true centre", **style))
+    if (~three).any():
+        sc.append(ax.scatter(p[~three, 0], p[~three, 1], c=err[~three], marker="D",
+                             label="identity unknown: distance to surface", **style))
+    fig.colorbar(sc[0], ax=ax, fraction=0.046, pad=0.03, label="square-centre error (mm)")
+    if len(p) <= 40:
+        for (x, y, _), e in zip(p, err):
+            ax.annotate(f"{e:.2f}", (x, y), xytext=(0, 7), textcoords="offset points", ha="center", fontsize=6)
+    rms = float(np.sqrt(np.mean(err[three] ** 2))) if three.any() else float("nan")
+    ax.set_title(f"square centres: {len(p)} points, 3D RMS {rms:.3f} mm", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
+
+
+def _same_window(axes, d: dict) -> None:
+    """The same window on every panel, equal scales, world X/Y in mm, headroom for the legend."""
     xy = [a[:, :2] for a in (d["gt_boundary"], d["rec_boundary"], d["surface_vertices"], d["centres"])
           if a is not None and len(a)]
-    if xy:
-        xy = np.vstack(xy) * 1e3
-        lo, hi = xy.min(axis=0), xy.max(axis=0)
-        pad = 0.08 * max(float((hi - lo).max()), 1.0)
-        for ax in (a1, a2):  # the same window on both panels, equal scales; headroom for the legend
+    for ax in axes:
+        if xy:
+            pts = np.vstack(xy) * 1e3
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            pad = 0.08 * max(float((hi - lo).max()), 1.0)
             ax.set_xlim(lo[0] - pad, hi[0] + pad)
             ax.set_ylim(lo[1] - pad, hi[1] + pad + 0.22 * max(float(hi[1] - lo[1]), 1.0))
-    for ax in (a1, a2):
         ax.set_xlabel("world X (mm)")
         ax.set_ylabel("world Y (mm)")
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, alpha=0.25)
+
+
+def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: dict | None = None) -> Path:
+    """Error map over the plate, top view in world X/Y (mm): left, the reconstructed surface
+    coloured by its exact distance to the ground-truth mesh (mm), with the true boundary (black)
+    and the reconstructed one (red dashed); right, the triangulated square centres coloured by
+    their 3D error (mm) over the true outline. Files that cannot be read give a figure saying so."""
+    fig = _figure(11.0, 4.6)
+    a1, a2 = fig.subplots(1, 2)
+    try:
+        d = data if data is not None else error_map_data(sample_dir, recon_dir)
+    except (OSError, ValueError) as e:  # missing or damaged sample / reconstruction files
+        for ax in (a1, a2):
+            _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
+        fig.tight_layout()
+        return _save(fig, path)
+    _draw_surface_panel(fig, a1, d)
+    _draw_centres_panel(fig, a2, d)
+    _same_window((a1, a2), d)
     where = f"{Path(recon_dir).resolve().parent.name}/{Path(recon_dir).name}"
     fig.suptitle(title or f"Error map of {where} against {Path(sample_dir).name}'s ground truth (top view)",
                  fontsize=10)

@@ -7,9 +7,14 @@ with one renderer (``bench.run.pattern_sequences``), runs each method
 the sample's ground truth with ``evaluation.dense``:
 
 * depth: |Z_est - Z_gt| (left camera z-depth, mm) over plate pixels with an estimate:
-  median, RMS, p95, max, signed mean; coverage = those pixels / plate pixels (gt mask);
-  estimates off the plate are counted separately (the disparity metrics ignore them);
-* disparity: Middlebury v3 and ETH3D two-view metrics against ``gt/disp0GT.pfm``.
+  mean, median, RMS, max, A50-A99, signed mean; coverage = those pixels / plate pixels (gt
+  mask); estimates off the plate are counted separately (the disparity metrics ignore them);
+* disparity: Middlebury v3 and ETH3D two-view metrics on all and on non-occluded pixels
+  (``evaluation.field_scores.score_disparity``).
+
+Plug-in methods (``bench.run.plugins``: an installed entry point of ``platebench.methods`` or
+``module:function``) run on the sample's images and calibration and are scored by the kind of
+output they return (disparity, depth, points or mesh).
 
 The "paper" row is read, not computed: a directory holding ``points.csv`` (world x, y, z in
 metres) and optionally ``recon.json`` from ``platebench reconstruct``; its points are scored
@@ -21,19 +26,21 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.points import read_points_csv
 from platebench.bench.io.sample_files import load_ground_truth, load_inputs
 from platebench.bench.run.pattern_sequences import render_pattern_sequence
+from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
 from platebench.errors import UserValueError
-from platebench.evaluation.dense import score_dense, score_points_depth
+from platebench.evaluation.dense import score_points_depth
+from platebench.evaluation.field_scores import score_disparity
 from platebench.plates import build_plate
 from platebench.reconstruction.peers import graycode, phase_shift, sgbm
 from platebench.scenes.naming import image_seed
@@ -60,12 +67,6 @@ DESCRIPTIONS = {
 ALL_METHODS = METHODS + ("phase-opencv",)
 
 
-def _f(x) -> float | None:
-    """JSON-safe float: None for NaN/inf."""
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
 def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
     """(points (N,3), recon.json dict, directory) of a ``platebench reconstruct`` output, or None."""
     cands = [Path(recon_dir)] if recon_dir is not None else [Path(sample_dir).resolve().parent,
@@ -85,6 +86,9 @@ def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
 
 @dataclass
 class MethodRow:
+    """One method on the sample: ``scores`` is the JSON form of ``score`` (the typed score of its kind,
+    ``evaluation.field_scores``; None for the paper row, scored from its points.csv)."""
+
     name: str
     description: str
     n_images: int
@@ -92,7 +96,17 @@ class MethodRow:
     render_s: float
     scores: dict
     notes: list = field(default_factory=list)
-    result: object = None  # DenseResult, None for the paper row
+    result: object = None  # a dense result (.depth, .valid, left view) for the error figure; None otherwise
+    score: object = None
+    kind: str = "disparity"
+
+
+@dataclass(frozen=True)
+class DenseView:
+    """A plug-in's dense output as the error figure reads it: (H, W) depth (metres) and validity."""
+
+    depth: np.ndarray
+    valid: np.ndarray
 
 
 @dataclass
@@ -121,9 +135,11 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
 
     say = progress or (lambda msg: None)
     sample_dir = Path(sample_dir)
-    unknown = [m for m in methods if m not in ALL_METHODS]
+    plugins = {m: resolve_plugin(m) for m in methods if m not in ALL_METHODS}
+    unknown = [m for m, fn in plugins.items() if fn is None]
     if unknown:
-        raise UserValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}")
+        raise UserValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}, an installed "
+                             f"plug-in ({', '.join(plugin_names()) or 'none installed'}) or module:function")
     inputs = load_inputs(sample_dir)
     gt = load_ground_truth(sample_dir)
     cfg = SampleConfig.from_dict(gt.meta["config"])
@@ -132,7 +148,8 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     rows = []
     gt_depth, gt_mask = gt.depth["left"], gt.mask["left"]
 
-    needs_render = [m for m in methods if m not in ("paper", "sgbm")]
+    truth = load_field_truth(sample_dir) if any(m != "paper" for m in methods) else None
+    needs_render = [m for m in methods if m not in ("paper", "sgbm") and m not in plugins]
     scene_reproduced = None
     if needs_render:
         say("scene")
@@ -174,6 +191,16 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     for name in methods:
         if name == "paper":
             continue
+        if name in plugins:
+            say(f"method {name} (plug-in)")
+            run = run_plugin(plugins[name], name, sample_dir, truth=truth)
+            view = None
+            if run.output.kind in ("disparity", "depth"):
+                z = _implied_depth(run.output, truth)
+                view = DenseView(z, np.isfinite(z))
+            rows.append(MethodRow(name, describe(plugins[name]), int(run.output.metrics.get("n_images", 2)),
+                                  run.time_recon_s, 0.0, run.score.to_dict(), [], view, run.score, run.output.kind))
+            continue
         if name not in ("phase", "phase-opencv"):
             say(f"method {name}")
         if name == "graycode":
@@ -199,9 +226,9 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
             res = sgbm.sgbm(inputs.images["left_passive"], inputs.images["right_passive"], rig,
                                  depth_range_m=depth_range_m)
             render_s = 0.0
-        sc = score_dense(res.depth, res.disparity, res.valid, gt_depth, gt_mask, gt.disparity)
+        score = score_disparity(np.where(res.valid, res.disparity, np.inf), truth, what=f"{name} disparity")
         rows.append(MethodRow(name, DESCRIPTIONS[name], res.n_images, res.timings.get("total_s", float("nan")),
-                              render_s, sc, list(res.notes), res))
+                              render_s, score.to_dict(), list(res.notes), res, score, "disparity"))
     if "paper" in methods:
         found = find_paper_reconstruction(sample_dir, recon_dir)
         if found is None:
@@ -214,26 +241,24 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
             t = meta.get("timings_s", meta.get("timings", {}))
             t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
             rows.insert(0, MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
-                                     [f"read from {d}"]))
+                                     [f"read from {d}"], kind="paper"))
     return Comparison(sample_dir, rows, notes, scene_reproduced, gt_depth, gt_mask)
 
 
-def _jsonable(o):
-    if isinstance(o, dict):
-        return {k: _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, (float, np.floating)):
-        return _f(o)
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    return o
+def _implied_depth(out, truth) -> np.ndarray:
+    """(H, W) z-depth (metres) of a disparity or depth output; NaN where there is no estimate."""
+    if out.kind == "depth":
+        z = np.asarray(out.depth, np.float64)
+        return np.where(np.isfinite(z) & (z > 0), z, np.nan)
+    d = np.asarray(out.disparity, np.float64) + truth.pair.doffs_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(d) & (d > 0), truth.pair.fb / d, np.nan)
 
 
 def comparison_json(cmp: Comparison) -> dict:
-    return _jsonable({
+    return jsonable({
         "sample": str(cmp.sample_dir), "scene_reproduced": cmp.scene_reproduced, "notes": cmp.notes,
         "units": "depth errors in mm, disparity metrics in px / %, times in s; n_images = exposures per camera",
-        "methods": {r.name: {"description": r.description, "n_images": r.n_images, "time_s": r.time_s,
+        "methods": {r.name: {"kind": r.kind, "description": r.description, "n_images": r.n_images, "time_s": r.time_s,
                              "render_s": r.render_s, **r.scores, "notes": r.notes} for r in cmp.rows}})
 

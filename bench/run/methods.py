@@ -5,10 +5,15 @@ images and calibration (``ctx.sample_dir``; never its ground truth), writes what
 ``ctx.recon_dir`` and returns its ``MetricsRow`` (scored against the truth by the bench) with
 its timings. Built in: "paper" (the paper's pipeline) and the peers of ``platebench compare``
 (Gray code, phase shifting, SGBM).
+
+Plug-ins (``bench.run.plugins``: one function from a sample's inputs to a disparity, depth,
+point or mesh output) are found by ``get_method`` on first use, in any process: an entry point
+of the group ``platebench.methods``, or a name written ``module:function``. They are then
+registered like the built-ins, so a sweep's spec validation, ``compare`` and every worker
+(local or Dask) resolve the same name the same way.
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,11 +26,12 @@ from platebench.bench.io.images import write_pfm
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.run.compare import ALL_METHODS, DESCRIPTIONS, compare_sample
 from platebench.bench.run.paper_method import reconstruct_dir
+from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
 from platebench.bench.run.score import score_files
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
 
-__all__ = ["MethodContext", "MethodOutput", "Method", "METHODS", "register_method", "get_method"]
+__all__ = ["MethodContext", "MethodOutput", "Method", "METHODS", "register_method", "get_method", "method_names"]
 
 
 @dataclass(frozen=True)
@@ -68,11 +74,31 @@ def register_method(name: str, description: str, run: Callable[[MethodContext], 
     return METHODS[name]
 
 
+def method_names() -> tuple[str, ...]:
+    """The built-in methods and the installed plug-ins (entry points), by name."""
+    return tuple(dict.fromkeys((*METHODS, *plugin_names())))
+
+
 def get_method(name: str) -> Method:
-    try:
-        return METHODS[name]
-    except KeyError:
-        raise UserValueError(f"method {name!r} is not known: allowed {', '.join(METHODS)}") from None
+    """The method called ``name``: a registered one, else an installed plug-in (entry point of
+    ``platebench.methods``) or ``module:function``, resolved now and registered (see module doc)."""
+    if not isinstance(name, str) or not name:
+        raise UserValueError(f"method name {name!r} is empty: allowed {', '.join(method_names())}")
+    method = METHODS.get(name)
+    if method is not None:
+        return method
+    fn = resolve_plugin(name)
+    if fn is None:
+        raise UserValueError(f"method {name!r} is not known: allowed {', '.join(method_names())}, or a plug-in "
+                             "written as module:function")
+    return register_method(name, describe(fn), _plugin_runner(fn, name))
+
+
+def _plugin_runner(fn, name: str) -> Callable[[MethodContext], MethodOutput]:
+    def run(ctx: MethodContext) -> MethodOutput:
+        r = run_plugin(fn, name, ctx.sample_dir, ctx.recon_dir)
+        return MethodOutput(r.row, r.time_recon_s, r.time_eval_s)
+    return run
 
 
 def _run_paper(ctx: MethodContext) -> MethodOutput:
@@ -87,22 +113,9 @@ def _run_paper(ctx: MethodContext) -> MethodOutput:
 
 def _finite(x) -> float | None:
     try:
-        x = float(x)
+        return jsonable(float(x))
     except (TypeError, ValueError):
         return None
-    return x if math.isfinite(x) else None
-
-
-def _jsonable(o):
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, (float, np.floating)):
-        return _finite(o)
-    if isinstance(o, np.integer):
-        return int(o)
-    return o
 
 
 def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
@@ -112,16 +125,17 @@ def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
         row = next(r for r in cmp.rows if r.name == name)
         wall = time.perf_counter() - t0
         with staged_directory(ctx.recon_dir, overwrite=True) as d:
-            doc = {"method": name, "description": row.description, "n_images": row.n_images, "time_s": row.time_s,
-                   "render_s": row.render_s, "notes": list(row.notes) + list(cmp.notes), "scores": row.scores}
-            write_json(d / "score.json", _jsonable(doc))
+            doc = {"method": name, "kind": row.kind, "description": row.description, "n_images": row.n_images,
+                   "time_s": row.time_s, "render_s": row.render_s, "notes": list(row.notes) + list(cmp.notes),
+                   "scores": row.scores}
+            write_json(d / "score.json", jsonable(doc))
             res = row.result
             if res is not None and getattr(res, "disparity", None) is not None:
                 disp = np.asarray(res.disparity, np.float32)
                 write_pfm(d / "disparity.pfm", np.where(np.isfinite(disp), disp, np.inf).astype(np.float32))
         render_s = _finite(row.render_s) or 0.0
         recon_s = _finite(row.time_s)
-        return MethodOutput(MetricsRow.from_dense(row.scores),
+        return MethodOutput(row.score.metrics_row(),
                             recon_s if recon_s is not None else wall - render_s,
                             max(wall - render_s - (recon_s or 0.0), 0.0), render_s)
     return run

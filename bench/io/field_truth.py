@@ -1,0 +1,47 @@
+"""A written sample's ground truth for scoring dense maps, point clouds and meshes
+(``evaluation.field_scores.FieldTruth``): read once from the sample's files, both views' maps
+turned into disparities and the non-occlusion mask (``evaluation.stereo_truth``).
+
+The plate mesh (``plate.ply``) keeps the layout of ``plates.Plate``: its first faces are the top
+surface; with a thickness the bottom twins and the side walls (two faces per outline segment)
+follow. ``top_faces`` recovers that split from the face count, the outline's length
+(``boundary.npy``) and the thickness in ``sample.json``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from platebench.bench.io.images import DatasetError
+from platebench.bench.io.sample_files import load_calibration, load_ground_truth
+from platebench.evaluation.field_scores import FieldTruth
+
+__all__ = ["load_field_truth", "top_faces"]
+
+
+def top_faces(n_faces: int, n_vertices: int, n_boundary: int, thickness_m: float) -> np.ndarray:
+    """(F,) bool: the top-surface faces of a ``plates.Plate`` mesh (module doc)."""
+    if thickness_m <= 0:
+        return np.ones(n_faces, bool)
+    n_top = (n_faces - 2 * n_boundary) // 2
+    if n_top <= 0 or 2 * n_top + 2 * n_boundary != n_faces or n_vertices % 2:
+        raise DatasetError(f"plate.ply: {n_faces} faces and {n_vertices} vertices do not fit a plate of thickness "
+                           f"{thickness_m} m with a {n_boundary}-point outline")
+    return np.arange(n_faces) < n_top
+
+
+def load_field_truth(sample_dir: Path) -> FieldTruth:
+    """The ground truth every output kind is scored against (left view; world frame, metres)."""
+    sample_dir = Path(sample_dir)
+    if not sample_dir.is_dir():
+        raise DatasetError(f"{sample_dir}: sample directory is missing")
+    gt = load_ground_truth(sample_dir)
+    rig = load_calibration(sample_dir).rig
+    thickness = float(gt.meta.get("config", {}).get("plate", {}).get("thickness_m", 0.0) or 0.0)
+    top = top_faces(len(gt.mesh.faces), len(gt.mesh.vertices), len(gt.boundary), thickness)
+    try:
+        return FieldTruth.from_maps(rig, gt.depth["left"], gt.mask["left"], gt.points["left"], gt.depth["right"],
+                                    gt.mask["right"], gt.mesh, top)
+    except ValueError as e:
+        raise DatasetError(f"{sample_dir}: {e}") from None

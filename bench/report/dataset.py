@@ -1,0 +1,370 @@
+"""The sweep-dataset section: overview, per-method tables, failures by kind, plots against every
+swept axis, error maps, and the samples with links and thumbnails.
+
+Each function builds one part as plain data for ``templates/dataset.html``; statistics come
+from ``summary`` (pandas group-bys), plots from ``plots``. Units: errors in mm, bends in
+degrees, fractions 0..1, times in s (as the column names say).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from platebench.bench.config.axes import PARAMETERS, parameter_label
+from platebench.bench.report import plots as P
+from platebench.bench.report import summary as S
+from platebench.bench.report.inputs import load_results, read_manifest, records, sample_folder
+from platebench.bench.report.page import Page
+from platebench.bench.report.values import fmt
+from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
+
+__all__ = ["dataset_section", "MAX_TABLE_ROWS", "MAX_ERROR_MAPS", "MAX_THUMB_SAMPLES", "MAX_AXIS_PLOTS"]
+
+MAX_TABLE_ROWS = 200
+MAX_ERROR_MAPS = 4
+MAX_THUMB_SAMPLES = 40
+MAX_AXIS_PLOTS = 8
+_THUMB_IMAGES = ("left_passive", "left_active")
+_PARAMETERS = {p.name: p for p in PARAMETERS}
+_DESCRIBE = ("bend_deg", "direction", "family", "material", "roughness", "distance_m", "noise")
+
+
+def dataset_section(page: Page, ds: Path, prefix: str) -> dict:
+    """Everything the page shows of one sweep dataset (see the module doc)."""
+    manifest = read_manifest(ds)
+    frame, source = load_results(ds)
+    spec = manifest.get("spec") or {}
+    name = spec.get("name") or ds.name
+    sec = {"kind": "dataset", "name": name, "rel": page.rel(ds), "source": source, **_overview(manifest, frame)}
+    if frame is None or frame.empty:
+        sec["empty"] = True
+        sec["headline"] = _headline(name, sec, None)
+        return sec
+    summ = S.method_summary(frame)
+    sec.update(empty=False, metric_table=_metric_table(frame, summ), extra_table=_extra_table(frame, summ),
+               failure_table=_failure_table(frame), headline=_headline(name, sec, frame))
+    sec["plots"] = [page.plot(f"{prefix}method_comparison", P.plot_method_comparison, _bar_table(summ),
+                              title=f"{name}: median over samples per method",
+                              caption="Median of each error metric over the sweep's rows with status ok, per "
+                                      "method (the table above gives the means too). Bars: errors in millimetres "
+                                      "(log scale when they span decades); right panel: coverage as a fraction of "
+                                      "the plate (0..1), where the method reports it.")]
+    sec.update(_bend_part(page, frame, name, prefix))
+    sec["axes"] = _axes_part(page, frame, manifest, name, prefix)
+    sec["error_maps"] = _error_maps(page, ds, frame, prefix)
+    sec["samples"], sec["samples_note"] = _samples(page, ds, frame, prefix, manifest)
+    sec["failures"] = _failures(frame)
+    return sec
+
+
+# ----------------------------------------------------------------------------- overview
+def _overview(manifest: dict, frame: pd.DataFrame | None) -> dict:
+    """Cards (samples, ok, failed, pending, rows, methods), facts of the sweep, package versions."""
+    spec = manifest.get("spec") or {}
+    counts = manifest.get("counts") or {}
+    if frame is not None and not frame.empty:
+        per_sample = S.ok_mask(frame).groupby(frame["sample_id"]).all()
+        methods = S.method_order(frame["method"].dropna())
+        n_rows = len(frame)
+    else:
+        per_sample, methods, n_rows = pd.Series(dtype=bool), [], 0
+    total = counts.get("total", len(per_sample))
+    ok = counts.get("ok", int(per_sample.sum()))
+    failed = counts.get("failed", int((~per_sample).sum()))
+    pending = counts.get("pending", max(0, (total or 0) - (ok or 0) - (failed or 0)))
+    cards = [{"label": "samples", "value": total}, {"label": "ok", "value": ok, "status": "good"},
+             {"label": "failed", "value": failed, "status": "bad" if failed else ""},
+             {"label": "pending", "value": pending}, {"label": "table rows", "value": n_rows},
+             {"label": "methods", "value": ", ".join(methods) or "-"}]
+    facts = [(k, v) for k, v in (
+        ("sweep mode", spec.get("mode")),
+        ("axes", ", ".join(f"{k} = {json.dumps(v)}" for k, v in (spec.get("axes") or {}).items())),
+        ("executor", ", ".join(f"{k} {v}" for k, v in (manifest.get("executor") or {}).items())),
+        ("Mitsuba variant", ", ".join(sorted(set(frame["variant"].dropna().astype(str))))
+         if frame is not None and "variant" in frame.columns else None),
+        ("state", manifest.get("state")), ("created", manifest.get("created_utc")),
+        ("updated", manifest.get("updated_utc"))) if v]
+    packages = [(k, v if v is not None else "not installed") for k, v in (manifest.get("packages") or {}).items()]
+    return {"description": spec.get("description") or "", "cards": cards, "facts": facts, "packages": packages,
+            "spec_text": manifest.get("spec_text") or "", "counts": {"total": total, "ok": ok, "failed": failed}}
+
+
+# ----------------------------------------------------------------------------- method tables
+def _stat_cells(s: dict | None) -> list:
+    if s is None:
+        return [None, None, 0]
+    if s["kind"] == "rate":
+        return [f"{s['true']} yes", None, s["n"]]
+    return [s["mean"], s["median"], s["n"]]
+
+
+def _grouped(metrics: list[str], methods: list[str], summ: dict, title: str, caption: str) -> dict:
+    return {"title": title, "caption": caption, "cls": "",
+            "groups": [{"label": "", "span": 1}] + [{"label": m, "span": 3} for m in methods],
+            "columns": ["metric"] + ["mean", "median", "n"] * len(methods),
+            "rows": [[metric_label(k)] + sum((_stat_cells(summ[m]["metrics"].get(k)) for m in methods), [])
+                     for k in metrics]}
+
+
+def _metric_table(frame: pd.DataFrame, summ: dict) -> dict:
+    """Mean, median and n of every shared metric column per method (ok rows)."""
+    shared = [k for k in S.metric_columns(frame) if k in METRIC_FIELDS]
+    return _grouped(shared, list(summ), summ, "Method comparison",
+                    "Mean, median and number of values of each metric over the rows with status ok (units in "
+                    "the labels; for yes/no columns: how many rows say yes, out of n).")
+
+
+def _extra_table(frame: pd.DataFrame, summ: dict) -> dict | None:
+    """The method-specific metric columns (Middlebury/ETH3D, a plug-in's own), for the methods
+    that give them."""
+    extra = S.extra_metric_columns(frame)
+    methods = [m for m in summ if any(k in summ[m]["metrics"] for k in extra)]
+    if not extra or not methods:
+        return None
+    return _grouped(extra, methods, summ, "Method-specific metrics",
+                    "Metrics only some methods report (their own names and units: _pct per cent, _px pixels, "
+                    "_mm millimetres), over the rows with status ok.")
+
+
+def _rate(k: int, n: int) -> str | None:
+    return f"{k} / {n}" if n else None
+
+
+def _failure_table(frame: pd.DataFrame) -> dict:
+    """Per method: rows, crashes, bound violations and mismatches, each out of the rows that can say."""
+    t = S.failure_table(frame, frame["method"].astype(str))
+    rows = [[m, int(t.loc[m, "rows"])] + [_rate(int(t.loc[m, k]), int(t.loc[m, d])) for k, d, _ in S.FAILURE_KINDS]
+            for m in S.method_order(t.index)]
+    return {"title": "Failures by kind", "cls": "", "groups": [],
+            "caption": "Counted separately: crashed = status failed (the method raised); paper's bound violated "
+                       "= paper_bound_met is false (V-D: every expected point found, depth within 2 mm, x/y "
+                       "within 1 mm), out of the rows with a verdict; points mismatched = fewer points matched "
+                       "correctly than matched (correct_match_count < matched_count), out of the rows that "
+                       "report both. A dash: no row of the method can say.",
+            "columns": ["method", "rows"] + [label for _, _, label in S.FAILURE_KINDS], "rows": rows}
+
+
+def _bar_table(summ: dict) -> dict:
+    return {m: {k: v["median"] for k, v in e["metrics"].items() if v["kind"] == "value"} for m, e in summ.items()}
+
+
+# ----------------------------------------------------------------------------- bend
+def _bend_part(page: Page, frame: pd.DataFrame, name: str, prefix: str) -> dict:
+    """Error and detection against the bend angle, when the sweep has more than one bend."""
+    if "bend_deg" not in frame.columns or frame["bend_deg"].round(6).nunique() < 2:
+        return {"bend_plots": [], "bend_table": None, "detection": None}
+    rows = records(frame)
+    plots = [page.plot(f"{prefix}error_vs_bend", P.plot_error_vs_bend, rows, title=f"{name}: error against bend angle",
+                       caption="Depth RMS error of the square centres / dense depth (mm, left) and mean symmetric "
+                               "boundary distance (mm, right) against the bend angle (degrees), one colour per "
+                               "method, solid = bend up, dashed = bend down; dots are samples, lines join the "
+                               "median per bend; red crosses on the bottom edge mark failed rows at that bend.")]
+    detection = None
+    det = frame[frame["false_boundary_detected"].notna()] if "false_boundary_detected" in frame.columns \
+        else frame.iloc[:0]
+    if len(det):
+        plots.append(page.plot(f"{prefix}detection_vs_bend", P.plot_detection_vs_bend, records(det),
+                               flags=("false_boundary_detected",),
+                               title=f"{name}: false-boundary detection against ground truth",
+                               caption="Precision and recall (0..1) of the pipeline's false-boundary verdict "
+                                       "against ground-truth boundary visibility, per bend-angle bin (degrees, n = "
+                                       "cases in the bin); grey bars: fraction of cases in the bin with a "
+                                       "ground-truth false boundary. A gap means undefined (no positive verdict, "
+                                       "or no ground-truth positive, in that bin)."))
+        detection = S.precision_recall(det, "false_boundary_detected")
+    return {"bend_plots": plots, "bend_table": _bend_table(frame), "detection": detection}
+
+
+def _bend_table(frame: pd.DataFrame) -> dict | None:
+    """Median depth RMS and boundary mean (mm) and the failures per bend and method."""
+    t = S.by_bend(frame)
+    bends = sorted(set(t.index.get_level_values(0)))
+    if len(bends) > 40:
+        return None
+    methods = S.method_order(t.index.get_level_values(1))
+    shown = [k for k in ("depth_rms_mm", "boundary_mean_mm") if k in t.columns]
+    cols = [f"median {metric_label(k)}" for k in shown] + ["ok / rows", "bound violated", "mismatched"]
+    rows = []
+    for b in bends:
+        line = [b]
+        for m in methods:
+            if (b, m) not in t.index:
+                line += [None] * len(cols)
+                continue
+            c = t.loc[(b, m)]
+            line += [c[k] for k in shown] + [f"{int(c['rows'] - c['crashed'])} / {int(c['rows'])}",
+                                             _rate(int(c["bound_violated"]), int(c["bound_known"])),
+                                             _rate(int(c["mismatched"]), int(c["match_known"]))]
+        rows.append(line)
+    return {"title": "By bend angle", "cls": "",
+            "caption": "Median per bend angle (degrees) and method over the rows with status ok (errors in mm), "
+                       "and the failures by kind (see the table of failures).",
+            "groups": [{"label": "", "span": 1}] + [{"label": m, "span": len(cols)} for m in methods],
+            "columns": ["bend (deg)"] + cols * len(methods), "rows": rows}
+
+
+# ----------------------------------------------------------------------------- swept axes
+def _axes_part(page: Page, frame: pd.DataFrame, manifest: dict, name: str, prefix: str) -> dict:
+    """Per swept axis: a plot of depth RMS and the three failure rates per method, and a table."""
+    axes, varying = S.swept_axes(manifest, frame)
+    metric = "depth_rms_mm"
+    out = {"items": [], "note": "", "more": axes[MAX_AXIS_PLOTS:]}
+    if not axes:
+        return out
+    if metric not in frame.columns or frame[metric].isna().all():
+        out["note"] = "no row has a depth RMS: nothing to plot against the swept axes."
+        return out
+    for axis in axes[:MAX_AXIS_PLOTS]:
+        label = parameter_label(axis)
+        others = {k: v for k, v in varying.items() if k != axis}
+        pooled = ("Other swept axes vary too, and every point pools their samples: "
+                  + "; ".join(f"{parameter_label(k)} ({', '.join(v)})" for k, v in others.items()) + "."
+                  if others else "No other swept axis varies.")
+        st = S.axis_stats(frame, axis, metric)
+        fig = page.plot(f"{prefix}vs_{_safe(axis)}", P.plot_metric_vs_axis, frame, axis, metrics=(metric,),
+                        pooled=others or None, title=f"{name}: depth RMS and failures against {label}",
+                        caption=f"Top left: median depth RMS error (mm) against {label}, one line per method "
+                                "(small hollow dots: the samples; log scale when they span more than a decade; a "
+                                "hollow median marker: some rows at that value failed in one of the three ways; a "
+                                "cross on the bottom edge: no row of the method gave a value there). The other "
+                                "panels: the rate (0..1) of each kind of failure per method, k/n printed where "
+                                "some failed: crashed (status failed), the paper's bound violated, points "
+                                "mismatched; a method that cannot say is left out of a panel. Methods are offset "
+                                f"sideways a little so that equal values stay visible. {pooled}")
+        out["items"].append({"label": label, "plot": fig, "table": _axis_table(st, label),
+                             "no_value": st["no_value"]})
+    return out
+
+
+def _axis_table(st: dict, label: str) -> dict:
+    """Median depth RMS (mm) and the failures (k / n per kind) per method and value of the axis."""
+    cols = ["median depth RMS (mm)", "crashed", "bound violated", "mismatched"]
+    rows = []
+    for lv in st["levels"]:
+        line = [lv["label"]]
+        for m in st["methods"]:
+            c = st["cells"].get((m, lv["key"]))
+            line += [None] * len(cols) if c is None else \
+                [c["median"]] + [_rate(c[k], c[d]) for k, d, _ in S.FAILURE_KINDS]
+        rows.append(line)
+    return {"title": "", "caption": "", "cls": "axis",
+            "groups": [{"label": "", "span": 1}] + [{"label": m, "span": len(cols)} for m in st["methods"]],
+            "columns": [label] + cols * len(st["methods"]), "rows": rows}
+
+
+# ----------------------------------------------------------------------------- error maps
+def _recon_dir(ds: Path, sample_id: str, method: str) -> Path:
+    return sample_folder(ds, sample_id) / "recon" / method
+
+
+def _has_map_files(recon: Path) -> bool:
+    return (recon / "points.csv").is_file() and (recon.parent.parent / "sample" / "plate.ply").is_file()
+
+
+def _pick_error_maps(ds: Path, frame: pd.DataFrame) -> list[tuple[dict, Path]]:
+    """Up to MAX_ERROR_MAPS (row, recon dir) of ok rows of the first method (the paper's pipeline
+    first) that writes points.csv: spread over the bend angles, plus the worst depth RMS."""
+    ok = frame[S.ok_mask(frame) & frame["method"].notna()]
+    for m in S.method_order(ok["method"]):
+        rows = ok[ok["method"] == m]
+        if not any(_has_map_files(_recon_dir(ds, r.sample_id, m)) for r in rows.head(20).itertuples()):
+            continue
+        rows = rows.sort_values(["bend_deg", "sample_id"] if "bend_deg" in rows.columns else ["sample_id"])
+        n = len(rows)
+        k = min(MAX_ERROR_MAPS, n)
+        order = {round(i * (n - 1) / max(k - 1, 1)) for i in range(k)}
+        if "depth_rms_mm" in rows.columns and rows["depth_rms_mm"].notna().any():
+            worst = int(rows["depth_rms_mm"].fillna(-1.0).to_numpy().argmax())
+            if worst not in order and len(order) >= MAX_ERROR_MAPS:
+                order.discard(max(order))
+            order.add(worst)
+        picked = [records(rows.iloc[[i]])[0] for i in sorted(order)]
+        return [(r, _recon_dir(ds, r["sample_id"], m)) for r in picked
+                if _has_map_files(_recon_dir(ds, r["sample_id"], m))]
+    return []
+
+
+def _error_maps(page: Page, ds: Path, frame: pd.DataFrame, prefix: str) -> list[dict]:
+    out = []
+    for r, recon in _pick_error_maps(ds, frame):
+        sid, meth = r["sample_id"], r["method"]
+        desc = ", ".join(_describe(k, r.get(k)) for k in _DESCRIBE if r.get(k) is not None)
+        out.append(page.plot(f"{prefix}error_map_{_safe(sid)}_{_safe(meth)}", P.plot_error_map,
+                             recon.parent.parent / "sample", recon, title=f"sample {sid}, {meth}: {desc}",
+                             caption=f"Sample {sid} ({desc}), method {meth}; top view of the plate in world X/Y "
+                                     "(mm). Left: the reconstructed surface coloured by its exact distance to the "
+                                     "ground-truth mesh (mm), black = true boundary, red dashed = reconstructed "
+                                     "boundary. Right: the triangulated square centres coloured by their 3D error "
+                                     "against the true centres (mm), values printed above each."))
+    return out
+
+
+# ----------------------------------------------------------------------------- samples
+def _samples(page: Page, ds: Path, frame: pd.DataFrame, prefix: str, manifest: dict) -> tuple[list, str]:
+    """One entry per sample: its folder (relative link), the swept values, each method's status and
+    depth RMS, and thumbnails of the left camera's images (the first MAX_THUMB_SAMPLES)."""
+    axes, _ = S.swept_axes(manifest, frame)
+    shown = axes or [c for c in _DESCRIBE if c in frame.columns][:3]
+    methods = S.method_order(frame["method"].dropna())
+    out = []
+    for i, (sid, rows) in enumerate(frame.groupby("sample_id", sort=True)):
+        folder = sample_folder(ds, sid)
+        first = records(rows.iloc[[0]])[0]
+        by_method = {r["method"]: r for r in records(rows)}
+        sample = folder / "sample"
+        thumbs = []
+        if i < MAX_THUMB_SAMPLES and sample.is_dir():
+            thumbs = page.thumbnails(sample, f"{prefix}{_safe(sid)}_", _THUMB_IMAGES)
+        out.append({"id": sid, "href": page.link(folder) if folder.is_dir() else None,
+                    "values": [(parameter_label(c), first.get(c)) for c in shown],
+                    "methods": [(m, *((by_method.get(m) or {}).get(k) for k in ("status", "depth_rms_mm",
+                                                                                 "paper_bound_met")))
+                                for m in methods],
+                    "thumbs": thumbs})
+    note = (f"thumbnails of the first {MAX_THUMB_SAMPLES} samples only" if len(out) > MAX_THUMB_SAMPLES else "")
+    return out[:MAX_TABLE_ROWS], note
+
+
+# ----------------------------------------------------------------------------- failures, headline
+def _failures(frame: pd.DataFrame) -> dict:
+    """The failed rows (status not ok) with their messages."""
+    bad = frame[~S.ok_mask(frame)]
+    cols = [c for c in ("sample_id", "method", "bend_deg", "direction", "family", "material")
+            if c in bad.columns and bad[c].notna().any()]
+    rows = [[r.get(c) for c in cols] + [r.get("status"), {"text": r.get("error") or "", "cls": "msg"}]
+            for r in records(bad.head(MAX_TABLE_ROWS))]
+    return {"count": len(bad), "more": max(0, len(bad) - MAX_TABLE_ROWS),
+            "table": {"title": "", "caption": "", "cls": "err", "groups": [], "columns": cols + ["status", "error"],
+                      "rows": rows}}
+
+
+def _headline(name: str, sec: dict, frame: pd.DataFrame | None) -> dict:
+    """One line per dataset for the page's headline: samples ok/failed, the paper's bound met in
+    how many rows, the median depth RMS per method, crashes and mismatches."""
+    c = sec["counts"]
+    parts = [f"{c['total']} samples, {c['ok']} ok, {c['failed']} failed"]
+    bound = None
+    if frame is not None and not frame.empty:
+        f = S.failure_table(frame, frame["method"].astype(str))
+        known, bad = int(f["bound_known"].sum()), int(f["bound_violated"].sum())
+        if known:
+            bound = bad == 0
+            parts.append(f"paper's bound met in {known - bad} of {known} rows")
+        parts.append(f"{int(f['crashed'].sum())} crashed, {int(f['mismatched'].sum())} with mismatched points")
+        med = frame[S.ok_mask(frame)].groupby("method")["depth_rms_mm"].median() \
+            if "depth_rms_mm" in frame.columns else pd.Series(dtype=float)
+        parts += [f"{m}: median depth RMS {fmt(float(med[m]), 3)} mm" for m in S.method_order(med.index)
+                  if pd.notna(med[m])]
+    return {"label": f"Sweep {name} ({sec['rel']})", "text": "; ".join(parts), "met": bound}
+
+
+def _describe(column: str, value) -> str:
+    """'bend angle 120 deg' for a parameter column's value."""
+    p = _PARAMETERS[column]
+    return f"{p.label} {fmt(value)}" + (f" {p.unit}" if p.unit else "")
+
+
+def _safe(s) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in str(s))[:60]

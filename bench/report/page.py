@@ -1,0 +1,179 @@
+"""What every section builder shares: the staged report directory, plots, thumbnails and links.
+
+The report is staged as a whole (``index.html``, ``plots/``, ``thumbs/``) and renamed into
+place. Plots are written into ``plots/`` and embedded in the page as data URIs (the page
+shows them even when copied alone); thumbnails go to ``thumbs/`` and links to sample and
+reconstruction folders are relative to the report's final place, so they work where the
+report sits beside its data.
+
+Sections hand the templates plain dicts. A *generic section* (what
+``bench.report.sensing.study_section`` / ``sensing_section`` return, and the interim adapters
+in ``bench.report.interim``) is::
+
+    {"title": str,
+     "summary": str,                                      optional, one paragraph
+     "outcome": str,                                      optional: a sensing run's outcome class
+     "figures": [{"label", "value", "unit", "status"}],   key figures; or {label: value}
+     "tables":  [{"title", "caption", "rows": [dict, ...], "columns": [key or {"key", "label"}]}],
+     "plots":   [{"file", "caption"}],                    PNG names in the out_dir handed to the builder
+     "links":   [{"label", "path"}],                      optional: folders or files, relative to the
+                                                          input folder handed to the builder
+     "notes":   [str]}
+
+``normalise_section`` accepts that form and a few obvious variants (``key_figures`` for
+``figures``, a table given as a bare list of dicts, ``(file, caption)`` pairs), and turns it into
+what ``templates/section.html`` renders.
+"""
+from __future__ import annotations
+
+import base64
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from platebench.bench.config.axes import PARAMETER_NAMES, parameter_label
+from platebench.bench.report.thumbs import sample_thumbnails
+from platebench.bench.report.values import flag
+from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
+from platebench.scenes.naming import IMAGE_NAMES
+
+__all__ = ["Page", "normalise_section", "table_of", "column_label"]
+
+
+@dataclass
+class Page:
+    """The report being written: ``stage`` is the staged directory that becomes ``out``."""
+
+    stage: Path
+    out: Path
+    root: Path
+    notes: list = field(default_factory=list)
+
+    @property
+    def plot_dir(self) -> Path:
+        (self.stage / "plots").mkdir(exist_ok=True)
+        return self.stage / "plots"
+
+    def section_dir(self, anchor: str) -> Path:
+        """A folder of its own under ``plots/`` for a section builder that writes its own PNGs."""
+        (self.plot_dir / anchor).mkdir(exist_ok=True)
+        return self.plot_dir / anchor
+
+    @property
+    def thumb_dir(self) -> Path:
+        (self.stage / "thumbs").mkdir(exist_ok=True)
+        return self.stage / "thumbs"
+
+    def figure(self, path: Path, caption: str, alt: str = "") -> dict:
+        """A PNG already in ``plots/`` as a template figure (embedded as a data URI)."""
+        data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+        return {"src": f"data:image/png;base64,{data}", "caption": caption, "alt": alt or Path(path).stem,
+                "file": Path(path).resolve().relative_to(self.stage.resolve()).as_posix()}
+
+    def plot(self, name: str, fn, *args, caption: str, **kwargs) -> dict:
+        """Draw ``fn(*args, plots/<name>.png, **kwargs)`` and return it as a template figure."""
+        path = fn(*args, self.plot_dir / f"{name}.png", **kwargs)
+        return self.figure(path, caption, alt=name)
+
+    def link(self, path: Path) -> str:
+        """``path`` relative to the report's final folder (POSIX separators; a folder ends in /)."""
+        rel = Path(os.path.relpath(Path(path).resolve(), self.out.resolve())).as_posix()
+        return rel + "/" if Path(path).is_dir() else rel
+
+    def rel(self, path: Path) -> str:
+        """``path`` as the reader knows it: relative to the input directory where it lies inside."""
+        try:
+            r = Path(path).resolve().relative_to(self.root.resolve())
+            return str(r) if str(r) != "." else self.root.name or str(self.root)
+        except ValueError:
+            return str(path)
+
+    def thumbnails(self, sample_dir: Path, prefix: str, names=IMAGE_NAMES) -> list[dict]:
+        """Thumbnails of a sample's camera images (default all four): [{"name", "src" (None when unreadable), "href"
+        (the full image, relative)}]."""
+        return [{"name": t["name"], "src": f"thumbs/{t['file']}" if t["file"] else None,
+                 "href": self.link(Path(sample_dir) / "images" / f"{t['name']}.png")}
+                for t in sample_thumbnails(sample_dir, self.thumb_dir, prefix, names)]
+
+
+# ----------------------------------------------------------------------------- generic sections
+def column_label(key: str) -> str:
+    """A column's label with its unit: a metric's (``metric_label``), a parameter's
+    (``parameter_label``), else the name with spaces."""
+    if key in METRIC_FIELDS:
+        return metric_label(key)
+    if key in PARAMETER_NAMES:
+        return parameter_label(key)
+    return str(key).replace("_", " ")
+
+
+def table_of(rows: list[dict], columns=None, title: str = "", caption: str = "") -> dict:
+    """A template table from a list of row dicts: {"title", "caption", "columns": [{"key", "label"}],
+    "rows": [[value, ...]]}; columns default to every key in first-seen order."""
+    if columns is None:
+        columns = list(dict.fromkeys(k for r in rows for k in r))
+    cols = [c if isinstance(c, dict) else {"key": c, "label": column_label(c)} for c in columns]
+    return {"title": title, "caption": caption, "columns": cols,
+            "rows": [[r.get(c["key"]) for c in cols] for r in rows]}
+
+
+def _figures(figs) -> list[dict]:
+    if isinstance(figs, dict):
+        figs = [{"label": k, "value": v} for k, v in figs.items()]
+    out = []
+    for f in figs or []:
+        if isinstance(f, (tuple, list)):
+            f = dict(zip(("label", "value", "unit"), f))
+        status = f.get("status")
+        if status is None and flag(f.get("value")) is not None:
+            status = "good" if f["value"] else "bad"
+        out.append({"label": str(f.get("label", "")), "value": f.get("value"), "unit": f.get("unit") or "",
+                    "status": status or ""})
+    return out
+
+
+def _tables(tables) -> list[dict]:
+    if isinstance(tables, dict):
+        tables = [{"title": k, "rows": v} for k, v in tables.items()]
+    out = []
+    for t in tables or []:
+        if isinstance(t, list):
+            t = {"rows": t}
+        rows = [r for r in t.get("rows") or [] if isinstance(r, dict)]
+        out.append(table_of(rows, t.get("columns"), str(t.get("title") or ""), str(t.get("caption") or "")))
+    return out
+
+
+def _plots(page: Page, plots, out_dir: Path) -> list[dict]:
+    if isinstance(plots, dict):
+        plots = list(plots.items())
+    out = []
+    for p in plots or []:
+        name, caption = (p if isinstance(p, (tuple, list)) else
+                         (p.get("file") or p.get("name") or p.get("path"), p.get("caption", "")))
+        path = Path(out_dir) / Path(str(name)).name
+        if path.is_file():
+            out.append(page.figure(path, str(caption or "")))
+        else:
+            page.notes.append(f"plot {name} named by a section was not written")
+    return out
+
+
+def _links(page: Page, links, base: Path) -> list[dict]:
+    out = []
+    for link in links or []:
+        label, path = (link if isinstance(link, (tuple, list)) else (link.get("label"), link.get("path")))
+        target = Path(base) / str(path)
+        if target.exists():
+            out.append({"label": str(label or path), "href": page.link(target)})
+    return out
+
+
+def normalise_section(page: Page, d: dict, out_dir: Path, base: Path) -> dict:
+    """A generic section dict (module doc) as ``templates/section_generic.html`` renders it; ``base``
+    is the input folder the section was made from (its links are relative to it)."""
+    return {"title": str(d.get("title") or ""), "summary": d.get("summary") or "",
+            "outcome": d.get("outcome"),
+            "figures": _figures(d.get("figures", d.get("key_figures"))),
+            "tables": _tables(d.get("tables")), "plots": _plots(page, d.get("plots"), out_dir),
+            "links": _links(page, d.get("links"), base), "notes": [str(n) for n in d.get("notes") or []]}

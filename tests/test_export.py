@@ -1,0 +1,174 @@
+"""``platebench export`` and ``PlateBenchDataset``: the Middlebury and KITTI layouts, read back by code
+that isn't ours (a PFM and calib.txt reader written here, OpenCV's PFM reader, the OpenEXR package
+for the truth), and the depth they imply against the sample's exact ground truth."""
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import cv2
+import numpy as np
+import OpenEXR
+import pytest
+
+from platebench.bench.cli.main import main
+
+pytestmark = pytest.mark.render
+
+
+# ----------------------------------------------------------------------------- readers written here
+def read_pfm(path):
+    with open(path, "rb") as f:
+        kind = f.readline().strip()
+        w, h = (int(x) for x in f.readline().split())
+        scale = float(f.readline())
+        data = np.frombuffer(f.read(), "<f4" if scale < 0 else ">f4")
+    assert kind == b"Pf"
+    return np.flipud(data.reshape(h, w)).astype(np.float64)
+
+
+def read_calib(path):
+    out = {}
+    for line in path.read_text().splitlines():
+        k, v = line.split("=", 1)
+        if v.startswith("["):
+            out[k] = np.array([[float(x) for x in row.split()] for row in v.strip("[]").split(";")])
+        else:
+            out[k] = float(v)
+    return out
+
+
+def gt_depth(sample):
+    ch = OpenEXR.File(str(sample / "gt" / "left_depth.exr")).channels()
+    return np.asarray(ch["Y"].pixels, np.float64)
+
+
+def export(capsys, *args):
+    code = main(["export", *map(str, args)])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+# ----------------------------------------------------------------------------- tests
+def test_sample_calib_txt_has_tight_range_and_rectification_figures(small_sample_dir):
+    c = read_calib(small_sample_dir / "calib.txt")
+    d = read_pfm(small_sample_dir / "gt" / "disp0GT.pfm")
+    known = d[np.isfinite(d)]
+    assert c["vmin"] == math.floor(known.min()) and c["vmax"] == math.ceil(known.max())
+    assert c["vmax"] - c["vmin"] <= 3  # a 10-degree plate at 0.4 m: about 187 to 188 px here
+    assert c["ndisp"] > c["vmax"] and c["ndisp"] % 16 == 0
+    assert c["dyavg"] == 0 and c["dymax"] == 0
+
+
+@pytest.mark.parametrize("shift", ["0", "auto"])
+def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_sample_dir, tmp_path, capsys, shift):
+    out = tmp_path / "mb"
+    code, text, err = export(capsys, small_sample_dir, "--format", "middlebury", "--out", out, "--shift", shift,
+                             "--images", "active")
+    assert code == 0, err
+    d = out / small_sample_dir.name
+    assert sorted(p.name for p in d.iterdir()) == ["calib.txt", "disp0GT.pfm", "disp1GT.pfm", "im0.png", "im1.png",
+                                                    "mask0nocc.png"]
+    c = read_calib(d / "calib.txt")
+    from platebench.bench.io.middlebury import read_calib as read_calib_ours
+    ours = read_calib_ours(d / "calib.txt")
+    assert (ours.doffs, ours.vmin, ours.vmax, ours.ndisp) == (c["doffs"], c["vmin"], c["vmax"], c["ndisp"])
+    disp = read_pfm(d / "disp0GT.pfm")
+    assert np.array_equal(cv2.imread(str(d / "disp0GT.pfm"), cv2.IMREAD_UNCHANGED).astype(np.float64), disp,
+                          equal_nan=True)  # OpenCV reads the same map
+    im0 = cv2.imread(str(d / "im0.png"), cv2.IMREAD_UNCHANGED)
+    H, W = im0.shape
+    assert (W, H) == (c["width"], c["height"]) == disp.shape[::-1]
+    s = int(round(c["cam1"][0, 2] - c["cam0"][0, 2]))  # the shift moves the left principal point
+    assert c["doffs"] == s and (s == 0) == (shift == "0")
+    src = cv2.imread(str(small_sample_dir / "images" / "left_active.png"), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(im0, src[:, s:])
+    # every valid pixel: Z = baseline f / (d + doffs) gives the true depth (mm -> m)
+    z_true = gt_depth(small_sample_dir)[:, s:]
+    valid = np.isfinite(disp)
+    assert valid.sum() > 10000 and np.array_equal(valid, np.isfinite(z_true))
+    z = c["baseline"] * 1e-3 * c["cam0"][0, 0] / (disp[valid] + c["doffs"])
+    assert np.max(np.abs(z / z_true[valid] - 1)) < 1e-6
+    assert c["vmin"] == math.floor(disp[valid].min()) and c["vmax"] == math.ceil(disp[valid].max())
+    if shift == "auto":
+        assert 16 <= disp[valid].min() < 17 and c["vmax"] <= 20  # where learned stereo works
+    assert c["dyavg"] == 0 and c["dymax"] == 0
+    # right view: its disparity at the match of a non-occluded left pixel brackets the left one
+    mask = cv2.imread(str(d / "mask0nocc.png"), cv2.IMREAD_UNCHANGED)
+    assert set(np.unique(mask)) <= {0, 128, 255} and np.array_equal(mask > 0, valid)
+    assert (mask == 255).sum() > 0.98 * valid.sum()  # the 10-degree plate is seen whole by both cameras
+    d1 = read_pfm(d / "disp1GT.pfm")
+    v, u = np.nonzero(mask == 255)
+    ur = u - disp[v, u]
+    a, b = d1[v, np.floor(ur).astype(int)], d1[v, np.ceil(ur).astype(int)]
+    both = np.isfinite(a) & np.isfinite(b)
+    lo, hi = np.minimum(a, b)[both], np.maximum(a, b)[both]
+    dd = disp[v, u][both]
+    assert both.mean() > 0.95 and np.all((lo - 1e-3 <= dd) & (dd <= hi + 1e-3))
+    doc = json.loads((out / "export.json").read_text())
+    assert doc["format"] == "middlebury" and doc["samples"][0]["shift_px"] == s
+
+
+def test_kitti_export_reads_back_within_its_quantisation(small_sample_dir, tmp_path, capsys):
+    out = tmp_path / "kitti"
+    code, _, err = export(capsys, small_sample_dir, "--format", "kitti", "--out", out, "--shift", "auto")
+    assert code == 0, err
+    t = out / "training"
+    occ = cv2.imread(str(t / "disp_occ_0" / "000000_10.png"), cv2.IMREAD_UNCHANGED)
+    noc = cv2.imread(str(t / "disp_noc_0" / "000000_10.png"), cv2.IMREAD_UNCHANGED)
+    assert occ.dtype == np.uint16 and np.all(noc[noc > 0] == occ[noc > 0]) and (noc > 0).sum() <= (occ > 0).sum()
+    calib = {}
+    for line in (t / "calib_cam_to_cam" / "000000.txt").read_text().splitlines():
+        k, v = line.split(":", 1)
+        calib[k] = np.array([float(x) for x in v.split()])
+    P2, P3 = calib["P_rect_02"].reshape(3, 4), calib["P_rect_03"].reshape(3, 4)
+    f, B = P2[0, 0], -P3[0, 3] / P3[0, 0]
+    cx_diff = P3[0, 2] - P2[0, 2]  # the shift, as KITTI readers see it in the projection matrices
+    valid = occ > 0
+    d = occ[valid] / 256.0
+    z_true = gt_depth(small_sample_dir)
+    s = int(round(cx_diff))
+    z = f * B / (d + cx_diff)
+    rel = np.abs(z / z_true[:, s:][valid] - 1)
+    assert valid.sum() > 10000 and rel.max() < 1 / (256 * 2 * d.min()) + 1e-6
+    assert cv2.imread(str(t / "image_2" / "000000_10.png"), cv2.IMREAD_UNCHANGED).shape == occ.shape
+    # a shift that makes disparities negative does not fit KITTI's PNG: refused, nothing written
+    code, _, err = export(capsys, small_sample_dir, "--format", "kitti", "--out", tmp_path / "k2", "--shift", "400")
+    assert code == 2 and "do not fit KITTI" in err and not (tmp_path / "k2").exists()
+
+
+def test_bad_export_requests_are_one_line_errors(small_sample_dir, tmp_path, capsys):
+    for args, needle in [((small_sample_dir, "--format", "middlebury", "--out", tmp_path / "a", "--shift", "-3"),
+                          "--shift = '-3'"),
+                         ((tmp_path / "nothing", "--format", "middlebury", "--out", tmp_path / "b"),
+                          "dataset directory is missing"),
+                         ((tmp_path, "--format", "kitti", "--out", tmp_path / "c"), "holds no PlateBench sample")]:
+        code, _, err = export(capsys, *args)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and needle in err, err
+    (tmp_path / "taken").mkdir()
+    code, _, err = export(capsys, small_sample_dir, "--format", "middlebury", "--out", tmp_path / "taken")
+    assert code == 2 and "already exists" in err
+
+
+def test_dataset_class_iterates_samples_as_numpy(small_sample_dir):
+    from platebench.bench.io.dataset_reader import PlateBenchDataset
+    ds = PlateBenchDataset(small_sample_dir.parent, images="passive", shift="auto")
+    assert len(ds) == 1
+    pair = ds[0]
+    assert pair.left.shape == pair.right.shape == pair.disparity.shape == pair.nonocc.shape
+    assert pair.disparity.dtype == np.float32 and pair.nonocc.dtype == np.bool_
+    z = pair.calib.depth_m(pair.disparity)
+    ok = np.isfinite(pair.depth)
+    assert np.allclose(z[ok], pair.depth[ok], rtol=1e-6)
+    d = pair.to_dict()
+    assert set(d) >= {"left", "right", "disparity", "disparity_right", "nonocc", "mask", "depth", "f_px", "baseline_m",
+                      "doffs_px"}
+    z2 = d["f_px"] * d["baseline_m"] / (d["disparity"][ok] + d["doffs_px"])
+    assert np.allclose(z2, pair.depth[ok], rtol=1e-6)
+    assert [p.sample_id for p in ds] == [pair.sample_id] and ds[-1].sample_id == pair.sample_id
+    with pytest.raises(IndexError):
+        ds[1]
+    active = PlateBenchDataset(small_sample_dir, images="active")[0]
+    assert active.shift_px == 0 and not np.array_equal(active.left, PlateBenchDataset(small_sample_dir)[0].left)
+    assert re.fullmatch(r"[\w.-]+", pair.sample_id)
