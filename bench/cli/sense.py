@@ -1,29 +1,98 @@
-"""``platebench sense``: the paper's three sensing stages, false-boundary test and cures, on one plate."""
+"""``platebench sense``: the sensing loop (stages 1-3, verification views, cures) on one plate."""
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
+from platebench.bench.io.atomic import staged_directory
 from platebench.bench.progress import bar, step_callback
-from platebench.bench.run.sensing import SensingOptions, run_sensing
+from platebench.bench.run.sensing import (
+    OUTCOME_TEXT,
+    ActiveRecord,
+    SensingOptions,
+    SensingResult,
+    StageRecord,
+    ViewRecord,
+    run_sensing,
+)
 from platebench.errors import UserValueError
+from platebench.reconstruction.strategy.planner import Decision
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("sense", help="run the three sensing stages (and cures) with a simulated robot",
+    p = sub.add_parser("sense", help="run the sensing loop (three stages, verification views, cures) "
+                                     "with a simulated robot",
                        description="Stage 1: far pose, rough boundary. Stage 2: centre line through the boundary "
-                                   "centre perpendicular to the boundary plane, baseline perpendicular to the "
-                                   "most-bent direction, precise boundary. Stage 3: projector on the centre line, "
-                                   "active stereo, false-boundary test; cures (re-orient, move back) until the "
-                                   "counts agree. Writes each stage's sample and reconstruction and sensing.json.")
+                                   "centre perpendicular to the boundary plane, precise boundary. Stage 3: projector "
+                                   "on the centre line, active stereo, the paper's false-boundary test. Then "
+                                   "verification views (every plate) and cures chosen from the measured geometry "
+                                   "until the boundary is verified without ground truth, or a stop with the reason. "
+                                   "Writes sensing.json, multiview.npz and stage 3's sample and reconstruction.")
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--overwrite", action="store_true")
-    p.add_argument("--max-cures", type=int, default=4, help="cure iterations before giving up (default 4)")
+    p.add_argument("--max-cures", type=int, default=SensingOptions.max_cures,
+                   help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to 20)")
     p.add_argument("--workspace-mm", type=float, default=150.0,
                    help="radius of the workspace stage 1 must cover, in MILLIMETRES (default 150)")
     add_sample_flags(p)
     p.set_defaults(run=run)
+
+
+def _pct(gv: dict) -> str:
+    return f"{gv['left']['visible_fraction'] * 100:.0f}/{gv['right']['visible_fraction'] * 100:.0f} %"
+
+
+def step_lines(s: SensingResult) -> list[str]:
+    """One line per step of the loop, from the typed records."""
+    out = []
+    for st in s.steps:
+        if isinstance(st, StageRecord):
+            out.append(f"stage {st.stage}: distance {st.pose.distance_m * 1e3:.0f} mm, {st.boundary_points} boundary "
+                       f"points ({st.boundary_method}); GT boundary visible L/R {_pct(st.gt_visibility)}")
+        elif isinstance(st, ActiveRecord):
+            fb = st.false_boundary
+            if fb is None:
+                what = f"active stage failed: {st.error}"
+            else:
+                why = [n for flag, n in ((fb.counting_test, "counting test"), (fb.arrays_disagree, "arrays disagree"))
+                       if flag]
+                what = (f"{st.matched} points; squares L/R {fb.detected.get('left_active')}/"
+                        f"{fb.detected.get('right_active')} of {fb.expected} expected; paper's test: false boundary "
+                        + ("DETECTED (" + ", ".join(why) + ")" if why else "not detected"))
+            out.append(f"stage 3: {what}; GT boundary visible L/R {_pct(st.gt_visibility)}")
+        elif isinstance(st, ViewRecord):
+            v = st.view
+            what = f"{st.outline_points} outline points" if st.error is None else st.error
+            out.append(f"{v.purpose} view {v.name} ({v.method}): distance {v.pose.distance_m * 1e3:.0f} mm, {what}; "
+                       f"GT boundary visible L/R {_pct(st.gt_visibility)}")
+        elif isinstance(st, Decision):
+            out.append(f"decision: {st.kind}: {st.reason}")
+    return out
+
+
+def summary_lines(s: SensingResult) -> list[str]:
+    """The verdict, the detectors, the outcome, the counts and the time."""
+    f = s.final
+    lines = [f"verdict: boundary_verified = {str(f.boundary_verified).lower()}: {f.verdict_reason}"]
+    for u in f.unverified_parts[:6]:
+        lines.append(f"  unverified: {u.get('what', u)}")
+    if len(f.unverified_parts) > 6:
+        lines.append(f"  ... {len(f.unverified_parts) - 6} more unverified parts (sensing.json)")
+    lines.append("detectors at stage 2: " + ", ".join(
+        f"{d.name} {'-' if d.fired is None else ('FIRED' if d.fired else 'quiet')}" for d in s.detectors))
+    m = f.merged
+    merged = ", ".join(f"{k} {m[k]:.3f}" for k in ("boundary_mean_mm", "surface_rms_mm", "surface_coverage") if k in m)
+    lines.append(f"poses: {len(f.poses)} (stage 2, {len(s.verification_views)} verification views, {s.cures} cures); "
+                 f"merged: {merged}")
+    a = f.accuracy or {}
+
+    def mm(v):
+        return "-" if v is None else f"{v:.3f} mm"
+    lines.append(f"ground truth: boundary visible L/R at stage 2 {_pct(f.gt_visibility_first)}, from the final poses "
+                 f"{_pct(f.gt_visibility)}; stage 3 depth RMS {mm(a.get('depth_rms_mm'))}")
+    lines.append(f"outcome: {f.outcome} ({OUTCOME_TEXT[f.outcome]})")
+    lines.append(f"time: {s.time_s:.1f} s")
+    return lines
 
 
 def run(args) -> int:
@@ -32,39 +101,11 @@ def run(args) -> int:
         raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
     if not (0 <= args.max_cures <= 20):
         raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
-    if args.out.exists():
-        if not args.overwrite:
-            raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
-        shutil.rmtree(args.out)
     opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures)
-    with bar(8 + 4 * args.max_cures, "sense") as pbar:
-        s = run_sensing(cfg, args.out, opts, progress=step_callback(pbar))
-    for st in s["steps"]:
-        if "stage" in st:
-            extra = ""
-            if st["stage"] == 3:
-                fb = st["false_boundary"]
-                why = [name for k, name in (("counting_test", "counting test"), ("arrays_disagree", "arrays disagree"))
-                       if fb[k]]
-                extra = (f"squares L/R {fb['detected']['left_active']}/{fb['detected']['right_active']} of "
-                         f"{fb['expected']} expected; false boundary "
-                         f"{'DETECTED (' + ', '.join(why) + ')' if why else 'not detected'}")
-            gv = st["gt_visibility"]
-            print(f"stage {st['stage']}{' cure ' + str(st.get('cure')) if st.get('cure') else ''}: distance "
-                  f"{st['pose']['distance_m'] * 1e3:.0f} mm; GT boundary visible L/R "
-                  f"{gv['left']['visible_fraction'] * 100:.0f}/{gv['right']['visible_fraction'] * 100:.0f} %  {extra}")
-        else:
-            print(f"decision: {st.get('decision')}: {st.get('reason')}")
-    f = s["final"]
-    a = f["accuracy"]
-    gv = f["gt_visibility"]
-
-    def mm(v):
-        return "-" if v is None else f"{v:.3f} mm"
-    print(f"final: {f['stage_dir']}, {f['matched']} points, false boundary "
-          f"{'detected' if f['false_boundary']['false_boundary_detected'] else 'not detected'}; ground truth: "
-          f"boundary visible L/R {gv['left']['visible_fraction'] * 100:.0f}/{gv['right']['visible_fraction'] * 100:.0f} %, "
-          f"depth RMS {mm(a['depth_rms_mm'])}, boundary mean {mm(a['boundary_mean_mm'])}, "
-          f"surface RMS {mm(a['surface_rms_mm'])}")
+    with staged_directory(args.out, overwrite=args.overwrite) as stage:
+        with bar(4 + opts.max_views, "sense") as pbar:
+            s = run_sensing(cfg, stage, opts, progress=step_callback(pbar))
+    for line in step_lines(s) + summary_lines(s):
+        print(line)
     print(f"written: {args.out / 'sensing.json'}")
     return 0

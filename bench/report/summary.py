@@ -22,6 +22,7 @@ import pandas as pd
 from platebench.bench.config.axes import PARAMETERS, axis_column
 from platebench.bench.report.inputs import FLAG_COLUMNS, NUMBER_COLUMNS, TEXT_COLUMNS
 from platebench.bench.report.values import flag
+from platebench.evaluation.detection import detection_score
 from platebench.evaluation.metrics_row import METRIC_FIELDS
 
 __all__ = ["ok_mask", "metric_columns", "extra_metric_columns", "method_order", "method_summary",
@@ -254,15 +255,9 @@ def swept_axes(manifest: dict, frame: pd.DataFrame) -> tuple[list[str], dict]:
 
 def precision_recall(rows, verdict: str, truth: str = "false_boundary_gt") -> dict:
     """TP/FP/FN/TN, precision and recall of the flag ``verdict`` against ``truth`` over the rows
-    (dicts or a frame) where both are flags; precision/recall None where undefined."""
+    (dicts or a frame) where both are flags; precision/recall None where undefined
+    (``evaluation.detection.detection_score``)."""
     frame = rows if isinstance(rows, pd.DataFrame) else pd.DataFrame(list(rows or []))
     if verdict not in frame.columns or truth not in frame.columns:
-        g = d = pd.Series([], dtype=object)
-    else:
-        g, d = frame[truth].map(flag), frame[verdict].map(flag)
-        both = g.notna() & d.notna()
-        g, d = g[both].astype(bool), d[both].astype(bool)
-    tp, fp = int((g & d).sum()), int((~g & d).sum())
-    fn, tn = int((g & ~d).sum()), int((~g & ~d).sum())
-    return {"true_positive": tp, "false_positive": fp, "false_negative": fn, "true_negative": tn,
-            "precision": tp / (tp + fp) if tp + fp else None, "recall": tp / (tp + fn) if tp + fn else None}
+        return detection_score([], []).to_dict()
+    return detection_score(frame[truth].map(flag).tolist(), frame[verdict].map(flag).tolist()).to_dict()

@@ -72,7 +72,7 @@ from platebench.reconstruction.strategy.poses import (
     validate_pose,
 )
 from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
-from platebench.scenes.render.ground_truth import combined_visibility
+from platebench.scenes.render.ground_truth import GroundTruthCaster, combined_visibility
 from platebench.scenes.scene_spec import scene_for_pose
 
 OUTCOMES = ("cured", "honest", "silent", "clean", "false_alarm", "unconfirmed")
@@ -123,6 +123,9 @@ class SensingOptions:
     verification: bool = True  # False: the paper's loop alone (stages 1-3, no verification views)
     write_stages: bool = True
     reach: Reach = field(default_factory=Reach)
+    # For scoring only: cast ground truth's boundary visibility from every pose the loop could reach
+    # (its verification views and cure candidates) to say whether a reachable set sees the boundary.
+    ground_truth_reach: bool = False
 
 
 @dataclass(frozen=True)
@@ -196,6 +199,22 @@ class FinalRecord:
     accuracy: dict | None
     merged: dict
     outcome: str
+    gt_reachable_visibility: dict | None = None  # union over every reachable candidate pose (scoring only)
+
+    @property
+    def hidden_first(self) -> bool:
+        """Ground truth: the stage-2 pose hides part of the boundary."""
+        return hidden(self.gt_visibility_first)
+
+    @property
+    def hidden_final(self) -> bool:
+        """Ground truth: the final poses (together) still miss part of the boundary."""
+        return hidden(self.gt_visibility)
+
+    @property
+    def gt_reachable(self) -> bool | None:
+        """Ground truth: the reachable candidate poses together see the whole boundary (None: not cast)."""
+        return None if self.gt_reachable_visibility is None else not hidden(self.gt_reachable_visibility)
 
     def to_dict(self) -> dict:
         return {"pose": self.pose.to_dict(), "stage_dir": self.stage_dir,
@@ -204,7 +223,9 @@ class FinalRecord:
                 "verdict": self.verdict_reason, "unverified_parts": list(self.unverified_parts),
                 "poses": list(self.poses), "gt_visibility": self.gt_visibility,
                 "gt_visibility_first": self.gt_visibility_first, "accuracy": self.accuracy, "merged": self.merged,
-                "outcome": self.outcome, "outcome_text": OUTCOME_TEXT[self.outcome]}
+                "outcome": self.outcome, "outcome_text": OUTCOME_TEXT[self.outcome],
+                "gt_hidden_first": self.hidden_first, "gt_hidden_final": self.hidden_final,
+                "gt_reachable_visibility": self.gt_reachable_visibility, "gt_reachable": self.gt_reachable}
 
 
 @dataclass(frozen=True)
@@ -245,12 +266,14 @@ def _accuracy(sample, rec) -> dict:
             "goals_met": score.goals.met if score.goals else None}
 
 
-def merged_accuracy(plate, verdict: BoundaryVerdict, model: SurfaceModel, extra_surface=None,
-                    surface_spacing_m: float = 2e-3) -> dict:
-    """The merged multi-view result against ground truth: the merged boundary's mean (symmetric)
-    distance to the true boundary, the fraction of the true boundary within 2 mm of it, and the
-    measured surface (model samples + ``extra_surface``) RMS distance and coverage (points within
-    1 mm of the true surface count), millimetres."""
+def merged_accuracy(plate, verdict: BoundaryVerdict, model: SurfaceModel, measured_surface=None) -> dict:
+    """The merged multi-view result against ground truth (millimetres): the merged boundary's mean
+    (symmetric) distance to the true boundary, its one-way distance, the fraction of the true
+    boundary within 2 mm of it; the measured surface (``measured_surface``, (S,3): the stage-3
+    interpolated surface and points, with the merged boundary) RMS distance to the true surface and
+    its coverage (true surface within 2 mm of it); and the surface model's own RMS (the poses'
+    outline membranes, which the planner uses for normals and ray casting: a coarse model, not a
+    measurement)."""
     out = {"boundary_points": int(len(verdict.merged))}
     B = np.asarray(plate.boundary, float)
     if len(verdict.merged):
@@ -259,16 +282,17 @@ def merged_accuracy(plate, verdict: BoundaryVerdict, model: SurfaceModel, extra_
         out.update(boundary_mean_mm=float(0.5 * (est_gt.mean() + gt_est.mean()) * 1e3),
                    boundary_est_to_gt_mean_mm=float(est_gt.mean() * 1e3),
                    boundary_covered_frac=float(np.mean(gt_est <= 2e-3)))
-    S = model.samples
-    if len(S):
-        step = max(1, int(round((surface_spacing_m / 1e-3) ** 2)))
-        S = S[::step]
-    if extra_surface is not None and len(extra_surface):
-        S = np.vstack([S, extra_surface]) if len(S) else np.asarray(extra_surface)
+    parts = [np.asarray(p, float).reshape(-1, 3) for p in (measured_surface, verdict.merged) if p is not None]
+    S = np.vstack(parts) if parts else np.zeros((0, 3))
     if len(S):
         s = score_surface(S, plate.mesh, sample_spacing_m=1e-3, coverage_radius_m=2e-3, max_distance_m=1e-3)
         out.update(surface_rms_mm=float(s.dist.rms * 1e3), surface_coverage=float(s.coverage_frac),
                    surface_points=int(len(S)))
+    M = model.samples
+    if len(M):
+        M = M[::max(1, len(M) // 4000)]
+        s = score_surface(M, plate.mesh, sample_spacing_m=2e-3, coverage_radius_m=2e-3, max_distance_m=1e-3)
+        out.update(model_surface_rms_mm=float(s.dist.rms * 1e3), model_surface_coverage=float(s.coverage_frac))
     return out
 
 
@@ -385,6 +409,7 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
 
     # -- cures ----------------------------------------------------------------------------------
     cures: list[PlannedView] = []
+    cands: list[PlannedView] = []
     if options.verification:
         measured = np.vstack([v.points for v in views])
         paper, note = paper_cure_views(rec, pose2, options.reach, measured, cam, B) if rec is not None else ([], "")
@@ -425,12 +450,23 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
                         for u in verdict.unconfirmed if not u.covered])
     outcome = outcome_class(hidden(gt_first), hidden(gt_final), verdict.verified,
                             bool(cures) or not verdict.verified)
+    reach_vis = None
+    if options.ground_truth_reach:
+        reach_poses = [p for p in poses] + [v.pose for v in verif] + [v.pose for v in cands]
+        masks = {"left": [], "right": []}
+        for p in reach_poses:
+            state["renderer"].set_scene(scene_for_pose(p.center, p.target, p.baseline_dir, base))
+            caster = GroundTruthCaster(state["renderer"])
+            for c in ("left", "right"):
+                masks[c].append(np.asarray(caster.boundary_visibility(c).visible, bool))
+        reach_vis = _gt_vis({c: combined_visibility(P, masks[c]) for c in ("left", "right")})
     accuracy = _accuracy(sample3, rec) if rec is not None else None
-    merged = merged_accuracy(plate, verdict, model, None if rec is None else rec.surface_vertices)
+    merged = merged_accuracy(plate, verdict, model, None if rec is None else np.vstack([rec.surface_vertices,
+                                                                                        rec.points]))
     merged["poses"] = len(views)
     final = FinalRecord(pose2, "stage3", None if rec is None else rec.false_boundary,
                         0 if rec is None else len(rec.points), verdict.verified, verdict.reason, unverified,
-                        tuple(v.name for v in views), gt_final, gt_first, accuracy, merged, outcome)
+                        tuple(v.name for v in views), gt_final, gt_first, accuracy, merged, outcome, reach_vis)
     result = SensingResult(cfg, tuple(steps), detectors, tuple(verif), tuple(cures), verdict, final, tuple(notes),
                            time.perf_counter() - t0, tuple(views))
     if out is not None:

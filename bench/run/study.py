@@ -1,39 +1,31 @@
-"""The false-boundary study: when does a pose hide the true boundary, does the counting test see
-it, do the paper's two cures remove it, and how good is the L formula?
+"""The false-boundary study: the sensing loop (``bench.run.sensing``) on a set of plates covering
+every deformation family, its outcome classes, and each detector's precision and recall; plus the
+geometry-only questions (the smallest hiding bend, the L formula against ground truth).
 
-Ground-truth visibility (``scenes.ground_truth``) is the referee throughout. Geometry-only
-questions (thresholds, the L formula) need no images: they move the rig and ask the
-ground-truth caster, which is cheap; detection and errors need renders.
-World frame, metres; bend angles in degrees in tables and flags.
+Ground-truth visibility (``scenes.ground_truth``) is the referee throughout: a plate is "hidden"
+when the stage-2 pose misses part of its true boundary, "reachable" when the poses the loop could
+reach (all its candidates) see all of it. Geometry-only questions need no images: they move the
+rig and ask the ground-truth caster. World frame, metres; angles in degrees in tables and flags.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+import traceback
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.run.render import render_sample
-from platebench.bench.run.score import score_in_memory
-from platebench.evaluation.metrics_row import MetricsRow
+from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
+from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
-from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct
-from platebench.reconstruction.strategy.exploring import (
-    SensorPose,
-    bending_curve,
-    cure_move_back,
-    cure_orient,
-    most_bending_curves,
-    most_bent_direction,
-    tangent_intersection_distance,
-)
+from platebench.plates.spec import Dent, Dome, Fold, Twist
+from platebench.reconstruction.strategy.detectors import DETECTORS
+from platebench.reconstruction.strategy.exploring import bending_curve, tangent_intersection_distance
 from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import scene_for_pose
-
-CURE2_STEPS = 8
 
 
 class VisibilityProbe:
@@ -133,80 +125,198 @@ def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None 
     return rows
 
 
-def cure_case(cfg: SampleConfig, bend_deg: float, direction: str, renderer=None, axis_rad: float = 0.0,
-              distance_m: float | None = None):
-    """Render one bend at the default pose, reconstruct, score, and try both cures (checked by GT).
+# ------------------------------------------------------------------------------------------
+# The sensing study: the loop on a set of plates of every family.
 
-    Returns (row dict, renderer)."""
-    spec = replace(cfg.plate, deformation=CylindricalBend(math.radians(bend_deg), direction, axis_rad))
-    c = replace(cfg, plate=spec)
-    if distance_m is not None:
-        c = replace(c, scene=replace(c.scene, distance_m=distance_m))
+FAMILY_ORDER = ("flat", "cylinder", "fold", "twist", "dome", "dent")
+DEFAULT_BENDS_DEG = (0.0, 60.0, 120.0, 180.0, 240.0, 300.0)  # cylinders, convex and concave
+STUDY_AXES_DEG = (0.0, 30.0, 60.0, 90.0)
+FOLD_BENDS_DEG = (60.0, 120.0, 170.0)
+REFERENCE_ASPECT = 0.1165 / 0.0735  # the paper's plate, length / width
+OTHER_ASPECT = 3.0
+OTHER_DISTANCE_M = 0.5
+
+
+@dataclass(frozen=True)
+class StudyCase:
+    """One plate of the study: its deformation and where it differs from the reference plate.
+
+    ``bend_deg``: the cylinder's or fold's angle, the twist's angle, or None (dome, dent, flat);
+    ``aspect``: length / width at the reference plate's area; ``distance_m``: the working
+    distance of stage 2 (``SensingOptions.working_distance_m``)."""
+
+    name: str
+    family: str
+    deformation: object
+    bend_deg: float | None = None
+    direction: str | None = None
+    axis_deg: float | None = None
+    aspect: float = REFERENCE_ASPECT
+    distance_m: float = 0.40
+
+    def config(self, base: SampleConfig) -> SampleConfig:
+        area = base.plate.length_m * base.plate.width_m
+        plate = replace(base.plate, length_m=float(np.sqrt(area * self.aspect)),
+                        width_m=float(np.sqrt(area / self.aspect)), deformation=self.deformation)
+        return replace(base, plate=plate)
+
+    def params(self) -> dict:
+        return {"case": self.name, "family": self.family, "bend_deg": self.bend_deg, "direction": self.direction,
+                "axis_deg": self.axis_deg, "aspect": round(self.aspect, 3), "distance_m": self.distance_m}
+
+
+def _cyl(b: float, d: str, ax: float, **kw) -> StudyCase:
+    fam = "flat" if b == 0 else "cylinder"
+    name = f"{fam} {b:g} {d} axis {ax:g}" if b else "flat (cylinder 0)"
+    extra = "".join(f" {k} {v:g}" for k, v in kw.items())
+    return StudyCase(name + extra, fam, CylindricalBend(math.radians(b), d, math.radians(ax)), b, d, ax, **kw)
+
+
+def _fold(b: float, d: str, **kw) -> StudyCase:
+    extra = "".join(f" {k} {v:g}" for k, v in kw.items())
+    return StudyCase(f"fold {b:g} {d}{extra}", "fold", Fold(math.radians(b), 0.015, 0.02, d), b, d, 0.0, **kw)
+
+
+def study_cases(bends_deg=DEFAULT_BENDS_DEG) -> list[StudyCase]:
+    """The study's plates: cylinders at ``bends_deg`` convex and concave about axes 0/30/60/90 degrees
+    (bend 0 once: the flat plate), folds of 60/120/170 degrees (those not above the largest bend)
+    both ways, two twists, a dome and a bowl, two dents, a second aspect ratio (3:1) and a second
+    working distance (0.5 m) on a few plates. Default: 61 plates."""
+    bends = sorted({float(b) for b in bends_deg})
+    cases: list[StudyCase] = []
+    if 0.0 in bends:
+        cases.append(_cyl(0.0, "down", 0.0))
+    for b in (b for b in bends if b > 0):
+        for d in ("down", "up"):
+            cases += [_cyl(b, d, ax) for ax in STUDY_AXES_DEG]
+    top = max(bends) if bends else 0.0
+    cases += [_fold(b, d) for b in FOLD_BENDS_DEG if b <= max(top, FOLD_BENDS_DEG[0]) for d in ("down", "up")]
+    cases += [StudyCase("twist 45", "twist", Twist(math.radians(45.0)), 45.0),
+              StudyCase("twist -80", "twist", Twist(math.radians(-80.0)), -80.0),
+              StudyCase("dome 12 mm", "dome", Dome(0.012)), StudyCase("bowl 12 mm", "dome", Dome(-0.012)),
+              StudyCase("dent 3 mm centre", "dent", Dent(0.003, 0.02)),
+              StudyCase("dent 3 mm off-centre", "dent", Dent(0.003, 0.015, 0.03, 0.015))]
+    mid = [b for b in bends if 0 < b <= 180]
+    far = [b for b in bends if b > 180]
+    for kw in ({"aspect": OTHER_ASPECT}, {"distance_m": OTHER_DISTANCE_M}):
+        if mid:
+            cases += [_cyl(mid[-1], "down", 0.0, **kw), _cyl(mid[-1], "up", 90.0, **kw)]
+        if far:
+            cases.append(_cyl(far[0], "down", 0.0, **kw))
+        cases.append(_fold(120.0, "up", **kw) if "aspect" in kw else
+                     StudyCase("twist 45 distance_m 0.5", "twist", Twist(math.radians(45.0)), 45.0, **kw))
+    return cases
+
+
+def _min_visible(gv: dict) -> float:
+    return float(min(v["visible_fraction"] for v in gv.values()))
+
+
+def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = SensingOptions()) -> dict:
+    """Run the sensing loop on one plate and flatten what the study needs into a row (see
+    ``StudyResult``). An exception becomes outcome "error" with its message (never dropped)."""
+    row = case.params()
     t0 = time.perf_counter()
-    sample, renderer = render_sample(c, renderer)
-    gt_hidden = {k: 1.0 - v.visible_fraction for k, v in sample.visibility.items()}
-    row = {"bend_deg": float(bend_deg), "direction": direction, "axis_deg": math.degrees(axis_rad),
-           "length_m": spec.length_m, "width_m": spec.width_m, "distance_m": c.scene.distance_m,
-           "hidden_frac_left": gt_hidden["left"], "hidden_frac_right": gt_hidden["right"],
-           "false_boundary_gt": bool(max(gt_hidden.values()) > 0)}
-    scene = sample.scene
     try:
-        rec = reconstruct(sample.digital, scene.rig, projector_feature_rays(scene.projector.camera,
-                                                                            scene.projector.pattern),
-                          scene.projector.pattern)
-    except ValueError as e:
-        row.update(status="failed", error=str(e).splitlines()[0], detected=None, counting_test=None,
-                   arrays_disagree=None)
-        return row, renderer
-    fb = rec.false_boundary
-    row.update(status="ok", error="", detected=fb.false_boundary_detected, counting_test=fb.counting_test,
-               arrays_disagree=fb.arrays_disagree, squares_expected=fb.expected,
-               squares_left=fb.detected["left_active"], squares_right=fb.detected["right_active"])
-    metrics = MetricsRow.from_score(score_in_memory(sample, rec))
-    row.update(depth_rms_mm=metrics.depth_rms_mm, xy_radial_rms_mm=metrics.xy_radial_rms_mm, matched=len(rec.points),
-               boundary_mean_mm=metrics.boundary_mean_mm)
-    # The cures, applied whenever ground truth says the boundary is hidden (to measure them even
-    # when the test misses), each checked by ground-truth visibility at the new pose.
-    if row["false_boundary_gt"]:
-        pose = SensorPose(scene.rig.center, scene.rig.center + scene.rig.left.R[2] * c.scene.distance_m,
-                          scene.rig.left.R[0], "default pose")
-        try:
-            bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
-            curve = max(most_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent),
-                        key=tangent_intersection_distance)
-            row["L_measured_m"] = tangent_intersection_distance(curve)
-
-            def hidden_at(p: SensorPose) -> float:
-                renderer.set_scene(scene_for_pose(p.center, p.target, p.baseline_dir, scene))
-                caster = GroundTruthCaster(renderer)
-                return max(1.0 - caster.boundary_visibility(k).visible_fraction for k in ("left", "right"))
-
-            new = cure_orient(curve, pose)
-            row["cure1_hidden_frac"] = h1 = hidden_at(new)
-            row["cure1_removed"] = bool(h1 == 0.0)
-            # Cure 2 repeated as the paper says (move back, look again) up to CURE2_STEPS times.
-            new, h2, k = pose, 1.0, 0
-            missing = fb.expected - min(fb.detected.values())
-            while k < CURE2_STEPS:
-                new = cure_move_back(curve, new, missing, max(fb.expected, 1))
-                k += 1
-                h2 = hidden_at(new)
-                if h2 == 0.0:
-                    break
-            row.update(cure2_hidden_frac=h2, cure2_removed=bool(h2 == 0.0), cure2_steps=k,
-                       cure2_distance_m=new.distance_m)
-            renderer.set_scene(scene)
-        except ValueError as e:
-            row["cure_error"] = str(e).splitlines()[0]
-    row["time_s"] = time.perf_counter() - t0
-    return row, renderer
+        r = run_sensing(case.config(base), None, replace(options, working_distance_m=case.distance_m,
+                                                         write_stages=False, ground_truth_reach=True))
+    except Exception as e:  # noqa: BLE001 (a study records every failure and goes on)
+        row.update(outcome="error", error=f"{type(e).__name__}: {e}".splitlines()[0],
+                   traceback=traceback.format_exc(limit=3), time_s=time.perf_counter() - t0)
+        return row
+    f = r.final
+    row.update(outcome=f.outcome, boundary_verified=f.boundary_verified, cures=r.cures,
+               verification_views=len(r.verification_views), views=len(f.poses),
+               gt_visible_first=_min_visible(f.gt_visibility_first), gt_visible_final=_min_visible(f.gt_visibility),
+               gt_hidden_first=f.hidden_first, gt_hidden_final=f.hidden_final,
+               gt_reachable=f.gt_reachable, false_boundary_gt=f.hidden_first)
+    row.update({f"det_{d.name}": d.fired for d in r.detectors})
+    m = f.merged
+    row.update(merged_boundary_mean_mm=m.get("boundary_mean_mm"), merged_boundary_covered=m.get("boundary_covered_frac"),
+               merged_surface_rms_mm=m.get("surface_rms_mm"), merged_surface_coverage=m.get("surface_coverage"),
+               depth_rms_mm=(f.accuracy or {}).get("depth_rms_mm"), unverified_parts=len(f.unverified_parts),
+               verdict=f.verdict_reason, time_s=time.perf_counter() - t0)
+    return row
 
 
-def precision_recall(rows: list[dict], key: str = "detected") -> dict:
-    """Detection precision/recall of a flag against ground truth over study rows."""
-    ok = [r for r in rows if r.get(key) is not None]
-    tp = sum(1 for r in ok if r[key] and r["false_boundary_gt"])
-    fp = sum(1 for r in ok if r[key] and not r["false_boundary_gt"])
-    fn = sum(1 for r in ok if not r[key] and r["false_boundary_gt"])
-    return {"true_positive": tp, "false_positive": fp, "false_negative": fn,
-            "precision": tp / (tp + fp) if tp + fp else None, "recall": tp / (tp + fn) if tp + fn else None}
+def _groups(rows: list[dict], key) -> dict:
+    out: dict = {}
+    for r in rows:
+        out.setdefault(key(r), []).append(r)
+    return out
+
+
+def detector_scores(rows: list[dict]) -> dict:
+    """Each detector's precision and recall against ground truth's "hidden at the stage-2 pose":
+    over all plates, per family and per bend (cylinders and folds)."""
+    ok = [r for r in rows if r.get("outcome") != "error"]
+
+    def score(rs):
+        return {d: detection_score([r.get("gt_hidden_first") for r in rs], [r.get(f"det_{d}") for r in rs]).to_dict()
+                for d in DETECTORS}
+    by_family = _groups(ok, lambda r: r["family"])
+    bent = [r for r in ok if r["family"] in ("cylinder", "fold", "flat")]
+    by_bend = _groups(bent, lambda r: float(r["bend_deg"]))
+    return {"all": score(ok), "by_family": {k: score(v) for k, v in sorted(by_family.items(),
+                                                                          key=lambda kv: FAMILY_ORDER.index(kv[0]))},
+            "by_bend": {f"{k:g}": score(v) for k, v in sorted(by_bend.items())}}
+
+
+def outcome_counts(rows: list[dict], key=None) -> dict:
+    """Outcome class counts (``OUTCOMES`` and "error"), overall or per ``key(row)``."""
+    classes = (*OUTCOMES, "error")
+    if key is None:
+        return {c: sum(r.get("outcome") == c for r in rows) for c in classes}
+    return {str(k): outcome_counts(v) for k, v in _groups(rows, key).items()}
+
+
+def targets(rows: list[dict]) -> dict:
+    """The issue's targets: silent = 0, errors = 0, cured >= 90 % of the plates whose stage-2 pose
+    hides part of the boundary and whose reachable poses see all of it, false alarms <= 2 % of the
+    plates where nothing is hidden."""
+    c = outcome_counts(rows)
+    curable = [r for r in rows if r.get("gt_hidden_first") and r.get("gt_reachable")]
+    clean = [r for r in rows if r.get("outcome") != "error" and not r.get("gt_hidden_first")]
+    cured = sum(r["outcome"] == "cured" for r in curable)
+    fa = sum(r["outcome"] == "false_alarm" for r in clean)
+    cured_frac = cured / len(curable) if curable else None
+    fa_frac = fa / len(clean) if clean else None
+    return {"silent": c["silent"], "errors": c["error"], "curable": len(curable), "cured_of_curable": cured,
+            "cured_frac": cured_frac, "nothing_hidden": len(clean), "false_alarms": fa, "false_alarm_frac": fa_frac,
+            "met": {"silent = 0": c["silent"] == 0, "errors = 0": c["error"] == 0,
+                    "cured >= 90 %": None if cured_frac is None else cured_frac >= 0.9,
+                    "false alarms <= 2 %": None if fa_frac is None else fa_frac <= 0.02}}
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """Per-plate rows, the outcome counts, the detectors' scores and the targets; ``to_dict`` is
+    study.json."""
+
+    rows: tuple
+    settings: dict
+    time_s: float
+    extra: dict = field(default_factory=dict)  # smallest hiding bend, L formula (when computed)
+
+    def to_dict(self) -> dict:
+        rows = [{k: v for k, v in r.items() if k != "traceback"} for r in self.rows]
+        return {"kind": "false-boundary sensing study", "rows": rows, "outcomes": outcome_counts(rows),
+                "outcomes_by_family": outcome_counts(rows, lambda r: r["family"]),
+                "outcomes_by_bend": outcome_counts([r for r in rows if r.get("bend_deg") is not None
+                                                    and r["family"] in ("cylinder", "fold", "flat")],
+                                                   lambda r: f"{r['bend_deg']:g}"),
+                "detectors": detector_scores(rows), "targets": targets(rows), "settings": self.settings,
+                "time_s": self.time_s, **self.extra}
+
+
+def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOptions = SensingOptions(),
+              progress=None, settings: dict | None = None) -> StudyResult:
+    """The sensing loop on every case (``study_row``); ``progress(row)`` after each."""
+    t0 = time.perf_counter()
+    rows = []
+    for case in cases:
+        row = study_row(case, base, options)
+        rows.append(row)
+        if progress is not None:
+            progress(row)
+    return StudyResult(tuple(rows), dict(settings or {}), time.perf_counter() - t0)

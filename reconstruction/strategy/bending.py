@@ -111,3 +111,46 @@ def most_bending_curves(boundary: np.ndarray, source: np.ndarray, plane: Boundar
             e = e[::-1]
         curves.append(bending_curve(e, plane.normal))
     return curves
+
+
+PROFILE_HALF_WIDTH_M = 3e-3  # surface points this close to the profile's plane make the profile
+PROFILE_BIN_M = 1e-3  # the profile is averaged in bins of this length along the bent direction
+
+
+def surface_profile(points: np.ndarray, plane: BoundaryPlane, bent_dir: np.ndarray,
+                    half_width_m: float = PROFILE_HALF_WIDTH_M) -> BendingCurve:
+    """The bending curve of a measured surface (e.g. the stage-3 interpolated surface, (N,3)): the
+    surface cut by the normal plane through the boundary centre holding ``bent_dir``, averaged in
+    ``PROFILE_BIN_M`` bins along it, as an ordered polyline. Needs no corners. Raises ValueError
+    when fewer than 8 bins hold points."""
+    n = _unit(plane.normal)
+    e = _unit(bent_dir - n * (bent_dir @ n))
+    g = np.cross(n, e)
+    P = np.asarray(points, float)
+    rel = P - plane.point
+    P = P[np.abs(rel @ g) <= half_width_m]
+    if len(P) < 8:
+        raise ValueError(f"{len(P)} surface points near the profile plane")
+    s = (P - plane.point) @ e
+    k = np.floor(s / PROFILE_BIN_M).astype(int)
+    bins = np.unique(k)
+    if len(bins) < 8:
+        raise ValueError(f"the profile spans {len(bins)} mm")
+    prof = np.array([P[k == b].mean(axis=0) for b in bins])
+    return bending_curve(prof, n)
+
+
+def measured_bending_curves(boundary: np.ndarray, source: np.ndarray, plane: BoundaryPlane, bent_dir: np.ndarray,
+                            surface_points: np.ndarray | None = None) -> tuple[list[BendingCurve], str]:
+    """The most bending curves: the boundary edges along the bent direction where the boundary has
+    the paper's four corners ("corner edges"), else the measured surface's profile ("surface
+    profile"). Raises ValueError when neither is available."""
+    try:
+        return most_bending_curves(boundary, source, plane, bent_dir), "corner edges"
+    except ValueError as e:
+        if surface_points is None or not len(surface_points):
+            raise
+        try:
+            return [surface_profile(surface_points, plane, bent_dir)], "surface profile"
+        except ValueError as e2:
+            raise ValueError(f"{e}; surface profile: {e2}") from None

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from platebench.reconstruction.strategy.bending import most_bending_curves, tangent_intersection_distance
+from platebench.reconstruction.strategy.bending import measured_bending_curves, tangent_intersection_distance
 from platebench.reconstruction.strategy.multiview import LINK_M, REPORT_MIN_M, BoundaryVerdict, ViewOutline, cyclic_runs
 from platebench.reconstruction.strategy.poses import most_bent_direction
 from platebench.reconstruction.strategy.surface_model import SurfaceModel
@@ -99,8 +99,9 @@ def end_tangents(rec, camera_centers: np.ndarray) -> DetectorResult:
     ``L_MARGIN`` x L beyond the chord AB, or an end tangent turns past 90 degrees (L infinite)."""
     try:
         bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
-        curves = most_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent)
-    except ValueError as e:  # no four corners (general outline stereo): no bending curve
+        curves, how = measured_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent,
+                                              rec.surface_vertices)
+    except ValueError as e:
         return DetectorResult("end_tangents", None, None, "mm", f"no most bending curve: {e}")
     worst, detail = -np.inf, ""
     for c in curves:
@@ -115,7 +116,7 @@ def end_tangents(rec, camera_centers: np.ndarray) -> DetectorResult:
                 short = L_MARGIN * L - h if L > 0 else -np.inf
             if short > worst:
                 worst = short
-                detail = (f"L = {L * 1e3:.0f} mm (a = {np.degrees(c.a_rad):.0f}, b = {np.degrees(c.b_rad):.0f} deg), "
+                detail = (f"{how}: L = {L * 1e3:.0f} mm (a = {np.degrees(c.a_rad):.0f}, b = {np.degrees(c.b_rad):.0f} deg), "
                           f"cameras {h * 1e3:.0f} mm above AB")
     return DetectorResult("end_tangents", bool(worst > 0), None if not np.isfinite(worst) else float(worst * 1e3),
                           "mm", detail)

@@ -265,22 +265,36 @@ def _end_direction(P: np.ndarray, at_start: bool) -> np.ndarray:
     return d / n if n > 0 else np.zeros(3)
 
 
+class _PieceIndex:
+    """All pieces' points in one KD-tree, to find the pieces near a point in one query."""
+
+    def __init__(self, all_pieces: list[Piece]):
+        self.tree = cKDTree(np.vstack([p.points for p in all_pieces]))
+        self.label = np.concatenate([np.full(len(p.points), i) for i, p in enumerate(all_pieces)])
+
+    def near(self, x: np.ndarray, radius: float) -> set:
+        return {int(i) for i in self.label[self.tree.query_ball_point(x, radius)]}
+
+
 def _leads_on(i: int, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], near_to: np.ndarray) -> bool:
-    """Piece ``i`` comes within LINK_M of ``near_to`` and has a point within LEAD_M of ``end`` that is
+    """Piece ``i`` (within LINK_M of ``near_to``) has a point within LEAD_M of ``end`` that is
     farther than LINK_M from the piece ``own`` the end belongs to."""
-    if trees[i].query(near_to)[0] > LINK_M:
-        return False
     p = all_pieces[i]
     near = p.points[np.linalg.norm(p.points - end, axis=1) <= LEAD_M + np.linalg.norm(near_to - end)]
     return bool(len(near) and (trees[own].query(near)[0] > LINK_M).any())
 
 
-def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline]) -> list[int]:
+def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline],
+            index: _PieceIndex | None = None) -> list[int]:
     """Pieces (other than ``own``) that an end links to: one that passes within LINK_M of the end
     and leads on; else one reached from the end along a pose's measured outline within
     OUTLINE_BRIDGE_M of arc (a steep corner confirmed by no pair of poses, say)."""
-    others = [i for i in range(len(all_pieces)) if i != own]
-    out = [i for i in others if _leads_on(i, end, own, trees, all_pieces, end)]
+    index = index or _PieceIndex(all_pieces)
+
+    def hits(near_to):
+        return sorted(i for i in index.near(near_to, LINK_M) - {own}
+                      if _leads_on(i, end, own, trees, all_pieces, near_to))
+    out = hits(end)
     if out:
         return out
     for v in views:
@@ -295,7 +309,7 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
                 nxt = (j + step) % n
                 walked += arc[j if step > 0 else nxt]
                 j = nxt
-                hit = [i for i in others if _leads_on(i, end, own, trees, all_pieces, v.points[j])]
+                hit = hits(v.points[j])
                 if hit:
                     return hit
     return []
@@ -342,6 +356,7 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
         return BoundaryVerdict(False, (), (), _unconfirmed(views, confirmed, []), np.zeros((0, 3)), 0,
                                "no outline point was confirmed by a second pose", tuple(confirmed))
     trees = [cKDTree(p.points) for p in ps]
+    index = _PieceIndex(ps)
     parent = list(range(len(ps)))
 
     def find(i):
@@ -356,7 +371,7 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
             continue
         for at_start in (True, False):
             end = p.points[0] if at_start else p.points[-1]
-            links = _linked(end, i, trees, ps, views)
+            links = _linked(end, i, trees, ps, views, index)
             for j in links:
                 parent[find(i)] = find(j)
             if not links:

@@ -26,9 +26,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from platebench.reconstruction.strategy.bending import most_bending_curves, tangent_intersection_distance
+from platebench.reconstruction.strategy.bending import measured_bending_curves, tangent_intersection_distance
 from platebench.reconstruction.strategy.cures import cure_move_back, cure_orient
-from platebench.reconstruction.strategy.multiview import CONFIRM_ANGLE_RAD, BoundaryVerdict, ViewOutline
+from platebench.reconstruction.strategy.multiview import CONFIRM_ANGLE_RAD, BoundaryVerdict, Gap, ViewOutline
 from platebench.reconstruction.strategy.poses import (
     Reach,
     SensorPose,
@@ -152,6 +152,13 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
     if verdict.verified:
         return Decision("done", None, "boundary verified: " + verdict.reason)
     gaps = list(verdict.gaps)
+    if not gaps:  # separate groups with no loose end: look past the ends of the unconfirmed outline runs
+        for u in verdict.unconfirmed:
+            if not u.covered:
+                d = u.end_m - u.start_m
+                n = float(np.linalg.norm(d))
+                if n > 0:
+                    gaps += [Gap(u.start_m, d / n, u.view), Gap(u.end_m, -d / n, u.view)]
     if not gaps:
         return Decision("stop", None, f"not verified ({verdict.reason}) but no piece end to look past")
     if len(done) >= max_views:
@@ -195,7 +202,8 @@ def paper_cure_views(rec, first: SensorPose, reach: Reach, measured: np.ndarray,
     formed (no most bending curve, L infinite or not positive, unreachable)."""
     try:
         bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
-        curves = most_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent)
+        curves, _ = measured_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent,
+                                            rec.surface_vertices)
     except ValueError as e:
         return [], f"paper's cures not formed: no most bending curve ({e})"
     curve = max(curves, key=tangent_intersection_distance)
