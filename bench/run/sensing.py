@@ -160,6 +160,10 @@ class ActiveRecord:
     gt_visibility: dict
     error: str | None = None
 
+    @property
+    def stage(self) -> int:
+        return 3
+
     def to_dict(self) -> dict:
         return {"stage": 3, "pose": self.pose.to_dict(), "projector_pose": self.projector_pose.to_dict(),
                 "false_boundary": None if self.false_boundary is None else self.false_boundary.to_dict(),
@@ -445,9 +449,13 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     gt_final = {c: combined_visibility(P, masks[c]) for c in ("left", "right")}
     gt_final = _gt_vis(gt_final)
     gt_first = _gt_vis(v2)
-    unverified = tuple([g_.to_dict() for g_ in verdict.gaps] +
-                       [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline no other pose confirmed", **u.to_dict()}
-                        for u in verdict.unconfirmed if not u.covered])
+    # Not verified: the gaps, and the outline stretches no confirmed piece runs along. Verified: none
+    # (outline stretches no other pose confirmed are then occluding contours; sensing.json's
+    # verdict lists them all under "unconfirmed_outline").
+    unverified = () if verdict.verified else tuple(
+        [g_.to_dict() for g_ in verdict.gaps]
+        + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline no other pose confirmed", **u.to_dict()}
+           for u in verdict.unconfirmed if not u.covered])
     outcome = outcome_class(hidden(gt_first), hidden(gt_final), verdict.verified,
                             bool(cures) or not verdict.verified)
     reach_vis = None

@@ -43,6 +43,7 @@ BRIDGE_M = 6e-3  # unconfirmed runs this short inside one pose's outline are bri
 LINK_M = 4e-3  # a piece's end links to another piece within this distance ...
 LEAD_M = 12e-3  # ... that leads on: has a point within this of the end, farther than LINK_M from the piece
 OUTLINE_BRIDGE_M = 12e-3  # or to one reached along some pose's measured outline within this arc length
+OVERLAP_POINTS = 3  # pieces sharing this many points (within LINK_M) run along the same edge: one group
 MERGE_SPACING_M = 1e-3  # the merged boundary keeps one point per this spacing
 REPORT_MIN_M = 8e-3  # unconfirmed outline runs at least this long are reported
 
@@ -376,6 +377,11 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
                 parent[find(i)] = find(j)
             if not links:
                 gaps.append(Gap(end.copy(), _end_direction(p.points, at_start), p.view))
+    for i, p in enumerate(ps):  # pieces of different poses running along the same edge are one group
+        near = index.label[np.concatenate([np.asarray(h, int) for h in index.tree.query_ball_point(p.points, LINK_M)])]
+        others, counts = np.unique(near[near != i], return_counts=True)
+        for j in others[counts >= OVERLAP_POINTS]:
+            parent[find(i)] = find(int(j))
     main = [i for i, p in enumerate(ps) if p.length_m >= LINK_M]
     components = len({find(i) for i in main})
     merged = _merge_points(ps)
