@@ -127,6 +127,7 @@ def surface_profile(points: np.ndarray, plane: BoundaryPlane, bent_dir: np.ndarr
     e = _unit(bent_dir - n * (bent_dir @ n))
     g = np.cross(n, e)
     P = np.asarray(points, float)
+    P = P[np.all(np.isfinite(P), axis=1)]
     rel = P - plane.point
     P = P[np.abs(rel @ g) <= half_width_m]
     if len(P) < 8:

@@ -17,9 +17,13 @@ outline's local direction (the part that slides a contour), has a measured outli
 agrees with anything its ends agree with.
 
 The verdict (``verify``) asks whether the confirmed pieces of all poses close into one loop, as a
-plate's boundary does. A piece that stops where no other confirmed piece leads on is a *gap*:
+plate's boundary does. Pieces are grouped where one leads on from another's end, or where they
+run along the same edge. A piece that stops where no other confirmed piece leads on is a *gap*:
 part of the boundary that no pose has shown to be a true edge. ``BoundaryVerdict.verified`` is
-true only without gaps.
+true when a group without gaps is at least ``LOOP_MIN_FRACTION`` of the first pose's measured
+outline long (lengths over 5 mm chords): a plate's boundary is one closed curve, so a closed loop of its pieces is all of it. Other
+groups (short stretches of occluding contour that two poses happened to see at the same place)
+are then stray, named in the reason and left out of the merged boundary.
 
 Limits (measured on the bench, see DESIGN.md): a contour slides less than ``CONFIRM_TOL_M`` when
 ``R`` is under about 2.3 mm (a crease): such a contour cannot be told from an edge this way.
@@ -43,6 +47,7 @@ BRIDGE_M = 6e-3  # unconfirmed runs this short inside one pose's outline are bri
 LINK_M = 4e-3  # a piece's end links to another piece within this distance ...
 LEAD_M = 12e-3  # ... that leads on: has a point within this of the end, farther than LINK_M from the piece
 OUTLINE_BRIDGE_M = 12e-3  # or to one reached along some pose's measured outline within this arc length
+LOOP_MIN_FRACTION = 0.7  # a closed group of pieces is the boundary when at least this x the first pose's outline
 OVERLAP_POINTS = 3  # pieces sharing this many points (within LINK_M) run along the same edge: one group
 MERGE_SPACING_M = 1e-3  # the merged boundary keeps one point per this spacing
 REPORT_MIN_M = 8e-3  # unconfirmed outline runs at least this long are reported
@@ -366,7 +371,7 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
             i = parent[i]
         return i
 
-    gaps = []
+    gaps, gap_piece = [], []
     for i, p in enumerate(ps):
         if p.closed:
             continue
@@ -377,23 +382,54 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
                 parent[find(i)] = find(j)
             if not links:
                 gaps.append(Gap(end.copy(), _end_direction(p.points, at_start), p.view))
+                gap_piece.append(i)
     for i, p in enumerate(ps):  # pieces of different poses running along the same edge are one group
         near = index.label[np.concatenate([np.asarray(h, int) for h in index.tree.query_ball_point(p.points, LINK_M)])]
         others, counts = np.unique(near[near != i], return_counts=True)
         for j in others[counts >= OVERLAP_POINTS]:
             parent[find(i)] = find(int(j))
     main = [i for i, p in enumerate(ps) if p.length_m >= LINK_M]
-    components = len({find(i) for i in main})
-    merged = _merge_points(ps)
+    groups: dict = {}
+    for i in main:
+        groups.setdefault(find(i), []).append(i)
+    components = len(groups)
+    open_groups = {find(i) for i in gap_piece}
+    need = LOOP_MIN_FRACTION * _smooth_length(views[0].points)
+    loops = []
+    for root, members in groups.items():
+        if root in open_groups:
+            continue
+        pts = _merge_points([p for i, p in enumerate(ps) if find(i) == root])  # short pieces of it too
+        if len(pts) * MERGE_SPACING_M >= need:
+            loops.append((root, members, pts))
     unconf = _unconfirmed(views, confirmed, ps)
+    if loops:
+        root, members, merged = max(loops, key=lambda x: len(x[2]))
+        stray = components - 1
+        reason = "the confirmed pieces close into one loop" + (
+            f" ({stray} stray group(s) of confirmed outline off it, with {len(gaps)} loose end(s), left out)"
+            if stray else "")
+        return BoundaryVerdict(True, tuple(ps), tuple(gaps), unconf, merged, components, reason, tuple(confirmed))
+    merged = _merge_points(ps)
     if gaps:
         reason = f"{len(gaps)} piece end(s) where no confirmed piece leads on"
     elif components != 1:
-        reason = f"the confirmed pieces form {components} separate groups, not one loop"
+        reason = f"the confirmed pieces form {components} separate groups, none a loop as long as the outline"
     else:
-        reason = "the confirmed pieces close into one loop"
-    return BoundaryVerdict(not gaps and components == 1, tuple(ps), tuple(gaps), unconf, merged, components, reason,
-                           tuple(confirmed))
+        reason = "the confirmed pieces close into a loop shorter than the outline"
+    return BoundaryVerdict(False, tuple(ps), tuple(gaps), unconf, merged, components, reason, tuple(confirmed))
+
+
+def _smooth_length(points: np.ndarray, step_m: float = 5e-3) -> float:
+    """Length (m) of a closed outline measured by chords about ``step_m`` long (pixel zigzag and
+    depth noise do not add to it, as they do to the point-to-point length)."""
+    P = np.asarray(points, float)
+    if len(P) < 3:
+        return 0.0
+    raw = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+    k = max(1, int(len(P) * float(np.median(raw)) / step_m))
+    Q = P[:: max(1, len(P) // k)]
+    return float(np.linalg.norm(np.roll(Q, -1, axis=0) - Q, axis=1).sum())
 
 
 def _unconfirmed(views: list[ViewOutline], confirmed: list[np.ndarray], ps: list[Piece]) -> tuple:

@@ -1,0 +1,258 @@
+"""The report's sensing-run and false-boundary-study sections, from ``sensing.json`` (+
+``multiview.npz``) and ``study.json``.
+
+``sensing_section(sensing_dir, out_dir)`` and ``study_section(study_dir, out_dir)`` return the
+generic section dict of ``bench.report.page`` (title, summary, outcome, figures, tables, plots,
+links, notes) and write their PNG plots into ``out_dir``. A study written before the sensing study
+(rows of the old cure study, no ``outcomes``) is shown by ``bench.report.interim``.
+
+Plots: each pose's measured outline against the true boundary, and the merged boundary (top view,
+millimetres); the outcome classes per bend and per family; each detector's precision and recall
+per family. Units: millimetres, degrees, fractions 0..1, seconds.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from platebench.bench.report import interim
+from platebench.bench.report import plots as P
+from platebench.bench.report.inputs import ReportInputError, load_sensing, load_study
+from platebench.bench.report.values import finite
+
+__all__ = ["sensing_section", "study_section", "plot_multiview", "plot_outcomes"]
+
+OUTCOME_COLORS = {"cured": "#2ca02c", "clean": "#98df8a", "honest": "#ff7f0e", "unconfirmed": "#ffbb78",
+                  "false_alarm": "#9467bd", "silent": "#d62728", "error": "#7f7f7f"}
+MAX_POSE_PANELS = 15
+
+
+# ----------------------------------------------------------------------------- plots
+def plot_multiview(npz_path: Path, path: Path) -> Path:
+    """One panel per pose: its measured outline (confirmed points green, others red) over the true
+    boundary (grey), top view (x, y in mm); a last panel: the merged boundary over the true one."""
+    d = np.load(npz_path)
+    names = [str(n) for n in d["view_names"]][:MAX_POSE_PANELS]
+    T = d["true_boundary"] * 1e3
+    n = len(names) + 1
+    cols = min(4, n)
+    rows = (n + cols - 1) // cols
+    fig = P._figure(3.0 * cols, 2.6 * rows)
+    pts, view, conf = d["outline_points"] * 1e3, d["outline_view"], d["outline_confirmed"].astype(bool)
+    for k in range(n):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        ax.plot(np.r_[T[:, 0], T[:, 0][:1]], np.r_[T[:, 1], T[:, 1][:1]], color="0.6", lw=1.0)
+        if k < len(names):
+            m = view == k
+            ax.scatter(pts[m & ~conf, 0], pts[m & ~conf, 1], s=2, color="#d62728", label="not confirmed")
+            ax.scatter(pts[m & conf, 0], pts[m & conf, 1], s=2, color="#2ca02c", label="confirmed")
+            ax.set_title(names[k], fontsize=8)
+        else:
+            M = d["merged"] * 1e3
+            if len(M):
+                ax.scatter(M[:, 0], M[:, 1], s=2, color="#1f77b4")
+            G = d["gaps"] * 1e3
+            if len(G):
+                ax.scatter(G[:, 0], G[:, 1], s=30, marker="x", color="#d62728")
+            ax.set_title("merged boundary (x: gaps)", fontsize=8)
+        ax.set_aspect("equal")
+        ax.tick_params(labelsize=6)
+    fig.suptitle("Measured outline per pose vs the true boundary (grey), top view, mm", fontsize=9)
+    fig.tight_layout()
+    return P._save(fig, path)
+
+
+def plot_outcomes(counts: dict, path: Path, title: str, xlabel: str) -> Path:
+    """Stacked bars of outcome counts per group (``counts``: group -> {outcome: n})."""
+    fig = P._figure(max(5.0, 0.6 * len(counts) + 2), 3.4)
+    ax = fig.add_subplot(1, 1, 1)
+    groups = list(counts)
+    if not groups:
+        P._empty(ax, "no plates")
+        return P._save(fig, path)
+    bottom = np.zeros(len(groups))
+    for oc, color in OUTCOME_COLORS.items():
+        v = np.array([counts[g].get(oc, 0) for g in groups], float)
+        if v.any():
+            ax.bar(range(len(groups)), v, bottom=bottom, color=color, label=oc.replace("_", " "))
+            bottom += v
+    ax.set_xticks(range(len(groups)))
+    ax.set_xticklabels(groups, fontsize=8)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("plates")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7, ncol=4, loc="upper left")
+    ax.set_ylim(0, bottom.max() * 1.35 + 1)
+    fig.tight_layout()
+    return P._save(fig, path)
+
+
+def plot_detectors(scores: dict, path: Path) -> Path:
+    """Each detector's precision and recall (0..1) per family (``scores``: family -> detector -> dict)."""
+    fams = list(scores)
+    dets = list(next(iter(scores.values()), {}))
+    fig = P._figure(9.0, 3.2)
+    colors = P._colors(len(dets))
+    for j, what in enumerate(("precision", "recall")):
+        ax = fig.add_subplot(1, 2, j + 1)
+        w = 0.8 / max(len(dets), 1)
+        for i, det in enumerate(dets):
+            v = [scores[f][det][what] for f in fams]
+            ax.bar(np.arange(len(fams)) + i * w, [np.nan if x is None else x for x in v], w, color=colors[i],
+                   label=det.replace("_", " "))
+        ax.set_xticks(np.arange(len(fams)) + 0.4 - w / 2)
+        ax.set_xticklabels(fams, fontsize=8)
+        ax.set_ylim(0, 1.05)
+        ax.set_title(f"{what} against GT 'hidden at stage 2'", fontsize=9)
+        if j == 0:
+            ax.legend(fontsize=6)
+    fig.tight_layout()
+    return P._save(fig, path)
+
+
+# ----------------------------------------------------------------------------- sensing run
+def _pct(gv) -> str:
+    try:
+        return f"{gv['left']['visible_fraction'] * 100:.0f}/{gv['right']['visible_fraction'] * 100:.0f} %"
+    except (KeyError, TypeError):
+        return "-"
+
+
+def _step_row(st: dict) -> dict:
+    if "decision" in st:
+        return {"step": f"decision: {st['decision']}", "distance (m)": (st.get("view") or {}).get("pose", {})
+                .get("distance_m"), "GT visible L/R": None, "what": st.get("reason")}
+    pose = st.get("pose") or {}
+    if st.get("stage") == "view":
+        what, name = (st.get("error") or f"{st.get('outline_points')} outline points"), \
+            f"{st.get('purpose')} view {st.get('name')} ({st.get('method')})"
+    elif st.get("stage") == 3:
+        fb = st.get("false_boundary") or {}
+        what = (f"{st.get('matched')} points; squares {fb.get('detected')} of {fb.get('expected')}; paper's test "
+                + ("fires" if fb.get("false_boundary_detected") else "quiet")) if fb else st.get("error")
+        name = "stage 3"
+    else:
+        what, name = f"{st.get('boundary_points')} boundary points ({st.get('boundary_method')})", \
+            f"stage {st.get('stage')}"
+    return {"step": name, "distance (m)": pose.get("distance_m"), "GT visible L/R": _pct(st.get("gt_visibility")),
+            "what": what}
+
+
+def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
+    """The sensing run of ``sensing_dir`` as a generic section dict."""
+    doc = load_sensing(sensing_dir)
+    final = doc.get("final") or {}
+    if "boundary_verified" not in final:  # a record from before the verdict: the interim section
+        return interim.sensing_section(sensing_dir, out_dir)
+    outcome = final.get("outcome")
+    merged = final.get("merged") or {}
+    acc = final.get("accuracy") or {}
+    figures = [{"label": "boundary verified", "value": bool(final.get("boundary_verified"))},
+               {"label": "outcome", "value": outcome,
+                "status": "bad" if outcome in ("silent", "false_alarm") else "good" if outcome in ("clean", "cured")
+                else ""},
+               {"label": "cures", "value": doc.get("cures")},
+               {"label": "verification views", "value": len(doc.get("verification_views") or [])},
+               {"label": "poses", "value": len(final.get("poses") or [])}]
+    for k, label, unit in (("boundary_mean_mm", "merged boundary mean distance", "mm"),
+                           ("surface_coverage", "measured surface coverage", "fraction"),
+                           ("surface_rms_mm", "measured surface RMS", "mm")):
+        if finite(merged.get(k)) is not None:
+            figures.append({"label": label, "value": round(merged[k], 3), "unit": unit})
+    if finite(acc.get("depth_rms_mm")) is not None:
+        figures.append({"label": "stage-3 depth RMS", "value": round(acc["depth_rms_mm"], 4), "unit": "mm"})
+    if finite(doc.get("time_s")) is not None:
+        figures.append({"label": "time", "value": round(doc["time_s"], 1), "unit": "s"})
+    summary = (f"Outcome: {outcome} ({final.get('outcome_text', '')}). Verdict (no ground truth): "
+               f"{final.get('verdict', '')}. Ground truth: the stage-2 pose sees L/R "
+               f"{_pct(final.get('gt_visibility_first'))} of the boundary, the final poses together "
+               f"{_pct(final.get('gt_visibility'))}.")
+    tables = [{"title": "Steps", "rows": [_step_row(s) for s in doc.get("steps") or [] if isinstance(s, dict)],
+               "caption": "Every stage, view and decision of the loop in order; distances in m; GT visible L/R: "
+                          "percent of the true boundary each camera sees (ground truth, for scoring only)."}]
+    dets = doc.get("detectors") or {}
+    if dets:
+        tables.append({"title": "Detectors at the stage-2 pose",
+                       "rows": [{"detector": k, "fired": v.get("fired"), "measure": v.get("measure"),
+                                 "unit": v.get("unit"), "detail": v.get("detail")} for k, v in dets.items()],
+                       "caption": "Each detector's verdict on whether the stage-2 pose misses part of the boundary "
+                                  "(no ground truth); a dash: it could not be evaluated."})
+    parts = final.get("unverified_parts") or []
+    if parts:
+        tables.append({"title": "Unverified parts", "rows": [{"what": p.get("what")} for p in parts]})
+    plots, notes = [], []
+    npz = Path(sensing_dir) / "multiview.npz"
+    if npz.is_file():
+        try:
+            plots.append({"file": plot_multiview(npz, Path(out_dir) / "multiview.png").name,
+                          "caption": "Each pose's measured outline (green: confirmed by another pose as a true edge; "
+                                     "red: not confirmed, e.g. an occluding contour) over the true boundary (grey), "
+                                     "top view in mm; last panel: the merged boundary and its gaps."})
+        except (OSError, KeyError, ValueError) as e:
+            notes.append(f"multiview.npz not drawn: {e}")
+    links = [{"label": "sensing.json", "path": "sensing.json"}, {"label": "multiview.npz", "path": "multiview.npz"},
+             {"label": "stage 3 folder", "path": "stage3"}]
+    return {"title": "Sensing run", "summary": summary, "outcome": outcome, "figures": figures, "tables": tables,
+            "plots": plots, "links": links, "notes": notes + [str(n) for n in doc.get("notes") or []]}
+
+
+# ----------------------------------------------------------------------------- study
+_ROW_COLUMNS = ("case", "family", "bend_deg", "direction", "axis_deg", "aspect", "distance_m", "outcome",
+                "boundary_verified", "cures", "views", "det_counting_test", "det_arrays_disagree",
+                "det_viewpoint_consistency", "det_occluding_contour", "det_end_tangents", "gt_visible_first",
+                "gt_visible_final", "gt_reachable", "merged_boundary_mean_mm", "merged_surface_coverage",
+                "time_s", "error")
+
+
+def study_section(study_dir: Path, out_dir: Path) -> dict:
+    """The false-boundary study of ``study_dir`` as a generic section dict."""
+    doc = load_study(study_dir)
+    if "outcomes" not in doc:  # the earlier cure study's rows
+        return interim.study_section(study_dir, out_dir)
+    rows = doc["rows"]
+    t = doc.get("targets") or {}
+    oc = doc.get("outcomes") or {}
+    if not isinstance(oc, dict):
+        raise ReportInputError(f"{Path(study_dir) / 'study.json'}: 'outcomes' must be an object")
+    figures = [{"label": "plates", "value": len(rows)}] + [
+        {"label": k.replace("_", " "), "value": v,
+         "status": ("bad" if v else "good") if k in ("silent", "error") else ""} for k, v in oc.items()]
+    if finite(doc.get("time_s")) is not None:
+        figures.append({"label": "time per plate", "value": round(doc["time_s"] / max(len(rows), 1), 1), "unit": "s"})
+    met = t.get("met") or {}
+    summary = ("Targets: " + ", ".join(f"{k} {'n/a' if v is None else ('met' if v else 'NOT met')}"
+                                       for k, v in met.items())
+               + (f". Cured {t.get('cured_of_curable')} of {t.get('curable')} plates whose stage-2 pose hides part "
+                  f"of the boundary and whose reachable poses see it; false alarms {t.get('false_alarms')} of "
+                  f"{t.get('nothing_hidden')} plates with nothing hidden." if t else ""))
+    det = doc.get("detectors") or {}
+    keys = ("true_positive", "false_positive", "false_negative", "true_negative", "precision", "recall")
+    tables = [{"title": "Outcomes per family", "columns": ["family", *OUTCOME_COLORS],
+               "rows": [{"family": f, **c} for f, c in (doc.get("outcomes_by_family") or {}).items()]},
+              {"title": "Outcomes per bend", "columns": ["bend (deg)", *OUTCOME_COLORS],
+               "rows": [{"bend (deg)": b, **c} for b, c in (doc.get("outcomes_by_bend") or {}).items()],
+               "caption": "Cylinders, folds and the flat plate by bend angle (degrees)."},
+              {"title": "Detectors: precision and recall", "columns": ["detector", *keys],
+               "rows": [{"detector": d, **{k: s.get(k) for k in keys}} for d, s in (det.get("all") or {}).items()],
+               "caption": "Each detector against ground truth's 'the stage-2 pose hides part of the true boundary', "
+                          "over the plates without error (evaluation.detection)."},
+              {"title": f"Plates ({len(rows)})", "columns": [c for c in _ROW_COLUMNS if any(c in r for r in rows)],
+               "rows": rows}]
+    plots = []
+    if rows:
+        plots.append({"file": plot_outcomes(doc.get("outcomes_by_bend") or {}, Path(out_dir) / "outcomes_bend.png",
+                                            "Outcome classes per bend (cylinders, folds, flat)", "bend (deg)").name,
+                      "caption": "Number of plates in each outcome class per bend angle (degrees)."})
+        plots.append({"file": plot_outcomes(doc.get("outcomes_by_family") or {},
+                                            Path(out_dir) / "outcomes_family.png", "Outcome classes per family",
+                                            "family").name,
+                      "caption": "Number of plates in each outcome class per deformation family."})
+        if det.get("by_family"):
+            plots.append({"file": plot_detectors(det["by_family"], Path(out_dir) / "detectors_family.png").name,
+                          "caption": "Each detector's precision and recall (0..1) per family; missing bars: "
+                                     "undefined (no plate hidden, or the detector never fired)."})
+    return {"title": "False-boundary study (sensing loop)", "summary": summary, "outcome": None,
+            "figures": figures, "tables": tables, "plots": plots,
+            "links": [{"label": n, "path": n} for n in ("study.json", "study.csv")],
+            "notes": [f"{r['case']}: {r.get('error')}" for r in rows if r.get("outcome") == "error"]}
