@@ -30,8 +30,8 @@ from platebench.bench.io.atomic import staged_directory, write_text
 from platebench.bench.report.dataset import dataset_section
 from platebench.bench.report.experiment import compare_section, recon_section, sample_section
 from platebench.bench.report.inputs import GENERATOR, Inputs, ReportInputError, detect_inputs, recon_sample_dir
-from platebench.bench.report.sensing import sensing_section, study_section
 from platebench.bench.report.page import Page, normalise_section
+from platebench.bench.report.sensing import sensing_section, study_section
 from platebench.bench.report.values import fmt
 
 __all__ = ["write_report", "render_page", "ReportInputError", "GENERATOR", "MAX_COMPARES"]
