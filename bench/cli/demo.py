@@ -4,8 +4,8 @@
 2. the paper's three sensing stages on it (with the false-boundary test);
 3. a bend sweep (examples/demo_sweep.toml: the paper's method, Gray code, SGBM) on 2 local workers,
    and a realism sweep (examples/realism_sweep.toml: rough aluminium x sensor noise);
-4. a small false-boundary study (bend angles around where the default rig starts to miss
-   the true boundary, the L formula against ground truth);
+4. a small false-boundary study (the sensing loop on cylinders of 170 and 200 degrees, convex and
+   concave, about two axes; the L formula against ground truth);
 5. the HTML report of all of it.
 """
 from __future__ import annotations
@@ -67,16 +67,13 @@ def run(args) -> int:
     if args.quick:
         return 0
 
-    print("\n== 2. three sensing stages (paper IV-B, V-B) on the reference plate")
-    from platebench.bench.run.sensing import run_sensing  # noqa: PLC0415
-    with bar(8, "sense") as pbar:
+    print("\n== 2. the sensing loop (paper IV-B, V-B; verification views) on the reference plate")
+    from platebench.bench.cli.sense import step_lines, summary_lines  # noqa: PLC0415
+    from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
+    with bar(4 + SensingOptions.max_views, "sense") as pbar:
         s = run_sensing(SampleConfig(), out / "sensing", progress=step_callback(pbar))
-    for st in s["steps"]:
-        if "stage" in st:
-            print(f"stage {st['stage']}        distance {st['pose']['distance_m'] * 1e3:.0f} mm"
-                  + (f"; squares {st['false_boundary']['detected']} of {st['false_boundary']['expected']} expected, "
-                     f"false boundary {'detected' if st['false_boundary']['false_boundary_detected'] else 'not detected'}"
-                     if st["stage"] == 3 else ""))
+    for line in step_lines(s) + summary_lines(s):
+        print(line)
 
     print("\n== 3. bend sweep (examples/demo_sweep.toml), 2 local workers")
     from platebench.bench.sweep.executors import LocalExecutor, run_sweep  # noqa: PLC0415
@@ -87,12 +84,20 @@ def run(args) -> int:
     summary = run_sweep(load_spec(REALISM_SPEC), out / "realism_sweep", LocalExecutor(2))
     print(f"sweep           {summary.ok} ok, {summary.failed} failed, {summary.samples_per_min:.1f} samples/min")
 
-    print("\n== 4. false-boundary study")
-    from platebench.bench.cli.main import main as cli_main  # noqa: PLC0415
-    rc = cli_main(["study", "false-boundary", "--out", str(out / "study"), "--bend", "150,165,170,180,195",
-                   "--width", "480", "--spp", "4", "--l-bends", "150,165,172"])
-    if rc:
-        return rc
+    print("\n== 4. false-boundary study (the sensing loop on a few bent plates; the L formula)")
+    from platebench.bench.cli.study import table_lines  # noqa: PLC0415
+    from platebench.bench.config import SceneParams, parse_grid  # noqa: PLC0415
+    from platebench.bench.run.study import REFERENCE_ASPECT, study_cases, write_study  # noqa: PLC0415
+    from platebench.scenes.scene_spec import RenderSettings  # noqa: PLC0415
+    cases = [c for c in study_cases((170.0, 200.0)) if c.family == "cylinder" and c.axis_deg in (0.0, 90.0)
+             and c.aspect == REFERENCE_ASPECT and c.distance_m == 0.40]
+    base = SampleConfig(scene=SceneParams(width=480, height=360, pattern=parse_grid("6x12@12")),
+                        render=RenderSettings(spp=4))
+    with bar(len(cases), "study", unit="plate") as pbar:
+        doc = write_study(out / "study", cases, base, overwrite=True, progress=lambda row: pbar.update(1),
+                          settings={"plates": len(cases), "width_px": 480, "spp": 4}, l_bends_deg=(150.0, 165.0, 172.0))
+    for line in table_lines(doc):
+        print(line)
 
     print("\n== 5. report")
     from platebench.bench.report.html import write_report  # noqa: PLC0415

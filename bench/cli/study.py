@@ -2,22 +2,11 @@
 each detector's precision and recall, the targets; the smallest hiding bend and the L formula."""
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams, parse_grid
-from platebench.bench.io.atomic import staged_directory, write_json, write_text
 from platebench.bench.progress import bar
-from platebench.bench.run.study import (
-    DEFAULT_BENDS_DEG,
-    StudyResult,
-    VisibilityProbe,
-    l_formula_table,
-    run_study,
-    smallest_hiding_bend,
-    study_cases,
-)
+from platebench.bench.run.study import DEFAULT_BENDS_DEG, study_cases, write_study
 from platebench.errors import UserValueError
 from platebench.reconstruction.strategy.detectors import DETECTORS
 from platebench.scenes.scene_spec import RenderSettings
@@ -96,35 +85,15 @@ def run(args) -> int:
                         render=RenderSettings(spp=args.spp))
     settings = {"bends_deg": bends, "families": fams, "grid": args.grid, "width_px": args.width,
                 "height_px": args.width * 3 // 4, "spp": args.spp, "plates": len(cases)}
-    with staged_directory(args.out, overwrite=args.overwrite) as stage:
-        with bar(len(cases), "study false-boundary", unit="plate") as pbar:
-            def progress(row):
-                pbar.update(1)
-                pbar.write(f"{row['case']:38s} {row['outcome']:12s} {row['time_s']:6.1f} s")
-            result = run_study(cases, base, progress=progress, settings=settings)
-        extra = {}
-        if l_bends:
-            probe = VisibilityProbe(base)
-            extra["smallest_hiding_bend_deg"] = {d: smallest_hiding_bend(probe, base, d, base.scene.distance_m)
-                                                 for d in ("down", "up")}
-            extra["l_formula"] = l_formula_table(base, l_bends, probe)
-        result = StudyResult(result.rows, result.settings, result.time_s, extra)
-        doc = result.to_dict()
-        write_json(stage / "study.json", doc)
-        write_text(stage / "study.csv", _csv(doc["rows"]))
+    with bar(len(cases), "study false-boundary", unit="plate") as pbar:
+        def progress(row):
+            pbar.update(1)
+            pbar.write(f"{row['case']:38s} {row['outcome']:12s} {row['time_s']:6.1f} s")
+        doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends)
     for line in table_lines(doc):
         print(line)
     print(f"written         {args.out / 'study.json'}, {args.out / 'study.csv'}")
     return 0
-
-
-def _csv(rows: list[dict]) -> str:
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=keys)
-    w.writeheader()
-    w.writerows(rows)
-    return buf.getvalue()
 
 
 def _f(v, spec=".2f"):

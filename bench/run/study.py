@@ -9,14 +9,18 @@ rig and ask the ground-truth caster. World frame, metres; angles in degrees in t
 """
 from __future__ import annotations
 
+import csv
+import io
 import math
 import time
 import traceback
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.atomic import staged_directory, write_json, write_text
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
@@ -310,8 +314,9 @@ class StudyResult:
 
 
 def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOptions = SensingOptions(),
-              progress=None, settings: dict | None = None) -> StudyResult:
-    """The sensing loop on every case (``study_row``); ``progress(row)`` after each."""
+              progress=None, settings: dict | None = None, l_bends_deg=()) -> StudyResult:
+    """The sensing loop on every case (``study_row``); ``progress(row)`` after each. With
+    ``l_bends_deg``: also the smallest hiding bend and the L formula at those convex bends."""
     t0 = time.perf_counter()
     rows = []
     for case in cases:
@@ -319,4 +324,31 @@ def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOption
         rows.append(row)
         if progress is not None:
             progress(row)
-    return StudyResult(tuple(rows), dict(settings or {}), time.perf_counter() - t0)
+    extra = {}
+    if len(l_bends_deg):
+        probe = VisibilityProbe(base)
+        extra["smallest_hiding_bend_deg"] = {d: smallest_hiding_bend(probe, base, d, base.scene.distance_m)
+                                             for d in ("down", "up")}
+        extra["l_formula"] = l_formula_table(base, l_bends_deg, probe)
+    return StudyResult(tuple(rows), dict(settings or {}), time.perf_counter() - t0, extra)
+
+
+def study_csv(rows: list[dict]) -> str:
+    """The study's rows as CSV text (every key of any row a column)."""
+    keys = list(dict.fromkeys(k for r in rows for k in r if k != "traceback"))
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite: bool = False, progress=None,
+                settings: dict | None = None, l_bends_deg=()) -> dict:
+    """Run the study (``run_study``) and write ``out/study.json`` and ``out/study.csv``; the folder
+    appears complete or not at all (staged, then renamed). Returns study.json's dict."""
+    with staged_directory(out, overwrite=overwrite) as stage:
+        doc = run_study(cases, base, progress=progress, settings=settings, l_bends_deg=l_bends_deg).to_dict()
+        write_json(stage / "study.json", doc)
+        write_text(stage / "study.csv", study_csv(doc["rows"]))
+    return doc

@@ -4,7 +4,8 @@ geometry when the boundary is not verified (``decide``, a pure function).
 Verification views (not cures: every plate gets them). The stage-2 pose turned about the boundary
 centre by +-30 and +-60 degrees about the ruling direction ``g`` (the boundary plane's direction
 across the most-bent direction ``e``: a bend's occluding contours run along ``g`` and slide under
-these turns) and by +-30 degrees about ``e`` (for edges running along ``e``). Their baselines lie
+these turns) and by +-30 and +-60 degrees about ``e`` (for edges running along ``e``; a bend
+about an oblique axis needs the 60-degree turns to confirm them). Their baselines lie
 at 45 degrees between ``g`` and ``e``, so that edges along either cross the image rows and are
 matched on the rows, not interpolated.
 
@@ -42,7 +43,8 @@ from platebench.reconstruction.strategy.poses import (
 from platebench.reconstruction.strategy.surface_model import SurfaceModel
 from platebench.scenes.camera import Camera
 
-VERIFY_TURNS_DEG = (("g", -30.0), ("g", 30.0), ("g", -60.0), ("g", 60.0), ("e", -30.0), ("e", 30.0))
+VERIFY_TURNS_DEG = (("g", -30.0), ("g", 30.0), ("g", -60.0), ("g", 60.0), ("e", -30.0), ("e", 30.0), ("e", -60.0),
+                    ("e", 60.0))
 CANDIDATE_TURNS_DEG = tuple([("g", a) for a in (-15, 15, -45, 45, -75, 75)] +
                             [("e", a) for a in (-45, 45, -60, 60, -75, 75)] +
                             [(d, a) for a in (-45, 45, -60, 60, -75, 75) for d in ("g+e", "g-e")])
