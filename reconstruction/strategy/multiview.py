@@ -20,10 +20,14 @@ The verdict (``verify``) asks whether the confirmed pieces of all poses close in
 plate's boundary does. Pieces are grouped where one leads on from another's end, or where they
 run along the same edge. A piece that stops where no other confirmed piece leads on is a *gap*:
 part of the boundary that no pose has shown to be a true edge. ``BoundaryVerdict.verified`` is
-true when a group without gaps is at least ``LOOP_MIN_FRACTION`` of the first pose's measured
-outline long (lengths over 5 mm chords): a plate's boundary is one closed curve, so a closed loop of its pieces is all of it. Other
-groups (short stretches of occluding contour that two poses happened to see at the same place)
-are then stray, named in the reason and left out of the merged boundary.
+true when a group is at least ``LOOP_MIN_FRACTION`` of the first pose's measured outline long
+(lengths over 5 mm chords), goes round (no gap of more than ``LOOP_MAX_ANGLE_GAP_RAD`` in its
+directions from its centroid, seen from the first pose), and no piece anywhere has a loose end:
+a plate's boundary is one closed curve, so a closed loop of its pieces is all of it, but a loop
+that leaves loose ends elsewhere may be a short-cut (on a 300-degree curl one covered 43 % of
+the boundary). Other groups closed on themselves (short stretches of occluding contour that two
+poses happened to see at the same place) are then stray, named in the reason and left out of the
+merged boundary.
 
 Limits (measured on the bench, see DESIGN.md): a contour slides less than ``CONFIRM_TOL_M`` when
 ``R`` is under about 2.3 mm (a crease): such a contour cannot be told from an edge this way.
@@ -48,6 +52,7 @@ LINK_M = 4e-3  # a piece's end links to another piece within this distance ...
 LEAD_M = 12e-3  # ... that leads on: has a point within this of the end, farther than LINK_M from the piece
 OUTLINE_BRIDGE_M = 12e-3  # or to one reached along some pose's measured outline within this arc length
 LOOP_MIN_FRACTION = 0.7  # a closed group of pieces is the boundary when at least this x the first pose's outline
+LOOP_MAX_ANGLE_GAP_RAD = float(np.radians(60.0))  # ... and goes round its centroid (seen from the first pose)
 OVERLAP_POINTS = 3  # pieces sharing this many points (within LINK_M) run along the same edge: one group
 MERGE_SPACING_M = 1e-3  # the merged boundary keeps one point per this spacing
 REPORT_MIN_M = 8e-3  # unconfirmed outline runs at least this long are reported
@@ -353,10 +358,14 @@ def facing_masks(views: list[ViewOutline], model) -> list[np.ndarray]:
 
 
 def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | None = None) -> BoundaryVerdict:
-    """Confirm (with the surface model's facing test when ``model`` is given), cut into pieces, link
-    the pieces' ends and decide (see module doc)."""
+    """Confirm, cut into pieces, link the pieces' ends and decide (see module doc).
+
+    ``model`` (a ``surface_model.SurfaceModel``) is accepted for the facing shortcut of ``confirm``
+    but not used: the outline membranes cut chords under a bend, so their normals near an
+    occluding contour are wrong, and the shortcut confirmed contours of a 300-degree curl as edges
+    (a silent wrong verdict). Every confirmation needs the turn about the edge's own direction."""
     if confirmed is None:
-        confirmed = confirm(views, facing=None if model is None else facing_masks(views, model))
+        confirmed = confirm(views)
     ps = pieces(views, confirmed)
     if not ps:
         return BoundaryVerdict(False, (), (), _unconfirmed(views, confirmed, []), np.zeros((0, 3)), 0,
@@ -400,16 +409,20 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
         if root in open_groups:
             continue
         pts = _merge_points([p for i, p in enumerate(ps) if find(i) == root])  # short pieces of it too
-        if len(pts) * MERGE_SPACING_M >= need:
+        if len(pts) * MERGE_SPACING_M >= need and _angular_gap(pts, views[0].camera_center) <= LOOP_MAX_ANGLE_GAP_RAD:
             loops.append((root, members, pts))
     unconf = _unconfirmed(views, confirmed, ps)
-    if loops:
+    if loops and not gaps:
         root, members, merged = max(loops, key=lambda x: len(x[2]))
         stray = components - 1
         reason = "the confirmed pieces close into one loop" + (
-            f" ({stray} stray group(s) of confirmed outline off it, with {len(gaps)} loose end(s), left out)"
-            if stray else "")
-        return BoundaryVerdict(True, tuple(ps), tuple(gaps), unconf, merged, components, reason, tuple(confirmed))
+            f" ({stray} stray group(s) of confirmed outline off it, closed on themselves, left out)" if stray else "")
+        return BoundaryVerdict(True, tuple(ps), (), unconf, merged, components, reason, tuple(confirmed))
+    if loops:  # a loop, but loose ends elsewhere: part of the boundary may run on from them
+        reason = (f"the confirmed pieces close into a loop, but {len(gaps)} piece end(s) elsewhere have no "
+                  "confirmed piece leading on")
+        return BoundaryVerdict(False, tuple(ps), tuple(gaps), unconf, _merge_points(ps), components, reason,
+                               tuple(confirmed))
     merged = _merge_points(ps)
     if gaps:
         reason = f"{len(gaps)} piece end(s) where no confirmed piece leads on"
@@ -418,6 +431,21 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
     else:
         reason = "the confirmed pieces close into a loop shorter than the outline"
     return BoundaryVerdict(False, tuple(ps), tuple(gaps), unconf, merged, components, reason, tuple(confirmed))
+
+
+def _angular_gap(points: np.ndarray, viewpoint: np.ndarray) -> float:
+    """Largest gap (rad) between the directions of ``points`` from their centroid, projected on the
+    plane across the direction to ``viewpoint``: small for a closed loop around the plate, large
+    (a half turn and more) for a stretch of boundary that does not go round."""
+    P = np.asarray(points, float)
+    c = P.mean(axis=0)
+    n = np.asarray(viewpoint, float) - c
+    n /= np.linalg.norm(n)
+    a = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    ang = np.sort(np.arctan2((P - c) @ b, (P - c) @ a))
+    return float(np.max(np.diff(np.concatenate([ang, [ang[0] + 2 * np.pi]]))))
 
 
 def _smooth_length(points: np.ndarray, step_m: float = 5e-3) -> float:
