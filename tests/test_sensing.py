@@ -259,6 +259,10 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     npz = np.load(tmp_path / "multiview.npz")
     assert npz["merged"].shape[1] == 3 and len(npz["view_names"]) == len(s.views)
     assert (tmp_path / "stage3" / "recon" / "recon.json").is_file()
+    from platebench.bench.report.sensing import sensing_section
+    sec = sensing_section(tmp_path, tmp_path / "plots")
+    assert sec["outcome"] == "clean" and sec["figures"][0] == {"label": "boundary verified", "value": True}
+    assert [p["file"] for p in sec["plots"]] == ["multiview.png"] and (tmp_path / "plots" / "multiview.png").is_file()
 
 
 @pytest.mark.render
