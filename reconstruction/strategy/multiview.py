@@ -25,9 +25,8 @@ true when a group is at least ``LOOP_MIN_FRACTION`` of the first pose's measured
 directions from its centroid, seen from the first pose), and no piece anywhere has a loose end:
 a plate's boundary is one closed curve, so a closed loop of its pieces is all of it, but a loop
 that leaves loose ends elsewhere may be a short-cut (on a 300-degree curl one covered 43 % of
-the boundary). Other groups closed on themselves (short stretches of occluding contour that two
-poses happened to see at the same place) are then stray, named in the reason and left out of the
-merged boundary.
+the boundary), and no other group stands apart (two groups closed on themselves: one of them is
+not the boundary; on a 300-degree curl such a pair covered 44 % of it).
 
 Limits (measured on the bench, see DESIGN.md): a contour slides less than ``CONFIRM_TOL_M`` when
 ``R`` is under about 2.3 mm (a crease): such a contour cannot be told from an edge this way.
@@ -412,12 +411,15 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
         if len(pts) * MERGE_SPACING_M >= need and _angular_gap(pts, views[0].camera_center) <= LOOP_MAX_ANGLE_GAP_RAD:
             loops.append((root, members, pts))
     unconf = _unconfirmed(views, confirmed, ps)
-    if loops and not gaps:
-        root, members, merged = max(loops, key=lambda x: len(x[2]))
-        stray = components - 1
-        reason = "the confirmed pieces close into one loop" + (
-            f" ({stray} stray group(s) of confirmed outline off it, closed on themselves, left out)" if stray else "")
-        return BoundaryVerdict(True, tuple(ps), (), unconf, merged, components, reason, tuple(confirmed))
+    if loops and not gaps and components == 1:
+        root, members, merged = loops[0]
+        return BoundaryVerdict(True, tuple(ps), (), unconf, merged, components,
+                               "the confirmed pieces close into one loop", tuple(confirmed))
+    if loops and not gaps:  # two closed groups: a plate has one boundary, so one of them is not it
+        reason = (f"the confirmed pieces form {components} separate groups closed on themselves; a plate's "
+                  "boundary is one loop")
+        return BoundaryVerdict(False, tuple(ps), (), unconf, _merge_points(ps), components, reason,
+                               tuple(confirmed))
     if loops:  # a loop, but loose ends elsewhere: part of the boundary may run on from them
         reason = (f"the confirmed pieces close into a loop, but {len(gaps)} piece end(s) elsewhere have no "
                   "confirmed piece leading on")
