@@ -306,9 +306,9 @@ class StudyResult:
         rows = [{k: v for k, v in r.items() if k != "traceback"} for r in self.rows]
         return {"kind": "false-boundary sensing study", "rows": rows, "outcomes": outcome_counts(rows),
                 "outcomes_by_family": outcome_counts(rows, lambda r: r["family"]),
-                "outcomes_by_bend": outcome_counts([r for r in rows if r.get("bend_deg") is not None
-                                                    and r["family"] in ("cylinder", "fold", "flat")],
-                                                   lambda r: f"{r['bend_deg']:g}"),
+                "outcomes_by_bend": dict(sorted(outcome_counts(
+                    [r for r in rows if r.get("bend_deg") is not None and r["family"] in ("cylinder", "fold", "flat")],
+                    lambda r: f"{r['bend_deg']:g}").items(), key=lambda kv: float(kv[0]))),
                 "detectors": detector_scores(rows), "targets": targets(rows), "settings": self.settings,
                 "time_s": self.time_s, **self.extra}
 
