@@ -274,6 +274,18 @@ def probe_scheduler(address: str, timeout_s: float) -> dict:
     return reply
 
 
+def _quiet_dask_logs() -> None:
+    """The client logs every reconnection attempt with a traceback on stderr; the sweep reports a lost
+    scheduler itself, in one line (PLATEBENCH_DEBUG=1 keeps Dask's logs)."""
+    import logging  # noqa: PLC0415
+    if os.environ.get("PLATEBENCH_DEBUG"):
+        return
+    import distributed  # noqa: F401,PLC0415  (configures its loggers on import; set the levels after)
+    for name in ["distributed", "tornado", "asyncio",
+                 *(n for n in logging.root.manager.loggerDict if n.startswith("distributed."))]:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
 class DaskExecutor:
     """Runs the samples on a Dask distributed cluster through ``distributed.Client``.
 
@@ -300,6 +312,7 @@ class DaskExecutor:
 
     def connect(self):
         if self._client is None:
+            _quiet_dask_logs()
             probe_scheduler(self.address, self.connect_timeout_s)
             from distributed import Client  # noqa: PLC0415
             try:
