@@ -3,7 +3,7 @@ random moments, resumed after each kill, and checked (not a timed test; a script
 
 ``python -m platebench.bench.perf.chaos [--rounds 10] [--samples 20] [--seed 0]`` (or
 ``platebench perf chaos``). Each round starts ``platebench sweep SPEC --scheduler ADDR [--resume]``
-in a fresh process on a real ``LoopbackCluster`` (127.0.0.1), waits a random 1-6 s, then kill -9s a
+in a fresh process on a real ``LoopbackCluster`` (127.0.0.1), waits a random 2-12 s, then kill -9s a
 random victim by PID: the scheduler (the cluster is restarted), one worker (its nanny too; a new
 worker joins), or the sweep process. After the sweep process has ended, the dataset is checked:
 
@@ -41,7 +41,7 @@ VICTIMS = ("scheduler", "worker", "sweep")
 
 def _spec(path: Path, n: int) -> Path:
     path.write_text(tomli_w.dumps({"sweep": {"name": "chaos"},
-                                   "base": {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 3}},
+                                   "base": {"scene": {"width": 240, "height": 180}, "render": {"spp": 4, "seed": 3}},
                                    "grid": {"bend_deg": [round(i * 60.0 / max(n - 1, 1), 3) for i in range(n)]}}))
     return path
 
@@ -94,7 +94,7 @@ def run_chaos(rounds: int = 10, samples: int = 20, seed: int = 0, workdir: Path 
                    "--scheduler", cluster.address, "--no-progress", "--worker-timeout-s", "30", *resume]
             sweep = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             victim = rng.choice(VICTIMS)
-            delay = rng.uniform(1.0, 6.0)
+            delay = rng.uniform(2.0, 12.0)
             time.sleep(delay)
             killed = sweep.poll() is None
             if killed:

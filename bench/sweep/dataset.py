@@ -428,6 +428,8 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
             raise DatasetLayoutError(f"{out} is not empty and holds no sweep manifest: refusing to replace it")
         return manifest
     if resume:
+        if manifest is None and _started_skeleton(out, spec):
+            return None  # a sweep killed before its first manifest: nothing committed to keep, start it
         if manifest is None:
             raise DatasetLayoutError(f"{out}: no valid {MANIFEST} to resume from (is it a sweep dataset?)")
         old = (manifest.get("spec") or {}).get("sha256")
@@ -444,6 +446,23 @@ def make_stage_dataset(out: Path) -> Path:
     d = out.parent / f".tmp-{out.name}~{HOST}~{os.getpid()}~{secrets.token_hex(4)}"
     d.mkdir()
     return d
+
+
+def _started_skeleton(out: Path, spec) -> bool:
+    """``out`` holds only what a sweep of this spec makes before its first manifest (``samples/`` with
+    uncommitted attempts, ``spec.toml`` of the same text, temporary files)."""
+    for p in Path(out).iterdir():
+        if is_temp_name(p.name):
+            continue
+        if p.name == SPEC_COPY and p.is_file():
+            if spec.text and p.read_text(errors="replace") != spec.text:
+                return False
+        elif p.name == SAMPLES and p.is_dir():
+            if any(not is_temp_name(q.name) for q in p.iterdir()):
+                return False
+        else:
+            return False
+    return True
 
 
 def prepare_dataset(out: Path, spec) -> None:
