@@ -450,7 +450,7 @@ def make_stage_dataset(out: Path) -> Path:
 
 def _started_skeleton(out: Path, spec) -> bool:
     """``out`` holds only what a sweep of this spec makes before its first manifest (``samples/`` with
-    uncommitted attempts, ``spec.toml`` of the same text, temporary files)."""
+    uncommitted attempts, ``spec.toml`` of the same text, tables, temporary files)."""
     for p in Path(out).iterdir():
         if is_temp_name(p.name):
             continue
@@ -460,7 +460,7 @@ def _started_skeleton(out: Path, spec) -> bool:
         elif p.name == SAMPLES and p.is_dir():
             if any(not is_temp_name(q.name) for q in p.iterdir()):
                 return False
-        else:
+        elif p.name not in (RESULTS_CSV, RESULTS_PARQUET):  # tables of no committed sample are allowed
             return False
     return True
 

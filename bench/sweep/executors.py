@@ -667,9 +667,9 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
             todo.append(task)
     skipped = len(results)
 
-    def flush(state: str) -> None:
-        ds.write_results(out, list(results.values()))
+    def flush(state: str) -> None:  # the manifest first: a dataset with a manifest can always be resumed
         ds.write_manifest(out, ds.manifest_dict(spec, results, executor.describe(), started, state, packages))
+        ds.write_results(out, list(results.values()))
 
     flush("running")
     if skipped or redo:
