@@ -180,8 +180,8 @@ def read_npy(path: Path, shape: tuple | None = None) -> np.ndarray:
     if not np.issubdtype(a.dtype, np.number):
         raise DatasetError(f"{path}: holds {a.dtype} values: allowed numbers")
     if shape is not None and (a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape))):
-        want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
-        raise DatasetError(f"{path}: shape {a.shape}: allowed {want}")
+        want = "(" + ",".join("N" if s is None else str(s) for s in shape) + ")"
+        raise DatasetError(f"{path}: must be a finite {want} array, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise DatasetError(f"{path}: holds NaN or inf: allowed finite values")
+        raise DatasetError(f"{path}: must be a finite array, holds NaN or inf")
     return a
