@@ -43,7 +43,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from platebench.bench.io.atomic import pid_alive, swap_in
+from platebench.bench.io.atomic import pid_alive, swap_in, sweep_stale
 from platebench.bench.sweep import dataset as ds
 from platebench.bench.sweep.tasks import (
     SampleTask,
@@ -621,6 +621,7 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
     try:
         if lock.stale_note():
             say(f"note: {lock.stale_note()}")
+        sweep_stale(out.parent, only=out.name)  # staging of a killed --overwrite sweep into the same place
         old = ds.check_dataset(out, spec, resume, overwrite)
         if overwrite and old is not None:
             stage = ds.make_stage_dataset(out)
