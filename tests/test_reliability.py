@@ -299,3 +299,19 @@ def test_manifest_is_not_left_running_and_keeps_up_with_the_samples(tmp_path):
     run_sweep(load_spec(spec), out, LocalExecutor(0), resume=True, progress=False, on_result=check)
     assert seen and all(a == b == c for a, b, c in seen), seen
     assert read_manifest(out)["state"] == "complete"
+
+
+def test_compare_is_staged(tmp_path):
+    sample = tmp_path / "s"
+    assert cli("render", "--out", sample, "--width", "160", "--height", "120", "--spp", "2").returncode == 0
+    out = tmp_path / "cmp"
+    r = cli("compare", sample, "--methods", "sgbm", "--out", out)
+    assert r.returncode == 0, r.stderr
+    first = mtimes(out)
+    r = cli("compare", sample, "--methods", "sgbm", "--out", out)
+    assert r.returncode == 2 and "already exists" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert mtimes(out) == first
+    r = cli("compare", sample, "--methods", "sgbm", "--out", out, "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["compare.json", "compare.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cmp", "s"]
