@@ -3,7 +3,7 @@ random moments, resumed after each kill, and checked (not a timed test; a script
 
 ``python -m platebench.bench.perf.chaos [--rounds 10] [--samples 20] [--seed 0]`` (or
 ``platebench perf chaos``). Each round starts ``platebench sweep SPEC --scheduler ADDR [--resume]``
-in a fresh process on a real ``LoopbackCluster`` (127.0.0.1), waits a random 2-12 s, then kill -9s a
+in a fresh process on a real ``LoopbackCluster`` (127.0.0.1), waits until it commits a sample, then a random 0-6 s, then kill -9s a
 random victim by PID: the scheduler (the cluster is restarted), one worker (its nanny too; a new
 worker joins), or the sweep process. After the sweep process has ended, the dataset is checked:
 
@@ -94,8 +94,13 @@ def run_chaos(rounds: int = 10, samples: int = 20, seed: int = 0, workdir: Path 
                    "--scheduler", cluster.address, "--no-progress", "--worker-timeout-s", "30", *resume]
             sweep = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             victim = rng.choice(VICTIMS)
-            delay = rng.uniform(2.0, 12.0)
+            delay = rng.uniform(0.0, 6.0)
+            t0 = time.monotonic()
+            n0 = len(_committed(out))
+            while sweep.poll() is None and len(_committed(out)) == n0 and time.monotonic() - t0 < 120:
+                time.sleep(0.05)  # the sweep is under way once it commits a sample: kill mid-sweep
             time.sleep(delay)
+            delay += time.monotonic() - t0 - delay
             killed = sweep.poll() is None
             if killed:
                 if victim == "scheduler":
