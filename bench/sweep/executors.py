@@ -139,12 +139,14 @@ class LocalExecutor:
                         blind += 1
                         if blind > self.retries:  # nothing tells who died: isolate every one left
                             suspects.extend(sorted(pending))
-            for sid in culprits:
+            for sid in sorted(culprits):
                 attempts[sid] += 1
                 if attempts[sid] > self.retries:
                     t = pending.pop(sid)
                     yield t, None, WorkerLost(f"its worker process died {attempts[sid]} times while running it "
                                               "alone")
+                else:
+                    suspects.insert(0, sid)  # a sample charged once runs alone until it succeeds or fails
 
     def _round(self, tasks: list[SampleTask], workers: int, pending: dict):
         """Run ``tasks`` on a fresh pool until all finish or a worker dies; yields results (and pops
