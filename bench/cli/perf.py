@@ -9,6 +9,7 @@ from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 TARGETS = ("render", "reconstruct", "sweep")
+EXTRA = ("chaos", "bad-input")  # reliability scripts, run only when named
 
 
 def add_parser(sub) -> None:
@@ -19,7 +20,9 @@ def add_parser(sub) -> None:
                                    "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
                                    "worker. Reference experiment at 1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
-                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all)")
+                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
+                        "sweep whose scheduler, workers and sweep process are killed and resumed, 10 rounds) and "
+                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers)")
     p.add_argument("--width", type=int, default=1280)
     p.add_argument("--height", type=int, default=960)
     p.add_argument("--spp", type=int, default=16)
@@ -30,9 +33,17 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from platebench.bench.perf.benchmarks import perf_reconstruct, perf_render  # noqa: PLC0415
+    if args.targets and args.targets[0] in EXTRA:
+        if len(args.targets) != 1:
+            raise UserValueError(f"perf {args.targets[0]} runs alone: got {' '.join(args.targets)}")
+        if args.targets[0] == "chaos":
+            from platebench.bench.perf.chaos import main as chaos  # noqa: PLC0415
+            return chaos(["--json", str(args.json)] if args.json else [])
+        from platebench.bench.perf.bad_inputs import main as bad_inputs  # noqa: PLC0415
+        return bad_inputs(["--json", str(args.json)] if args.json else [])
     bad = [t for t in args.targets if t not in TARGETS]
     if bad:
-        raise UserValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS)}")
+        raise UserValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS + EXTRA)}")
     if args.repeat < 1:
         raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
     cfg = SampleConfig(scene=SceneParams(width=args.width, height=args.height), render=RenderSettings(spp=args.spp))

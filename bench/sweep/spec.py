@@ -126,15 +126,15 @@ import itertools
 import json
 import math
 import numbers
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
-from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig
+from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml
 from platebench.bench.config.axes import AXES as AXIS_INFO
+from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
 from platebench.errors import UserValueError
 
@@ -375,25 +375,13 @@ def _grid_values(key: str, axis: Axis, spec) -> list:
             return _grid_values(key, axis, vals if isinstance(vals, list) else [vals])
         if "start" not in spec or "stop" not in spec or ("step" in spec) == ("num" in spec):
             raise SpecError(f"{key} = {spec!r}: a range needs start, stop and exactly one of step or num")
-        start, stop = _num(f"{key}.start", spec["start"]), _num(f"{key}.stop", spec["stop"])
-        if "num" in spec:
-            num = _num(f"{key}.num", spec["num"], True)
-            if not 1 <= num <= MAX_SAMPLES:
-                raise SpecError(f"{key}.num = {num} is out of range: allowed 1 to {MAX_SAMPLES}")
-            raw = [float(x) for x in np.linspace(start, stop, num)]
-        else:
-            step = _num(f"{key}.step", spec["step"])
-            if step <= 0:
-                raise SpecError(f"{key}.step = {spec['step']!r} is out of range: allowed > 0")
-            if stop < start:
-                raise SpecError(f"{key}: stop = {spec['stop']!r} is below start = {spec['start']!r}: "
-                                "allowed stop >= start")
-            n = int(math.floor((stop - start) / step + 1e-9)) + 1
-            if n > MAX_SAMPLES:
-                raise SpecError(f"{key}: {n} values is too many: allowed at most {MAX_SAMPLES}")
-            ints = all(isinstance(spec[k], int) and not isinstance(spec[k], bool) for k in ("start", "stop", "step"))
-            raw = [start + i * step for i in range(n)]
-            raw = [int(round(x)) if ints else round(x, 12) for x in raw]
+        ints = "step" in spec and all(isinstance(spec[k], int) and not isinstance(spec[k], bool)
+                                      for k in ("start", "stop", "step"))
+        try:  # counted before it is expanded: {start = 0, stop = 1e12, step = 1e-3} is refused, not made
+            raw = expand_range(key, spec["start"], spec["stop"], spec.get("step"), spec.get("num"),
+                               max_count=MAX_SAMPLES, integers=ints)
+        except RangeError as e:
+            raise SpecError(str(e)) from None
         return [axis.parse(key, x) for x in raw]
     if isinstance(spec, list) and not (axis.name == "resolution" and _is_pair(spec)):
         values = spec
@@ -707,13 +695,11 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
 def load_spec(path: Path, methods: tuple | None = None) -> SweepSpec:
     """Read, validate and expand a TOML sweep spec (raises SpecError with a one-line message)."""
     path = Path(path)
-    if not path.is_file():
-        raise SpecError(f"{path}: sweep spec file is missing")
-    text = path.read_text()
     try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise SpecError(f"{path}: invalid TOML ({e})") from None
+        doc = read_toml(path, "sweep spec")
+    except ConfigError as e:
+        raise SpecError(str(e)) from None
+    text = path.read_bytes().decode("utf-8")
     try:
         return parse_spec(doc, text, methods)
     except SpecError as e:
