@@ -54,6 +54,7 @@ def n_committed(out: Path) -> int:
 
 
 # ----------------------------------------------------------------------------- item 3: the dataset lock
+@pytest.mark.render
 def test_second_sweep_into_a_dataset_is_refused_and_a_stale_lock_taken_over(tmp_path):
     spec = write_spec(tmp_path / "s.toml", [0, 5, 10, 15, 20, 25, 30, 35])
     out = tmp_path / "ds"
@@ -87,6 +88,7 @@ def test_second_sweep_into_a_dataset_is_refused_and_a_stale_lock_taken_over(tmp_
 
 
 # ----------------------------------------------------------------------------- item 4: one row per method
+@pytest.mark.render
 def test_a_failed_write_records_each_method_once(tmp_path):
     """The dataset lives on a 96 KiB tmpfs (a user namespace): the render succeeds, writing it fails
     (no space left); the sample is failed with one row per method, the methods do not run."""
@@ -130,6 +132,7 @@ def _kill_attempts_of(out: Path, sid: str, stop: threading.Event, killed: list) 
 
 
 @pytest.mark.slow
+@pytest.mark.render
 def test_poisoned_sample_does_not_take_down_its_neighbour(tmp_path):
     from platebench.bench.sweep.executors import LocalExecutor, run_sweep
     from platebench.bench.sweep.spec import parse_spec
@@ -160,6 +163,7 @@ def test_poisoned_sample_does_not_take_down_its_neighbour(tmp_path):
 
 
 # ----------------------------------------------------------------------------- item 6: resume verifies
+@pytest.mark.render
 def test_resume_redoes_samples_whose_files_do_not_match(tmp_path):
     from platebench.bench.sweep.executors import LocalExecutor, run_sweep
     from platebench.bench.sweep.spec import parse_spec
@@ -181,6 +185,7 @@ def test_resume_redoes_samples_whose_files_do_not_match(tmp_path):
 
 
 # ----------------------------------------------------------------------------- items 7, 8, 12: staged outputs
+@pytest.mark.render
 def test_simultaneous_renders_to_one_out_one_wins_the_other_is_refused(tmp_path):
     out = tmp_path / "s"
     procs = [subprocess.Popen(cli_cmd("render", "--out", out, *TINY, "--seed", str(i)), cwd=REPO,
@@ -196,6 +201,7 @@ def test_simultaneous_renders_to_one_out_one_wins_the_other_is_refused(tmp_path)
     assert not [p for p in tmp_path.iterdir() if p.name != "s"]  # no staging, no lock left
 
 
+@pytest.mark.render
 def test_killed_overwrite_render_keeps_the_old_sample_and_leaves_nothing_the_next_run_does_not_clean(tmp_path):
     out = tmp_path / "s"
     assert cli("render", "--out", out, *TINY).returncode == 0
@@ -233,6 +239,7 @@ def test_render_checks_the_target_before_rendering(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.render
 def test_killed_overwrite_sweep_keeps_the_old_dataset(tmp_path):
     spec = write_spec(tmp_path / "s.toml", [0, 10, 20])
     out = tmp_path / "ds"
@@ -251,6 +258,7 @@ def test_killed_overwrite_sweep_keeps_the_old_dataset(tmp_path):
     assert read_manifest(out)["state"] == "complete" and not stale_files(out)
 
 
+@pytest.mark.render
 def test_demo_is_staged(tmp_path):
     out = tmp_path / "demo"
     out.mkdir()

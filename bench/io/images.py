@@ -12,7 +12,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import OpenEXR
 
 from platebench.bench.io.atomic import temp_path, write_bytes
 from platebench.errors import UserValueError
@@ -95,6 +94,8 @@ def write_exr(path: Path, data: np.ndarray) -> None:
         channels = {"RGB": data}
     else:
         raise ValueError(f"EXR writer takes (H,W), (H,W,2) or (H,W,3), got {data.shape} ({name})")
+    import OpenEXR  # noqa: PLC0415  (only where EXR is written or read: the in-memory pipeline never needs it)
+
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = str(temp_path(path))
@@ -112,6 +113,8 @@ def read_exr(path: Path) -> np.ndarray:
         raise DatasetError(f"{path}: file is missing")
     with open(path, "rb"):  # permission errors as the OSError they are (one line naming the file)
         pass
+    import OpenEXR  # noqa: PLC0415
+
     said: list = []
     try:
         with _c_stderr(said):

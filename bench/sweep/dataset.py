@@ -63,18 +63,20 @@ from platebench.bench.io.atomic import (
     write_json,
     write_text,
 )
+from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the dataset's names)
+    FORMAT,
+    MANIFEST,
+    RESULT,
+    RESULT_FORMAT,
+    RESULTS_CSV,
+    RESULTS_PARQUET,
+    SAMPLES,
+    SPEC_COPY,
+    VERSION,
+)
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
 
-FORMAT = "platebench-sweep"
-VERSION = 1
-RESULT_FORMAT = "platebench-sweep-result"
-MANIFEST = "manifest.json"
-SPEC_COPY = "spec.toml"
-RESULTS_CSV = "results.csv"
-RESULTS_PARQUET = "results.parquet"
-SAMPLES = "samples"
-RESULT = "result.json"
 STATUSES = ("ok", "failed")
 
 # (column, type) of the results table; "str", "int", "float", "bool"; None where unknown

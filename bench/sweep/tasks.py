@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.layout import RECON, method_folder
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
@@ -170,7 +171,7 @@ def _run_sample(task: SampleTask) -> dict:
     del sample
     if written:  # methods run only on a sample that was rendered AND written: one row per method, always
         for name in task.methods:
-            ctx = MethodContext(stage / "sample", stage / "recon" / name, _STATE["renderer"], task.pose)
+            ctx = MethodContext(stage / "sample", stage / RECON / method_folder(name), _STATE["renderer"], task.pose)
             try:
                 out = get_method(name).run(ctx)
                 row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
