@@ -227,14 +227,15 @@ def cases() -> list[Case]:
 
 
 def _prepare(work: Path) -> None:
-    """One small sample (64 x 48, spp 1) and its reconstruction: the material the damage cases copy."""
-    from platebench.bench.cli.main import main  # noqa: PLC0415
+    """One small sample (160 x 120, spp 2) and its reconstruction: the material the damage cases copy.
+    Made through the CLI in a subprocess, as a user would (perf sits below the CLI's layer)."""
     cfg = work / "small.toml"
     cfg.write_text("[scene]\nwidth = 160\nheight = 120\n[render]\nspp = 2\n")
     for argv in (["render", "--config", str(cfg), "--out", str(work / "good")],
                  ["reconstruct", str(work / "good"), "--out", str(work / "good_recon")]):
-        if main(argv) != 0:
-            raise SystemExit(f"bad_inputs: could not prepare {argv}")
+        p = subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *argv], capture_output=True, text=True)
+        if p.returncode != 0:
+            raise SystemExit(f"bad_inputs: could not prepare {argv}: {p.stderr.strip()[-500:]}")
 
 
 def _snapshot(work: Path) -> set:
