@@ -1,19 +1,30 @@
 # Two commands do all set-up on a fresh machine (Debian, Python 3.11):
 #   make demo   - the main job: the paper's reference experiment end to end
 #   make test   - the test suite (what CI runs through .ci/run)
+# Both install the exact versions of requirements.lock (made by pip-tools from pyproject.toml),
+# then the package itself without dependencies. `make lock` upgrades the lock (see README).
 PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed-stamp
 OUT ?= out/demo
+TOOLS := .venv-tools
 
-.PHONY: demo test setup clean chromium
+.PHONY: demo test setup clean chromium lock
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
-	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --quiet -e ".[test]"
-	$(VENV)/bin/platebench info >/dev/null
+	$(VENV)/bin/python -m pip install --quiet -r requirements.lock
+	$(VENV)/bin/python -m pip install --quiet --no-deps -e .
+	$(VENV)/bin/platebench info --check-lock >/dev/null
 	touch $(STAMP)
+
+# Re-resolve every dependency to its newest release allowed by pyproject.toml and rewrite
+# requirements.lock (pip-tools in its own venv); then `make test` and commit the lock.
+lock:
+	$(PYTHON) -m venv $(TOOLS)
+	$(TOOLS)/bin/python -m pip install --quiet pip-tools
+	$(TOOLS)/bin/pip-compile --quiet --upgrade --strip-extras --extra test --no-emit-index-url \
+	  --no-emit-find-links --output-file requirements.lock pyproject.toml
 
 setup: $(STAMP)
 
@@ -31,4 +42,4 @@ test: $(STAMP) chromium
 	$(VENV)/bin/python -m pytest -q
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) $(TOOLS) out

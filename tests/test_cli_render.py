@@ -18,6 +18,7 @@ def _digest(d):
     return h.hexdigest()
 
 
+@pytest.mark.render
 def test_same_seed_gives_byte_identical_images_in_two_processes(tmp_path):
     for name in ("a", "b"):
         p = run_cli("render", "--out", tmp_path / name, *SMALL, "--seed", "7")
@@ -53,6 +54,7 @@ def test_bad_config_file_names_the_key(tmp_path):
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.render
 def test_existing_sample_is_not_clobbered(tmp_path):
     out = tmp_path / "s"
     assert run_cli("render", "--out", out, *SMALL).returncode == 0

@@ -41,6 +41,7 @@ def cluster():
             assert p is None or p.poll() is not None
 
 
+@pytest.mark.render
 def test_dask_sweep_on_two_loopback_workers(cluster, tmp_path):
     from platebench.bench.sweep.executors import DaskExecutor, run_sweep
     pids = set(cluster.worker_pids().values())
@@ -60,6 +61,7 @@ def test_dask_sweep_on_two_loopback_workers(cluster, tmp_path):
     assert not stale_files(out)
 
 
+@pytest.mark.render
 def test_worker_killed_mid_sweep_loses_no_sample(cluster, tmp_path):
     import tomli_w
     from distributed import Client

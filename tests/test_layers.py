@@ -197,6 +197,15 @@ def test_import_platebench_does_not_load_the_renderer(tmp_path):
     assert r.returncode == 0 and r.stdout.strip() == "[]", r.stderr
 
 
+def test_the_in_memory_pipeline_does_not_load_openexr(tmp_path):
+    """OpenEXR is read and written only where an EXR file is (bench/io/images, method_outputs)."""
+    mods = ("platebench.bench.run.paper_method", "platebench.bench.run.score", "platebench.bench.sweep.tasks",
+            "platebench.bench.io.sample_files")
+    r = _run([sys.executable, "-c", f"import sys, importlib; [importlib.import_module(m) for m in {mods!r}]; "
+              "print('OpenEXR' in sys.modules)"], tmp_path)
+    assert r.returncode == 0 and r.stdout.strip() == "False", r.stderr
+
+
 @pytest.mark.slow
 def test_the_wheel_installs_only_the_platebench_namespace(tmp_path):
     """A regular (non-editable) wheel: every file under platebench/, the examples as package data."""

@@ -197,6 +197,8 @@ def test_installed_plugin_runs_in_a_local_sweep_with_two_workers(installed, tmp_
         assert r["mb_nonocc_avgerr_px"] is not None
     assert all(r["matched_count"] == 16 for r in by["paper"])
     assert (out / "samples" / "0000" / "recon" / "blockmatch" / "disparity.pfm").is_file()
+    # a module:function method's folder is one safe path component (bench.io.layout.method_folder)
+    assert (out / "samples" / "0000" / "recon" / "platebench_blockmatch_block_match_points" / "points.ply").is_file()
     header = (out / "results.csv").read_text().splitlines()[0].split(",")
     assert "mb_nonocc_bad_1_0_pct" in header and "method_matched_px_count" in header
 

@@ -128,6 +128,7 @@ def test_bad_spec_on_the_command_line_writes_nothing(tmp_path):
 
 
 # ----------------------------------------------------------------------------- a real sweep
+@pytest.mark.render
 def test_local_sweep_two_workers_with_a_failing_sample(tmp_path):
     """4 samples on 2 worker processes; albedo 0 (a black plate) makes the paper's pipeline fail:
     recorded as failed, the sweep goes on; manifest + CSV + Parquet have the right rows."""
@@ -171,6 +172,7 @@ def test_local_sweep_two_workers_with_a_failing_sample(tmp_path):
     assert not stale_files(out)
 
 
+@pytest.mark.render
 def test_resume_after_kill_9(tmp_path):
     """Kill -9 a running sweep once its first sample is done; --resume redoes nothing completed,
     sweeps temporary leftovers and finishes the rest."""
@@ -236,6 +238,7 @@ def _wait_gone(pid: int, timeout: float = 15.0) -> None:
     raise AssertionError(f"worker process {pid} outlived the killed sweep")
 
 
+@pytest.mark.render
 def test_local_worker_killed_mid_sweep_is_retried(tmp_path):
     """kill -9 a pool worker while it works: the pool is rebuilt, its sample retried, none lost."""
     import threading

@@ -5,7 +5,7 @@ import math
 from pathlib import Path
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
-from platebench.bench.io.atomic import staged_directory, write_json
+from platebench.bench.io.atomic import check_target, staged_output, write_json
 from platebench.bench.progress import bar, step_callback
 from platebench.bench.run.calibration import (
     DEFAULT_TARGET_Z_M,
@@ -39,8 +39,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    if args.out.exists() and not args.overwrite:
-        raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
+    check_target(args.out, args.overwrite, "calibration")
     if args.target_z_mm is None:
         target_z = DEFAULT_TARGET_Z_M
     else:
@@ -52,7 +51,8 @@ def run(args) -> int:
     board = BoardSpec()
     n_poses = len(calibration_poses(cfg.scene.build().rig, board))
     steps = 2 * n_poses + 2 * len(target_z) + (0 if args.no_reconstruction else 6 + 3)
-    with bar(steps, "calibrate") as pbar:
+    with staged_output(args.out, overwrite=args.overwrite, what="calibration") as stage, \
+            bar(steps, "calibrate") as pbar:
         step = step_callback(pbar)
         result, renderer = run_calibration(cfg, board, target_z, progress=step)
         comparison = None
@@ -65,8 +65,7 @@ def run(args) -> int:
         if comparison is not None:
             out["reconstruction"] = {name: {"metrics": MetricsRow.from_score(s).columns(), "score": s.to_dict()}
                                      for name, s in comparison.items()}
-        with staged_directory(args.out, overwrite=args.overwrite) as d:
-            write_json(d / "calibration.json", out)
+        write_json(stage / "calibration.json", out)
         pbar.update(pbar.total - pbar.n)
     print(format_table(result.report, comparison))
     print(f"{'written':34s} {args.out / 'calibration.json'}")

@@ -32,7 +32,7 @@ import sys
 import time
 from pathlib import Path
 
-from platebench.bench.io.atomic import write_bytes, write_json
+from platebench.bench.io.atomic import staged_output, write_bytes, write_json
 from platebench.bench.report.plots import compare_error_figure
 from platebench.bench.run.compare import (
     ALL_METHODS,
@@ -103,6 +103,7 @@ def add_parser(sub) -> None:
                    help=f"comma-separated list from {', '.join(ALL_METHODS)}, installed plug-ins (entry points "
                         f"of platebench.methods) and module:function plug-ins (default: {','.join(METHODS)})")
     p.add_argument("--out", type=Path, help="output directory (default SAMPLE_DIR/compare)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
     p.add_argument("--recon", type=Path, help="directory with the paper pipeline's points.csv / recon.json "
                    "(default: the sample's parent directory)")
     p.add_argument("--spp", type=int, help="samples per pixel for the pattern sequences (default: the sample's)")
@@ -129,13 +130,14 @@ def run(args) -> int:
     def say(msg):
         print(f"  {msg}", file=sys.stderr, flush=True)
 
-    cmp = compare_sample(args.sample, args.methods, args.recon, args.spp, depth_range, progress=say)
     out = Path(args.out) if args.out is not None else Path(args.sample) / "compare"
-    out.mkdir(parents=True, exist_ok=True)
-    doc = comparison_json(cmp)
-    doc["total_s"] = time.perf_counter() - t0
-    write_json(out / "compare.json", doc)
-    write_bytes(out / "compare.png", compare_error_figure(cmp))
+    # staged (bench.io.atomic): --out checked before the renders, replaced only with --overwrite and complete
+    with staged_output(out, overwrite=args.overwrite, what="comparison") as stage:
+        cmp = compare_sample(args.sample, args.methods, args.recon, args.spp, depth_range, progress=say)
+        doc = comparison_json(cmp)
+        doc["total_s"] = time.perf_counter() - t0
+        write_json(stage / "compare.json", doc)
+        write_bytes(stage / "compare.png", compare_error_figure(cmp))
     print(f"sample      {args.sample}")
     print(format_table(cmp))
     for n in cmp.notes:

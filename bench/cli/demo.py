@@ -10,17 +10,17 @@
 """
 from __future__ import annotations
 
-import shutil
 import time
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.atomic import write_json
+from platebench.bench.io.atomic import staged_output, write_json
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.io.sample_files import load_inputs, write_sample
 from platebench.bench.progress import bar, step_callback
 from platebench.bench.run.render import render_sample
 from platebench.bench.run.score import score_files
+from platebench.errors import PlateBenchError
 from platebench.evaluation.score import format_table
 from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct
 
@@ -43,24 +43,37 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    out: Path = args.out
-    if out.exists():
-        if not args.overwrite:
-            raise FileExistsError(f"{out} already exists (use --overwrite to replace it)")
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
+    # staged: DIR is checked before any work and replaced (with --overwrite) only by a finished demo
+    with staged_output(args.out, overwrite=args.overwrite, what="demo output") as stage:
+        rc = _run(args, stage, Path(args.out))
+        if rc:
+            raise DemoFailed(f"demo step failed (exit status {rc}): {args.out} is left as it was")
+    print(f"output          {args.out}")
+    return 0
+
+
+class DemoFailed(PlateBenchError):
+    """A step of the demo failed: its output is not swapped in."""
+
+
+def _run(args, out: Path, final: Path) -> int:
+    """The demo into the staging directory ``out`` (paths are shown as they will be: under ``final``)."""
     t0 = time.perf_counter()
+
+    def shown(path) -> Path:
+        return final / Path(path).relative_to(out)
+
     ref = out / "reference"
     print("== 1. reference experiment (paper V): render, reconstruct, evaluate")
     with bar(7, "render reference") as pbar:
         sample, _ = render_sample(SampleConfig(), progress=step_callback(pbar))
         write_sample(ref / "sample", sample)
-    print(f"rendered        {ref / 'sample'} in {sample.timings_s['total_s']:.1f} s ({sample.variant})")
+    print(f"rendered        {shown(ref / 'sample')} in {sample.timings_s['total_s']:.1f} s ({sample.variant})")
     inputs = load_inputs(ref / "sample")
     rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
     r = reconstruct(inputs.images, inputs.calibration.rig, rays, inputs.pattern)
     write_reconstruction(ref / "recon", r, ref / "sample", image_checksums(inputs.images))
-    print(f"reconstructed   {ref / 'recon'} in {r.timings_s['total_s'] * 1e3:.0f} ms")
+    print(f"reconstructed   {shown(ref / 'recon')} in {r.timings_s['total_s'] * 1e3:.0f} ms")
     score = score_files(ref / "sample", ref / "recon")
     write_json(ref / "recon" / "score.json", score.to_dict())
     print(format_table(score))
@@ -102,6 +115,6 @@ def run(args) -> int:
     print("\n== 5. report")
     from platebench.bench.report.html import write_report  # noqa: PLC0415
     index = write_report(out)
-    print(f"report          {index}")
+    print(f"report          {shown(index)}")
     print(f"demo finished in {time.perf_counter() - t0:.0f} s")
     return 0

@@ -14,6 +14,7 @@ import importlib
 import os
 import sys
 
+from platebench.bench.io.atomic import Terminated, install_sigterm_handler
 from platebench.errors import PlateBenchError
 from platebench.version import __version__
 
@@ -31,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "paper's pipeline and peer methods, score against exact ground truth.",
         epilog="Units: metres and radians in files; flags say when they take mm or degrees. "
                "Run 'platebench COMMAND --help' for each command. Exit status: 0 done, 2 a user error "
-               "(one line on stderr), 130 interrupted.")
+               "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     parser.add_argument("--version", action="version", version=f"platebench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for modname in COMMANDS.values():
@@ -41,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _one_line(e: BaseException) -> str:
     if isinstance(e, OSError) and e.filename is not None and e.strerror:
-        return f"{e.filename}: {e.strerror.lower()}"
+        return f"{e.filename}: {e.strerror[0].lower() + e.strerror[1:]}"
     text = str(e).strip()
     return text.splitlines()[0] if text else type(e).__name__
 
@@ -49,8 +50,12 @@ def _one_line(e: BaseException) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    install_sigterm_handler()  # SIGTERM unwinds like Ctrl-C: staged outputs removed, manifests closed
     try:
         return int(args.run(args) or 0)
+    except Terminated:
+        print("platebench: terminated (SIGTERM); completed outputs are kept, partial ones removed", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("platebench: interrupted; completed outputs are kept, partial ones removed", file=sys.stderr)
         return 130

@@ -9,6 +9,7 @@ from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 TARGETS = ("render", "reconstruct", "sweep")
+EXTRA = ("chaos", "bad-input", "variants")  # run only when named
 
 
 def add_parser(sub) -> None:
@@ -19,20 +20,40 @@ def add_parser(sub) -> None:
                                    "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
                                    "worker. Reference experiment at 1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
-                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all)")
+                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
+                        "sweep whose scheduler, workers and sweep process are killed and resumed, 10 rounds) and "
+                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), and "
+                        "variants (the same scene rendered by each of --variants, pixels compared with the first, "
+                        "samples per second)")
     p.add_argument("--width", type=int, default=1280)
     p.add_argument("--height", type=int, default=960)
     p.add_argument("--spp", type=int, default=16)
     p.add_argument("--repeat", type=int, default=2, help="timed repetitions (best is reported)")
     p.add_argument("--json", type=Path, help="also write the figures as JSON here")
+    p.add_argument("--variants", default="cuda_ad_rgb,llvm_ad_rgb",
+                   help="perf variants: comma-separated Mitsuba variants, the first is the baseline "
+                        "(default cuda_ad_rgb,llvm_ad_rgb: a GPU machine)")
+    p.add_argument("--save", type=Path, help="perf variants: save the first variant's images (.npz)")
+    p.add_argument("--against", type=Path, help="perf variants: compare the first variant's images with these "
+                                                "(.npz from --save on another machine)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     from platebench.bench.perf.benchmarks import perf_reconstruct, perf_render  # noqa: PLC0415
+    if args.targets and args.targets[0] in EXTRA:
+        if len(args.targets) != 1:
+            raise UserValueError(f"perf {args.targets[0]} runs alone: got {' '.join(args.targets)}")
+        if args.targets[0] == "variants":
+            return _variants(args)
+        if args.targets[0] == "chaos":
+            from platebench.bench.perf.chaos import main as chaos  # noqa: PLC0415
+            return chaos(["--json", str(args.json)] if args.json else [])
+        from platebench.bench.perf.bad_inputs import main as bad_inputs  # noqa: PLC0415
+        return bad_inputs(["--json", str(args.json)] if args.json else [])
     bad = [t for t in args.targets if t not in TARGETS]
     if bad:
-        raise UserValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS)}")
+        raise UserValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS + EXTRA)}")
     if args.repeat < 1:
         raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
     cfg = SampleConfig(scene=SceneParams(width=args.width, height=args.height), render=RenderSettings(spp=args.spp))
@@ -44,6 +65,22 @@ def run(args) -> int:
             out[target] = perf_sweep()
         else:
             out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
+    if args.json:
+        write_json(args.json, out)
+    return 0
+
+
+def _variants(args) -> int:
+    from platebench.bench.perf.variants import perf_variants  # noqa: PLC0415
+    variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    if not variants:
+        raise UserValueError(f"--variants = {args.variants!r}: give at least one Mitsuba variant")
+    if args.against is not None and not args.against.is_file():
+        raise UserValueError(f"--against = {args.against}: no such file (an .npz written by --save)")
+    if args.repeat < 1:
+        raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
+    print(f"== perf variants ({args.width}x{args.height}, spp {args.spp}): {', '.join(variants)}")
+    out = perf_variants(variants, args.width, args.height, args.spp, args.repeat, args.save, args.against)
     if args.json:
         write_json(args.json, out)
     return 0

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.io.atomic import staged_output
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.io.sample_files import load_inputs
 from platebench.errors import UserValueError
@@ -34,10 +35,15 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    if args.out.exists() and not args.overwrite:
-        raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
     if not (0.1 <= args.grid_mm <= 20):
         raise UserValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
+    with staged_output(args.out, overwrite=args.overwrite, what="reconstruction") as stage:
+        r = _reconstruct(args, stage)
+    print_summary(r, args.out)
+    return 0
+
+
+def _reconstruct(args, stage: Path):
     inputs = load_inputs(args.sample_dir)
     rig = inputs.calibration.rig
     rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
@@ -49,9 +55,8 @@ def run(args) -> int:
                         PipelineOptions(grid_step_m=args.grid_mm * 1e-3))
     except ReconstructionError as e:
         raise ReconstructionError(name_the_file(str(e), args.sample_dir)) from None
-    write_reconstruction(args.out, r, args.sample_dir, image_checksums(inputs.images), overwrite=args.overwrite)
-    print_summary(r, args.out)
-    return 0
+    write_reconstruction(stage, r, args.sample_dir, image_checksums(inputs.images), into=True)
+    return r
 
 
 def name_the_file(message: str, sample_dir: Path) -> str:

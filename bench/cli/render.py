@@ -5,6 +5,7 @@ import argparse
 from pathlib import Path
 
 from platebench.bench.config import load_config, with_camera_preset, with_overrides
+from platebench.bench.io.atomic import staged_output
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.progress import bar, step_callback
 from platebench.bench.run.render import render_sample
@@ -58,12 +59,12 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    if args.out.exists() and not args.overwrite:
-        raise FileExistsError(f"{args.out} already exists (use --overwrite to replace it)")
-    with bar(7, "render") as pbar:
+    # staged: --out checked (exists? locked by another writer? writable?) before the render; replaced
+    # only with --overwrite, and only once the new sample is complete
+    with staged_output(args.out, overwrite=args.overwrite, what="sample") as stage, bar(7, "render") as pbar:
         sample, _ = render_sample(cfg, progress=step_callback(pbar))
         pbar.set_postfix_str("write")
-        write_sample(args.out, sample, overwrite=args.overwrite)
+        write_sample(stage, sample, into=True)
         pbar.update(pbar.total - pbar.n)
     t = sample.timings_s
     vis = sample.visibility

@@ -5,6 +5,7 @@ The spec format is documented in ``bench/sweep_spec.py``, the dataset layout in
 """
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -28,6 +29,11 @@ def add_parser(sub) -> None:
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run on this Dask distributed scheduler instead (workers need this package and see "
                         "DATASET at the same path)")
+    p.add_argument("--connect-timeout-s", type=float, default=10.0,
+                   help="with --scheduler: seconds to reach the scheduler before giving up (default 10)")
+    p.add_argument("--worker-timeout-s", type=float, default=60.0,
+                   help="with --scheduler: seconds without any worker before the sweep stops with an error "
+                        "(default 60; the dataset is kept for --resume)")
     p.add_argument("--methods", help="comma-separated reconstruction methods, overriding the spec's")
     p.add_argument("--resume", action="store_true", help="continue DATASET: skip samples whose result is done")
     p.add_argument("--retry-failed", action="store_true", help="with --resume, run failed samples again")
@@ -65,7 +71,11 @@ def run(args) -> int:
         for k, n in spec.ignored.items():
             print(f"note: axis {k} does not apply to {n} samples (ignored there)")
         return 0
-    executor = DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(
+    for flag, v in (("--connect-timeout-s", args.connect_timeout_s), ("--worker-timeout-s", args.worker_timeout_s)):
+        if not math.isfinite(v) or not 1.0 <= v <= 86400.0:
+            raise UserValueError(f"{flag} = {v} is out of range: allowed 1 to 86400 s")
+    executor = DaskExecutor(args.scheduler, connect_timeout_s=args.connect_timeout_s,
+                            worker_timeout_s=args.worker_timeout_s) if args.scheduler else LocalExecutor(
         1 if args.workers is None else args.workers)
     if args.scheduler:
         executor.connect()  # fail fast, before the dataset is created

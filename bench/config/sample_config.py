@@ -49,7 +49,8 @@ from platebench.scenes.scene_spec import (
 )
 from platebench.scenes.sensor_model import SensorModel
 
-__all__ = ["ConfigError", "SceneParams", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid", "with_overrides"]
+__all__ = ["ConfigError", "SceneParams", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid",
+           "with_overrides", "read_toml", "check_types", "check_value_type"]
 
 
 class ConfigError(UserValueError):
@@ -63,6 +64,73 @@ _MATERIAL_KEYS = {"kind", "albedo", "metal", "alpha"}
 _RENDER_KEYS = {"spp", "seed", "variant"}
 _SENSOR_KEYS = {"bit_depth", "radiance_full_scale", "gamma", "full_well_e", "read_noise_dn"}
 _TOP_KEYS = {"plate", "scene", "render", "sensor"}
+
+
+# Types of every scalar key (what TOML gives): "int" (an integer, not 160.5, not "160", not a bool),
+# "float" (a finite number, not a string), "str", "table", "float?" (a number or absent). Ranges are
+# checked by the classes; the type check comes first so that the message says what is wrong.
+_TYPES = {
+    "scene": {"distance_m": "float", "width": "int", "height": "int", "f_px": "float?", "baseline_m": "float",
+              "projector_kind": "str", "ambient": "float", "material": "table", "pattern": "table",
+              "aperture_radius_m": "float", "focus_distance_m": "float?"},
+    "scene.pattern": dict.fromkeys(_PATTERN_KEYS, "int"),
+    "scene.material": {"kind": "str", "albedo": "float", "metal": "str", "alpha": "float"},
+    "render": {"spp": "int", "seed": "int", "variant": "str?"},
+    "sensor": {"bit_depth": "int", "radiance_full_scale": "float", "gamma": "float", "full_well_e": "float",
+               "read_noise_dn": "float"},
+    "plate": {"length_m": "float", "width_m": "float", "thickness_m": "float", "deformation": "table"},
+}
+_ALLOWED = {"scene.width": "an integer 16 to 8192", "scene.height": "an integer 16 to 8192",
+            "render.spp": "an integer 1 to 65536", "render.seed": "an integer 0 to 2^31-1",
+            "sensor.bit_depth": "8 or 16"}
+_TEXT_KEYS = {"family", "direction"}  # the only text values of plate.deformation
+
+
+def _type_error(key: str, v, kind: str) -> ConfigError:
+    what = {"int": "an integer", "float": "a finite number", "str": "a string", "table": "a table"}[kind.rstrip("?")]
+    allowed = _ALLOWED.get(key, what)
+    shown = repr(v) if not isinstance(v, float) else f"{v!r}"
+    return ConfigError(f"{key} = {shown} is not {what}"
+                       + (f" ({type(v).__name__})" if isinstance(v, (str, bool)) else "") + f": allowed {allowed}")
+
+
+def check_value_type(key: str, v, kind: str) -> None:
+    """Refuse ``v`` for ``key`` unless it has the type ``kind`` (see ``_TYPES``); one-line ConfigError."""
+    if kind.endswith("?"):
+        if v is None:
+            return
+        kind = kind[:-1]
+    if kind == "int":
+        ok = isinstance(v, int) and not isinstance(v, bool)
+    elif kind == "float":
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    elif kind == "str":
+        ok = isinstance(v, str)
+    else:
+        ok = isinstance(v, dict)
+    if not ok:
+        raise _type_error(key, v, kind)
+
+
+def check_types(d: dict, prefix: str = "") -> None:
+    """Check the type of every known key of a configuration dict (before any class sees it)."""
+    if not isinstance(d, dict):
+        raise ConfigError(f"{prefix or 'configuration'} = {d!r} is not a table")
+    for table, types in _TYPES.items():
+        node = d
+        for part in table.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        if node is None:
+            continue
+        if not isinstance(node, dict):
+            raise ConfigError(f"{prefix}{table} = {node!r} is not a table")
+        for k, v in node.items():
+            if k in types:
+                check_value_type(f"{prefix}{table}.{k}", v, types[k])
+    dfm = (d.get("plate") or {}).get("deformation") if isinstance(d.get("plate"), dict) else None
+    if isinstance(dfm, dict):
+        for k, v in dfm.items():
+            check_value_type(f"{prefix}plate.deformation.{k}", v, "str" if k in _TEXT_KEYS else "float")
 
 
 def _check_keys(where: str, d: dict, allowed: set) -> None:
@@ -143,7 +211,10 @@ class SampleConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "SampleConfig":
+        if not isinstance(d, dict):
+            raise ConfigError(f"configuration = {d!r} is not a table")
         _check_keys("config", d, _TOP_KEYS)
+        check_types(d)
         try:
             plate = PlateSpec.from_dict(d["plate"]) if "plate" in d else reference_spec()
             scene_d = dict(d.get("scene", {}))
@@ -174,13 +245,31 @@ def load_config(path: Path | None) -> SampleConfig:
     if path is None:
         return SampleConfig()
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: configuration file is missing")
+    d = read_toml(path, "configuration")
     try:
-        d = tomllib.loads(path.read_text())
+        return SampleConfig.from_dict(d)
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+
+
+def read_toml(path: Path, what: str = "TOML") -> dict:
+    """A TOML file as a dict; one-line errors naming the file (missing, a directory, unreadable: the
+    OSError; not UTF-8; bad syntax: ConfigError)."""
+    path = Path(path)
+    if not path.exists():
+        raise ConfigError(f"{path}: {what} file is missing")
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a directory: allowed a {what} file (TOML)")
+    data = path.read_bytes()  # PermissionError names the file
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text (byte 0x{data[e.start]:02x} at offset {e.start}): allowed a "
+                          f"UTF-8 {what} file (TOML)") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: invalid TOML ({e})") from None
-    return SampleConfig.from_dict(d)
+        raise ConfigError(f"{path}: invalid TOML ({str(e).splitlines()[0]})") from None
 
 
 def parse_grid(text: str) -> dict:

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import OpenEXR
 import trimesh
 
 from platebench.bench.io.atomic import write_bytes
@@ -90,6 +89,8 @@ EXR_DEPTH_CHANNELS = ("Z", "Y", "depth", "Depth", "D", "R")
 
 def _read_exr_depth(path: Path) -> np.ndarray:
     """The depth channel of an EXR: its only channel, else the first of ``EXR_DEPTH_CHANNELS`` present."""
+    import OpenEXR  # noqa: PLC0415  (EXR only where an EXR file is read)
+
     try:
         ch = OpenEXR.File(str(path)).channels()
     except Exception as e:  # noqa: BLE001  (OpenEXR raises plain exceptions)

@@ -9,6 +9,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
@@ -24,7 +25,7 @@ from platebench.bench.io.atomic import (
     write_json,
     write_text,
 )
-from platebench.bench.io.images import DatasetError
+from platebench.bench.io.images import DatasetError, read_npy
 from platebench.reconstruction.paper.pipeline import Reconstruction
 
 CSV_COLUMNS = ("pattern_row", "pattern_col", "feature_id", "u_left", "v_left", "u_right", "v_right",
@@ -68,8 +69,10 @@ def points_csv(r: Reconstruction) -> str:
 
 
 def write_reconstruction(out: Path, r: Reconstruction, sample_dir: Path, checksums: dict,
-                         overwrite: bool = False) -> Path:
-    with staged_directory(Path(out), overwrite=overwrite) as d:
+                         overwrite: bool = False, into: bool = False) -> Path:
+    """Write a reconstruction directory atomically. ``into``: ``out`` is an empty directory of an output
+    that is already staged (``bench.io.atomic.staged_output``): the files are written straight into it."""
+    with (contextlib.nullcontext(Path(out)) if into else staged_directory(Path(out), overwrite=overwrite)) as d:
         cloud = trimesh.PointCloud(r.points) if len(r.points) else None
         if cloud is not None:
             write_bytes(d / "points.ply", cloud.export(file_type="ply"))
@@ -102,13 +105,21 @@ def load_reconstruction(recon_dir: Path) -> ReconFiles:
     if not meta_path.is_file():
         raise DatasetError(f"{meta_path}: file is missing")
     try:
-        meta = json.loads(meta_path.read_text())
+        meta = json.loads(meta_path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError:
+        raise DatasetError(f"{meta_path}: not a UTF-8 JSON file") from None
     except json.JSONDecodeError as e:
         raise DatasetError(f"{meta_path}: invalid JSON ({e.msg})") from None
+    if not isinstance(meta, dict):
+        raise DatasetError(f"{meta_path}: the top level is a {type(meta).__name__}: allowed a JSON object")
     csv = d / "points.csv"
     if not csv.is_file():
         raise DatasetError(f"{csv}: file is missing")
-    rows = [line.split(",") for line in csv.read_text().splitlines()[1:] if line.strip()]
+    try:
+        text = csv.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise DatasetError(f"{csv}: not a UTF-8 text CSV file") from None
+    rows = [line.split(",") for line in text.splitlines()[1:] if line.strip()]
     try:
         table = np.array(rows, dtype=float).reshape(-1, len(CSV_COLUMNS))
     except ValueError:
@@ -116,14 +127,16 @@ def load_reconstruction(recon_dir: Path) -> ReconFiles:
     if not np.all(np.isfinite(table)):
         bad = int(np.argwhere(~np.isfinite(table))[0, 0]) + 2
         raise DatasetError(f"{csv}: line {bad} holds NaN or inf: a reconstruction must not contain them")
-    bpath = d / "boundary.npy"
-    if not bpath.is_file():
-        raise DatasetError(f"{bpath}: file is missing")
-    boundary = np.load(bpath)
-    if boundary.ndim != 2 or boundary.shape[1] != 3 or not np.all(np.isfinite(boundary)):
-        raise DatasetError(f"{bpath}: must be a finite (N,3) array, got shape {boundary.shape}")
+    boundary = read_npy(d / "boundary.npy", (None, 3))
     spath = d / "surface.ply"
-    surface = trimesh.load(spath, process=False, force="mesh") if spath.is_file() else None
+    surface = None
+    if spath.is_file():
+        try:
+            surface = trimesh.load(spath, process=False, force="mesh")
+        except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a damaged file)
+            raise DatasetError(f"{spath}: not a readable PLY mesh ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+        if not isinstance(surface, trimesh.Trimesh):
+            raise DatasetError(f"{spath}: not a PLY triangle mesh")
     if surface is not None and not np.all(np.isfinite(surface.vertices)):
         raise DatasetError(f"{spath}: surface vertices hold NaN or inf")
     return ReconFiles(table[:, 7:10], table[:, 2].astype(int), table[:, 3:5], table[:, 5:7], boundary, surface, meta)

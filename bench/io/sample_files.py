@@ -19,6 +19,7 @@ not at all. Reconstruction reads only ``images/``, ``calib.json`` and ``pattern.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 from dataclasses import dataclass
@@ -36,6 +37,7 @@ from platebench.bench.io.atomic import (
 from platebench.bench.io.images import (
     DatasetError,
     read_exr,
+    read_npy,
     read_pfm,
     read_png,
     write_exr,
@@ -63,12 +65,14 @@ def _mesh_ply_bytes(mesh: trimesh.Trimesh) -> bytes:
     return mesh.export(file_type="ply", encoding="binary")
 
 
-def write_sample(out: Path, s, overwrite: bool = False) -> Path:
+def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> Path:
     """Write a rendered sample (``bench.run.render.RenderedSample``) atomically; returns the sample
-    directory."""
+    directory. ``into``: ``out`` is an empty directory of an output that is already staged (a command
+    stages its whole output first with ``staged_output``, so that a bad ``--out`` fails before the
+    render): the files are written straight into it."""
     out = Path(out)
     rig = s.scene.rig
-    with staged_directory(out, overwrite=overwrite) as d:
+    with (contextlib.nullcontext(out) if into else staged_directory(out, overwrite=overwrite)) as d:
         (d / "images").mkdir()
         (d / "gt").mkdir()
         for name in IMAGE_NAMES:
@@ -121,13 +125,25 @@ class ReconstructionInputs:
     sample_dir: Path
 
 
-def _read_json(path: Path) -> dict:
+def _read_json(path: Path, kind: type = dict) -> dict:
+    """A JSON file whose top level must be a ``kind`` (one-line DatasetError naming the file otherwise)."""
     if not path.is_file():
         raise DatasetError(f"{path}: file is missing")
     try:
-        return json.loads(path.read_text())
+        d = json.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not a UTF-8 JSON file") from None
     except json.JSONDecodeError as e:
         raise DatasetError(f"{path}: invalid JSON ({e.msg} at line {e.lineno})") from None
+    if not isinstance(d, kind):
+        raise DatasetError(f"{path}: the top level is a {type(d).__name__}: allowed a JSON "
+                           f"{'object' if kind is dict else kind.__name__}")
+    return d
+
+
+def _bad(path: Path, e: Exception, what: str) -> DatasetError:
+    why = f"missing key {e}" if isinstance(e, KeyError) else (str(e).splitlines()[0] if str(e) else type(e).__name__)
+    return DatasetError(f"{path}: {what} ({why})")
 
 
 def load_calibration(sample_dir: Path) -> Calibration:
@@ -138,20 +154,28 @@ def load_calibration(sample_dir: Path) -> Calibration:
         rig = StereoRig(left, right, float(d["baseline_m"]))
         p = d["projector"]
         return Calibration(rig, Camera.from_dict(p), p.get("kind", "pinhole"), p.get("cutoff_rad"))
-    except (KeyError, ValueError, TypeError) as e:
-        raise DatasetError(f"{path}: bad calibration ({e})") from None
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError) as e:
+        raise _bad(path, e, "bad calibration") from None
 
 
 def load_pattern(sample_dir: Path) -> Pattern:
     sample_dir = Path(sample_dir)
-    d = _read_json(sample_dir / "pattern.json")
+    path = sample_dir / "pattern.json"
+    d = _read_json(path)
     img = read_png(sample_dir / "pattern.png").astype(np.float32) / 255.0
-    feats = tuple(Feature.from_dict(f) for f in d["features"])
-    fmap = np.full(img.shape, -1, np.int32)
-    for f in feats:  # rebuild ownership from the corners (square features)
-        (u0, v0), (u1, v1) = f.corners[0], f.corners[2]
-        fmap[int(np.ceil(v0)):int(np.floor(v1)) + 1, int(np.ceil(u0)):int(np.floor(u1)) + 1] = f.id
-    return Pattern(img, feats, fmap, d.get("description", {}))
+    try:
+        if not isinstance(d.get("features"), list):
+            raise ValueError("'features' must be a list of feature objects")
+        feats = tuple(Feature.from_dict(f) for f in d["features"])
+        fmap = np.full(img.shape, -1, np.int32)
+        for f in feats:  # rebuild ownership from the corners (square features)
+            (u0, v0), (u1, v1) = f.corners[0], f.corners[2]
+            if not all(np.isfinite([u0, v0, u1, v1])):
+                raise ValueError(f"feature {f.id} has non-finite corners")
+            fmap[int(np.ceil(v0)):int(np.floor(v1)) + 1, int(np.ceil(u0)):int(np.floor(u1)) + 1] = f.id
+        return Pattern(img, feats, fmap, d.get("description", {}))
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError) as e:
+        raise _bad(path, e, "bad pattern description") from None
 
 
 def load_inputs(sample_dir: Path) -> ReconstructionInputs:
@@ -191,18 +215,15 @@ def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:
     d = Path(sample_dir)
     meta = _read_json(d / "sample.json")
     if meta.get("layout_version") != LAYOUT_VERSION:
-        raise DatasetError(f"{d / 'sample.json'}: layout_version {meta.get('layout_version')} "
+        raise DatasetError(f"{d / 'sample.json'}: layout_version {meta.get('layout_version')!r} "
                            f"is not supported (expected {LAYOUT_VERSION})")
-    ply = d / "plate.ply"
-    if not ply.is_file():
-        raise DatasetError(f"{ply}: file is missing")
-    mesh = trimesh.load(ply, process=False, force="mesh")
-    bpath = d / "boundary.npy"
-    if not bpath.is_file():
-        raise DatasetError(f"{bpath}: file is missing")
+    for key, kind in (("config", dict), ("images", dict)):
+        if key in meta and not isinstance(meta[key], kind):
+            raise DatasetError(f"{d / 'sample.json'}: '{key}' is a {type(meta[key]).__name__}: allowed an object")
+    mesh = read_mesh(d / "plate.ply")
     g = d / "gt"
     return GroundTruthFiles(
-        mesh, np.load(bpath),
+        mesh, read_npy(d / "boundary.npy", (None, 3)),
         {c: read_exr(g / f"{c}_depth.exr") for c in CAMERAS},
         {c: read_png(g / f"{c}_mask.png") > 0 for c in CAMERAS},
         {c: read_exr(g / f"{c}_points.exr") for c in CAMERAS},
@@ -210,3 +231,17 @@ def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:
         {c: read_exr(g / f"{c}_proj.exr") for c in CAMERAS},
         read_pfm(g / "disp0GT.pfm"),
         _read_json(g / "visibility.json"), meta)
+
+
+def read_mesh(path: Path) -> trimesh.Trimesh:
+    """A triangle mesh (PLY) with finite vertices; one-line DatasetError naming the file otherwise."""
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"{path}: file is missing")
+    try:
+        mesh = trimesh.load(path, process=False, force="mesh")
+    except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a damaged file)
+        raise _bad(path, e, "not a readable PLY mesh") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or not np.all(np.isfinite(mesh.vertices)):
+        raise DatasetError(f"{path}: not a PLY triangle mesh with finite vertices")
+    return mesh

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from platebench.bench.config.axes import PARAMETERS, parameter_label
+from platebench.bench.io.layout import RECON, method_folder
 from platebench.bench.report import plots as P
 from platebench.bench.report import summary as S
 from platebench.bench.report.inputs import load_results, read_manifest, records, sample_folder
@@ -256,7 +257,7 @@ def _axis_table(st: dict, label: str) -> dict:
 
 # ----------------------------------------------------------------------------- error maps
 def _recon_dir(ds: Path, sample_id: str, method: str) -> Path:
-    return sample_folder(ds, sample_id) / "recon" / method
+    return sample_folder(ds, sample_id) / RECON / method_folder(method)
 
 
 def _has_map_files(recon: Path) -> bool:

@@ -37,6 +37,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from platebench.bench.config.axes import PARAMETERS
+from platebench.bench.io.layout import FORMAT, MANIFEST, RESULTS_CSV, RESULTS_PARQUET, SAMPLES
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS
 
@@ -44,13 +45,7 @@ __all__ = ["ReportInputError", "Inputs", "detect_inputs", "read_json", "read_man
            "load_study", "sample_folder", "records", "GENERATOR", "DATASET_FORMAT"]
 
 GENERATOR = "platebench report"
-# The sweep dataset's file names (its layout is documented in bench/sweep/dataset.py; the report
-# layer may not import the sweep layer).
-DATASET_FORMAT = "platebench-sweep"
-MANIFEST = "manifest.json"
-RESULTS_PARQUET = "results.parquet"
-RESULTS_CSV = "results.csv"
-SAMPLES = "samples"
+DATASET_FORMAT = FORMAT  # the sweep dataset's names come from bench/io/layout.py
 MAX_DEPTH = 2  # subdirectory levels looked into
 MAX_DIRS = 400  # directories looked at, at most
 _SKIP = {"images", "gt", "plots", "thumbs", "__pycache__"}

@@ -128,44 +128,78 @@ def _check_calibration(spec, calib) -> None:
                                "the sample cannot be re-rendered for the peer methods")
 
 
-def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "phase", "sgbm", "paper"),
-                   recon_dir: Path | None = None, spp: int | None = None, depth_range_m=None,
-                   renderer=None, progress=None) -> Comparison:
-    """Run and score ``methods`` on a written sample (see module doc)."""
-
-    say = progress or (lambda msg: None)
-    sample_dir = Path(sample_dir)
+def _resolve_plugins(methods) -> dict:
+    """{name: plug-in function} of the methods that are not built in; UserValueError for an unknown one."""
     plugins = {m: resolve_plugin(m) for m in methods if m not in ALL_METHODS}
     unknown = [m for m, fn in plugins.items() if fn is None]
     if unknown:
         raise UserValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}, an installed "
                              f"plug-in ({', '.join(plugin_names()) or 'none installed'}) or module:function")
+    return plugins
+
+
+def _recreate_scene(cfg: SampleConfig, inputs, gt, renderer):
+    """(renderer on the sample's re-created scene, whether it reproduces the sample's left_passive bytes:
+    same variant and seed should)."""
+    plate = build_plate(cfg.plate)
+    spec = cfg.scene.build()
+    _check_calibration(spec, inputs.calibration)
+    if renderer is None:
+        renderer = PlateRenderer(spec, plate, cfg.variant)
+    else:
+        renderer.set_scene(spec)
+        renderer.set_plate(plate)
+    img = cfg.sensor.digitize(renderer.render("left", "passive", cfg.render),
+                              seed=image_seed(cfg.render.seed, "left", "passive"))
+    want = gt.meta.get("images", {}).get("left_passive")
+    return renderer, want is None or hashlib.sha256(img.tobytes()).hexdigest() == want
+
+
+def _plugin_row(name: str, fn, sample_dir: Path, truth) -> MethodRow:
+    """Run a plug-in on the sample's inputs and score its output for its kind."""
+    run = run_plugin(fn, name, sample_dir, truth=truth)
+    view = None
+    if run.output.kind in ("disparity", "depth"):
+        z = _implied_depth(run.output, truth)
+        view = DenseView(z, np.isfinite(z))
+    return MethodRow(name, describe(fn), int(run.output.metrics.get("n_images", 2)), run.time_recon_s, 0.0,
+                     run.score.to_dict(), [], view, run.score, run.output.kind)
+
+
+def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
+    """The paper's row from a ``platebench reconstruct`` output beside the sample (None, with a note,
+    when there is none)."""
+    found = find_paper_reconstruction(sample_dir, recon_dir)
+    if found is None:
+        where = recon_dir if recon_dir is not None else f"{sample_dir.resolve().parent} or {sample_dir / 'recon'}"
+        notes.append(f"paper row left out: no points.csv from 'platebench reconstruct' in {where} "
+                     "(pass --recon DIR)")
+        return None
+    pts, meta, d = found
+    sc = score_points_depth(pts, rig.left, gt.depth["left"], gt.mesh)
+    t = meta.get("timings_s", meta.get("timings", {}))
+    t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
+    return MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
+                     [f"read from {d}"], kind="paper")
+
+
+def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "phase", "sgbm", "paper"),
+                   recon_dir: Path | None = None, spp: int | None = None, depth_range_m=None,
+                   renderer=None, progress=None) -> Comparison:
+    """Run and score ``methods`` on a written sample (see module doc)."""
+    say = progress or (lambda msg: None)
+    sample_dir = Path(sample_dir)
+    plugins = _resolve_plugins(methods)
     inputs = load_inputs(sample_dir)
     gt = load_ground_truth(sample_dir)
     cfg = SampleConfig.from_dict(gt.meta["config"])
     rig = inputs.calibration.rig
-    notes = []
-    rows = []
-    gt_depth, gt_mask = gt.depth["left"], gt.mask["left"]
-
+    notes, rows = [], []
     truth = load_field_truth(sample_dir) if any(m != "paper" for m in methods) else None
-    needs_render = [m for m in methods if m not in ("paper", "sgbm") and m not in plugins]
     scene_reproduced = None
-    if needs_render:
+    if any(m not in ("paper", "sgbm") and m not in plugins for m in methods):
         say("scene")
-        plate = build_plate(cfg.plate)
-        spec = cfg.scene.build()
-        _check_calibration(spec, inputs.calibration)
-        if renderer is None:
-            renderer = PlateRenderer(spec, plate, cfg.variant)
-        else:
-            renderer.set_scene(spec)
-            renderer.set_plate(plate)
-        # Does the re-created scene give the sample's own bytes? (Same variant and seed: it should.)
-        img = cfg.sensor.digitize(renderer.render("left", "passive", cfg.render),
-                                  seed=image_seed(cfg.render.seed, "left", "passive"))
-        want = gt.meta.get("images", {}).get("left_passive")
-        scene_reproduced = want is None or hashlib.sha256(img.tobytes()).hexdigest() == want
+        renderer, scene_reproduced = _recreate_scene(cfg, inputs, gt, renderer)
         if not scene_reproduced:
             notes.append("re-rendered left_passive differs from the sample's bytes (other Mitsuba variant or "
                          "version?); peer sequences are rendered from the re-created scene")
@@ -193,56 +227,44 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
             continue
         if name in plugins:
             say(f"method {name} (plug-in)")
-            run = run_plugin(plugins[name], name, sample_dir, truth=truth)
-            view = None
-            if run.output.kind in ("disparity", "depth"):
-                z = _implied_depth(run.output, truth)
-                view = DenseView(z, np.isfinite(z))
-            rows.append(MethodRow(name, describe(plugins[name]), int(run.output.metrics.get("n_images", 2)),
-                                  run.time_recon_s, 0.0, run.score.to_dict(), [], view, run.score, run.output.kind))
+            rows.append(_plugin_row(name, plugins[name], sample_dir, truth))
             continue
         if name not in ("phase", "phase-opencv"):
             say(f"method {name}")
-        if name == "graycode":
-            res = graycode.decode_opencv(gray_cap["left"], gray_cap["right"], gray_seq, rig)
-            render_s = gray_cap.timings_s["render_s"]
-        elif name == "graycode-subpx":
-            cols = gray_seq.columns_only()
-            if gray_seq.row_pairs:
-                idx = [i for p in gray_seq.col_pairs for i in p] + [gray_seq.black, gray_seq.white]
-                L, R = gray_cap["left"][idx], gray_cap["right"][idx]
-            else:
-                L, R = gray_cap["left"], gray_cap["right"]
-            res = graycode.decode_subpixel(L, R, cols, rig)
-            render_s = gray_cap.timings_s["render_s"] * cols.n_images / gray_seq.n_images
-        elif name in ("phase", "phase-opencv"):
-            backend = "numpy" if name == "phase" else "opencv"
-            seq = phase_shift.phase_shift_sequence(pw, ph, backend=backend)
-            cap = sequence(seq.images, name)
-            say(f"method {name}")
-            res = phase_shift.decode_phase_shift(cap["left"], cap["right"], seq, rig)
-            render_s = cap.timings_s["render_s"]
-        elif name == "sgbm":
-            res = sgbm.sgbm(inputs.images["left_passive"], inputs.images["right_passive"], rig,
-                                 depth_range_m=depth_range_m)
-            render_s = 0.0
+        res, render_s = _run_peer(name, gray_seq, gray_cap, sequence, inputs, rig, pw, ph, depth_range_m, say)
         score = score_disparity(np.where(res.valid, res.disparity, np.inf), truth, what=f"{name} disparity")
         rows.append(MethodRow(name, DESCRIPTIONS[name], res.n_images, res.timings.get("total_s", float("nan")),
                               render_s, score.to_dict(), list(res.notes), res, score, "disparity"))
     if "paper" in methods:
-        found = find_paper_reconstruction(sample_dir, recon_dir)
-        if found is None:
-            where = recon_dir if recon_dir is not None else f"{sample_dir.resolve().parent} or {sample_dir / 'recon'}"
-            notes.append(f"paper row left out: no points.csv from 'platebench reconstruct' in {where} "
-                         "(pass --recon DIR)")
+        row = _paper_row(sample_dir, recon_dir, rig, gt, notes)
+        if row is not None:
+            rows.insert(0, row)
+    return Comparison(sample_dir, rows, notes, scene_reproduced, gt.depth["left"], gt.mask["left"])
+
+
+def _run_peer(name, gray_seq, gray_cap, sequence, inputs, rig, pw, ph, depth_range_m, say):
+    """(the peer's dense result, seconds of extra rendering it needed) for a built-in peer ``name``."""
+    if name == "graycode":
+        return graycode.decode_opencv(gray_cap["left"], gray_cap["right"], gray_seq, rig), \
+            gray_cap.timings_s["render_s"]
+    if name == "graycode-subpx":
+        cols = gray_seq.columns_only()
+        if gray_seq.row_pairs:
+            idx = [i for p in gray_seq.col_pairs for i in p] + [gray_seq.black, gray_seq.white]
+            L, R = gray_cap["left"][idx], gray_cap["right"][idx]
         else:
-            pts, meta, d = found
-            sc = score_points_depth(pts, rig.left, gt_depth, gt.mesh)
-            t = meta.get("timings_s", meta.get("timings", {}))
-            t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
-            rows.insert(0, MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
-                                     [f"read from {d}"], kind="paper"))
-    return Comparison(sample_dir, rows, notes, scene_reproduced, gt_depth, gt_mask)
+            L, R = gray_cap["left"], gray_cap["right"]
+        return graycode.decode_subpixel(L, R, cols, rig), \
+            gray_cap.timings_s["render_s"] * cols.n_images / gray_seq.n_images
+    if name in ("phase", "phase-opencv"):
+        seq = phase_shift.phase_shift_sequence(pw, ph, backend="numpy" if name == "phase" else "opencv")
+        cap = sequence(seq.images, name)
+        say(f"method {name}")
+        return phase_shift.decode_phase_shift(cap["left"], cap["right"], seq, rig), cap.timings_s["render_s"]
+    if name == "sgbm":
+        return sgbm.sgbm(inputs.images["left_passive"], inputs.images["right_passive"], rig,
+                         depth_range_m=depth_range_m), 0.0
+    raise ValueError(f"not a built-in peer: {name!r}")
 
 
 def _implied_depth(out, truth) -> np.ndarray:

@@ -11,8 +11,9 @@ Layout (format ``platebench-sweep`` version 1)::
     DATASET/results.parquet        the same table (pyarrow), typed
     DATASET/samples/<id>/sample/   the rendered sample (layout version 1, see bench/sample.py)
     DATASET/samples/<id>/recon/<method>/   the method's reconstruction + score.json
-    DATASET/samples/<id>/result.json       written LAST: status, error, metrics per method,
-                                   timings, worker, checksums of the files above
+    DATASET/samples/<id>/result.json       status, error, metrics per method, timings, worker,
+                                   the sha256 of EVERY file of the sample directory
+    DATASET/../.DATASET.lock       the dataset lock while a sweep writes it (bench.io.atomic.OutputLock)
 
 Results columns: the sample's parameters as rendered (bend_deg, axis_deg in degrees, sizes
 in metres, pixels, ...; ``params_json`` holds the spec's axis values), then the metrics
@@ -22,12 +23,18 @@ area covered by its interpolated surface; for dense peer methods the fraction of
 pixels with a depth estimate. ``time_render_s`` is the sample's render (+ the method's own
 pattern sequence for peers), ``time_total_s`` the whole sample task.
 
-Every file is written atomically (bench/atomic.py): ``sample/`` and ``recon/<method>/`` are
-staged and renamed into place, ``result.json``, the manifest and the tables are written
-to a temporary name and renamed. A sample counts as done when its ``result.json`` exists
-and validates (``validate_result``: right sample id and configuration, and every file it
-lists still has the checksum it lists); ``--resume`` skips those and redoes the rest.
-Leftovers of an interrupted run (``.tmp-*`` directories, ``.*.tmp`` files) are swept.
+One writer per sample: a worker makes a sample in its own attempt directory
+(``samples/.tmp-<id>~HOST~PID~R``, ``make_attempt_dir``) and returns its result; only the
+sweep process commits it (``commit_sample``: every file's checksum verified, ``result.json``
+written, the directory renamed to ``samples/<id>`` in one step). A sample directory with a
+``result.json`` is therefore complete; an attempt nobody committed (a lost worker, a worker
+that outlived its scheduler) is swept by the next run. The manifest and the tables are
+derived from the committed ``result.json`` files, written atomically after each result (at
+most every ``flush_every_s`` when writing them gets slow) and rebuilt by every run, so a
+kill -9 loses nothing. A sample counts as done when ``validate_result`` accepts it: right
+sample id and configuration, and every file its result and the manifest list still has the
+listed checksum (a truncated image, a deleted points.csv: the sample is redone).
+``read_manifest`` reports a "running" manifest whose writer is gone as "interrupted".
 """
 from __future__ import annotations
 
@@ -38,24 +45,38 @@ import io
 import json
 import math
 import os
+import secrets
 import shutil
 from importlib import metadata
 from pathlib import Path
 
 from platebench.bench.config.axes import PARAMETERS, parameter_columns
-from platebench.bench.io.atomic import sweep_stale, write_bytes, write_json, write_text
+from platebench.bench.io.atomic import (
+    HOST,
+    OutputLock,
+    is_temp_name,
+    owner_alive,
+    swap_in,
+    sweep_stale,
+    temp_owner,
+    write_bytes,
+    write_json,
+    write_text,
+)
+from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the dataset's names)
+    FORMAT,
+    MANIFEST,
+    RESULT,
+    RESULT_FORMAT,
+    RESULTS_CSV,
+    RESULTS_PARQUET,
+    SAMPLES,
+    SPEC_COPY,
+    VERSION,
+)
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
 
-FORMAT = "platebench-sweep"
-VERSION = 1
-RESULT_FORMAT = "platebench-sweep-result"
-MANIFEST = "manifest.json"
-SPEC_COPY = "spec.toml"
-RESULTS_CSV = "results.csv"
-RESULTS_PARQUET = "results.parquet"
-SAMPLES = "samples"
-RESULT = "result.json"
 STATUSES = ("ok", "failed")
 
 # (column, type) of the results table; "str", "int", "float", "bool"; None where unknown
@@ -94,11 +115,88 @@ def text_sha256(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def write_json_result(dataset: Path, sample_id: str, res: dict) -> None:
-    """Write a sample's result.json (atomically); the sample counts as done from then on."""
-    d = sample_dir(dataset, sample_id)
-    d.mkdir(parents=True, exist_ok=True)
-    write_json(d / RESULT, {k: v for k, v in res.items() if not k.startswith("_") and k != "cached"})
+def make_attempt_dir(dataset: Path, sample_id: str) -> Path:
+    """A new private directory for one attempt at a sample (``samples/.tmp-<id>~HOST~PID~R``)."""
+    parent = Path(dataset) / SAMPLES
+    d = parent / f".tmp-{sample_id}~{HOST}~{os.getpid()}~{secrets.token_hex(4)}"
+    d.mkdir(parents=False)
+    return d
+
+
+def attempt_dirs(dataset: Path) -> list[tuple[str, str, int, Path]]:
+    """(sample id, host, pid, path) of every uncommitted attempt directory of the dataset."""
+    out = []
+    root = Path(dataset) / SAMPLES
+    if not root.is_dir():
+        return out
+    for p in root.iterdir():
+        owner = temp_owner(p.name)
+        if p.name.startswith(".tmp-") and owner is not None and p.is_dir():
+            out.append((p.name[len(".tmp-"):].split("~", 1)[0], owner[0], owner[1], p))
+    return out
+
+
+def tree_checksums(root: Path) -> dict:
+    """sha256 of every file under ``root`` (relative POSIX path -> hex), temporary names excluded."""
+    root = Path(root)
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if not is_temp_name(d))
+        for name in sorted(filenames):
+            if is_temp_name(name):
+                continue
+            p = Path(dirpath) / name
+            out[p.relative_to(root).as_posix()] = file_sha256(p)
+    out.pop(RESULT, None)
+    return out
+
+
+def _result_doc(res: dict) -> dict:
+    return {k: v for k, v in res.items() if not k.startswith("_") and k not in ("cached", "stage")}
+
+
+class CommitError(RuntimeError):
+    """A worker's attempt directory does not hold what its result lists (lost or corrupt in transit)."""
+
+
+def commit_sample(dataset: Path, res: dict) -> dict:
+    """Commit one sample (sweep process only): verify the attempt's files against the checksums its
+    result lists, write ``result.json`` into it and rename it to ``samples/<id>`` (replacing an older
+    attempt). A result without files (the task never ran) gets a directory with ``result.json`` only.
+    Returns the result with ``_result_sha256``. Raises ``CommitError`` if a file is missing or differs."""
+    dataset = Path(dataset)
+    sid = res["sample_id"]
+    stage = Path(res["stage"]) if res.get("stage") else None
+    if stage is None or not stage.is_dir():
+        if res.get("files"):
+            raise CommitError(f"sample {sid}: its attempt directory {stage} is gone")
+        stage = make_attempt_dir(dataset, sid)
+    if stage.parent.resolve() != (dataset / SAMPLES).resolve():
+        raise CommitError(f"sample {sid}: attempt directory {stage} is outside {dataset / SAMPLES}")
+    found = tree_checksums(stage)
+    bad = sorted(k for k in set(res.get("files") or {}) | set(found) if found.get(k) != res["files"].get(k))
+    if bad:
+        raise CommitError(f"sample {sid}: {stage.name}/{bad[0]} does not match its checksum "
+                          f"({len(bad)} file(s) differ)")
+    doc = _result_doc(res)
+    write_json(stage / RESULT, doc)
+    swap_in(stage, sample_dir(dataset, sid))
+    if stage.exists():  # the replaced older attempt
+        shutil.rmtree(stage, ignore_errors=True)
+    out = dict(doc)
+    out["_result_sha256"] = file_sha256(sample_dir(dataset, sid) / RESULT)
+    return out
+
+
+def sweep_attempts(dataset: Path, force: bool = False) -> int:
+    """Remove uncommitted attempt directories: all of them (``force``: under the dataset lock, at the
+    start of a run) or those whose writer is gone (same host, process not running)."""
+    n = 0
+    for _sid, host, pid, p in attempt_dirs(dataset):
+        if force or not owner_alive(host, pid):
+            shutil.rmtree(p, ignore_errors=True)
+            n += 1
+    return n
 
 
 def package_versions() -> dict:
@@ -113,8 +211,11 @@ def package_versions() -> dict:
 
 
 # ----------------------------------------------------------------------------- per-sample result
-def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = None) -> dict | None:
-    """The sample's result.json if it exists and is valid (see module doc), else None."""
+def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = None,
+                    manifest_files: dict | None = None) -> dict | None:
+    """The sample's result.json if it exists and is valid (see module doc), else None.
+
+    ``manifest_files``: the checksums the manifest lists for the sample; they must agree too."""
     d = sample_dir(dataset, sample_id)
     path = d / RESULT
     try:
@@ -129,20 +230,19 @@ def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = N
         return None
     if not isinstance(res.get("rows"), list) or not res["rows"]:
         return None
-    for rel, digest in (res.get("files") or {}).items():
+    files = res.get("files")
+    if not isinstance(files, dict) or (res["status"] == "ok" and not files):
+        return None
+    if manifest_files and any(files.get(k) != v for k, v in manifest_files.items()):
+        return None
+    for rel, digest in files.items():
         p = d / rel
         try:
-            if file_sha256(p) != digest:
+            if not p.resolve().is_relative_to(d.resolve()) or file_sha256(p) != digest:
                 return None
         except OSError:
             return None
     return res
-
-
-def sweep_sample_leftovers(dataset: Path, sample_id: str) -> int:
-    """Remove temporary leftovers of an interrupted write inside one sample directory."""
-    d = sample_dir(dataset, sample_id)
-    return sweep_stale(d) + sweep_stale(d / "recon")
 
 
 # ----------------------------------------------------------------------------- table rows
@@ -286,7 +386,8 @@ def manifest_dict(spec, results: dict, executor: dict | None, started: str, stat
             w = res.get("worker") or {}
             entry["worker"] = f"{w.get('host')}:{w.get('pid')}" if w else None
         samples.append(entry)
-    return {"format": FORMAT, "version": VERSION, "state": state, "created_utc": started,
+    return {"format": FORMAT, "version": VERSION, "state": state, "writer": {"host": HOST, "pid": os.getpid()},
+            "created_utc": started,
             "updated_utc": now_utc(), "spec": spec.to_dict(), "spec_text": spec.text,
             "packages": packages if packages is not None else package_versions(), "executor": executor or {},
             "counts": counts,
@@ -296,41 +397,87 @@ def manifest_dict(spec, results: dict, executor: dict | None, started: str, stat
 
 
 def read_manifest(dataset: Path) -> dict | None:
+    """The manifest, or None. A manifest left "running" by a sweep that is gone (killed: nobody holds
+    the dataset lock) reads as "interrupted"."""
     try:
         m = json.loads((Path(dataset) / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
-    return m if isinstance(m, dict) and m.get("format") == FORMAT else None
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        return None
+    if m.get("state") == "running" and dataset_lock(dataset).holder() is None:
+        m["state"] = "interrupted"
+        m["state_note"] = "the sweep that was writing it is gone (killed); finish it with --resume"
+    return m
 
 
-def prepare_dataset(out: Path, spec, resume: bool, overwrite: bool) -> None:
-    """Check ``out`` can take this sweep (before anything is rendered), make it, sweep leftovers."""
+def dataset_lock(dataset: Path) -> OutputLock:
+    """The lock a sweep holds on its dataset (a sibling file ``.NAME.lock``)."""
+    return OutputLock(Path(dataset).absolute(), "dataset")
+
+
+def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None:
+    """Check that ``out`` can take this sweep, before anything is written; returns its manifest
+    (None for a new dataset). Call it holding the dataset lock."""
     out = Path(out)
-    if out.exists() and not out.is_dir():
+    if os.path.lexists(out) and not out.is_dir():
         raise DatasetLayoutError(f"{out} exists and is not a directory")
-    nonempty = out.is_dir() and any(out.iterdir())
-    if nonempty:
-        manifest = read_manifest(out)
-        if overwrite:
-            if manifest is None:
-                raise DatasetLayoutError(f"{out} is not empty and holds no sweep manifest: refusing to replace it")
-            shutil.rmtree(out)
-        elif resume:
-            if manifest is None:
-                raise DatasetLayoutError(f"{out}: no valid {MANIFEST} to resume from (is it a sweep dataset?)")
-            old = (manifest.get("spec") or {}).get("sha256")
-            if old != spec.sha256:
-                raise DatasetLayoutError(f"{out} was made from a different spec (sha256 {str(old)[:12]} vs "
-                                         f"{spec.sha256[:12]}): use another --out, or --overwrite")
-        else:
-            raise DatasetLayoutError(f"{out} already exists (use --resume to continue it or --overwrite to replace it)")
+    if not (out.is_dir() and any(out.iterdir())):
+        return None
+    manifest = read_manifest(out)
+    if overwrite:
+        if manifest is None:
+            raise DatasetLayoutError(f"{out} is not empty and holds no sweep manifest: refusing to replace it")
+        return manifest
+    if resume:
+        if manifest is None and _started_skeleton(out, spec):
+            return None  # a sweep killed before its first manifest: nothing committed to keep, start it
+        if manifest is None:
+            raise DatasetLayoutError(f"{out}: no valid {MANIFEST} to resume from (is it a sweep dataset?)")
+        old = (manifest.get("spec") or {}).get("sha256")
+        if old != spec.sha256:
+            raise DatasetLayoutError(f"{out} was made from a different spec (sha256 {str(old)[:12]} vs "
+                                     f"{spec.sha256[:12]}): use another --out, or --overwrite")
+        return manifest
+    raise DatasetLayoutError(f"{out} already exists (use --resume to continue it or --overwrite to replace it)")
+
+
+def make_stage_dataset(out: Path) -> Path:
+    """A staging directory beside ``out`` for an ``--overwrite`` sweep (swapped in once complete)."""
+    out = Path(out)
+    d = out.parent / f".tmp-{out.name}~{HOST}~{os.getpid()}~{secrets.token_hex(4)}"
+    d.mkdir()
+    return d
+
+
+def _started_skeleton(out: Path, spec) -> bool:
+    """``out`` holds only what a sweep of this spec makes before its first manifest (``samples/`` with
+    uncommitted attempts, ``spec.toml`` of the same text, tables, temporary files)."""
+    for p in Path(out).iterdir():
+        if is_temp_name(p.name):
+            continue
+        if p.name == SPEC_COPY and p.is_file():
+            if spec.text and p.read_text(errors="replace") != spec.text:
+                return False
+        elif p.name == SAMPLES and p.is_dir():
+            if any(not is_temp_name(q.name) for q in p.iterdir()):
+                return False
+        elif p.name not in (RESULTS_CSV, RESULTS_PARQUET):  # tables of no committed sample are allowed
+            return False
+    return True
+
+
+def prepare_dataset(out: Path, spec) -> None:
+    """Make the dataset directory and sweep every leftover of earlier runs (call it holding the lock)."""
+    out = Path(out)
     (out / SAMPLES).mkdir(parents=True, exist_ok=True)
     sweep_stale(out)
+    sweep_attempts(out, force=True)  # nobody commits them: their run is over
     sweep_stale(out / SAMPLES)
     for p in (out / SAMPLES).iterdir():
-        if p.is_dir():
-            sweep_stale(p)
-            sweep_stale(p / "recon")
+        if p.is_dir() and not is_temp_name(p.name):
+            for dirpath, dirnames, _files in os.walk(p):
+                sweep_stale(Path(dirpath))
     if spec.text and not (out / SPEC_COPY).exists():
         write_text(out / SPEC_COPY, spec.text)
 

@@ -28,6 +28,8 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import re
+import secrets
 import shutil
 import signal
 import socket
@@ -41,6 +43,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from platebench.bench.io.atomic import pid_alive, swap_in, sweep_stale
 from platebench.bench.sweep import dataset as ds
 from platebench.bench.sweep.tasks import (
     SampleTask,
@@ -49,15 +52,20 @@ from platebench.bench.sweep.tasks import (
     tasks_from_spec,
     worker_init,
 )
-from platebench.errors import UserValueError
+from platebench.errors import PlateBenchError
 
 
-class ExecutorError(UserValueError):
+class ExecutorError(PlateBenchError):
     """The executor cannot run (scheduler unreachable, no workers): one-line message."""
 
 
+class ExecutorLost(ExecutorError):
+    """The executor went away mid-sweep (the Dask scheduler, or every worker): an error of the sweep,
+    not of its samples. The dataset keeps what was committed; ``--resume`` finishes it."""
+
+
 class WorkerLost(RuntimeError):
-    """A sample's worker process died more often than its retries allow."""
+    """A sample's worker process died more often than its retries allow (while running it alone)."""
 
 
 # ----------------------------------------------------------------------------- local pool
@@ -77,15 +85,22 @@ def _pool_task(task: SampleTask) -> dict:
 
 
 class LocalExecutor:
-    """Embedded executor: a spawn-context process pool of ``workers`` processes (0: this process)."""
+    """Embedded executor: a spawn-context process pool of ``workers`` processes (0: this process).
+
+    When a worker process dies, the pool is rebuilt. The samples that were in flight are suspects:
+    a lone suspect is charged an attempt; several are then run one at a time, each alone in a
+    fresh one-process pool, so that a sample that kills its worker ("poisoned") is charged alone
+    and its healthy neighbours finish. A sample whose worker died more than ``retries`` times while
+    running it alone fails with ``WorkerLost``."""
 
     def __init__(self, workers: int = 1, retries: int = 2, render_threads: int | None = None):
-        if not isinstance(workers, int) or not 0 <= workers <= 256:
+        if isinstance(workers, bool) or not isinstance(workers, int) or not 0 <= workers <= 256:
             raise ExecutorError(f"--workers = {workers!r} is out of range: allowed 0 to 256")
         self.workers = workers
         self.retries = retries
         self.render_threads = render_threads  # None: cores // workers (if scenes.runtime can set it)
         self._pool = None
+        self.isolated: list[str] = []  # sample ids run alone after a worker death (for reports and tests)
 
     def describe(self) -> dict:
         return {"kind": "local", "workers": self.workers, "start_method": "spawn" if self.workers else "in-process",
@@ -99,56 +114,93 @@ class LocalExecutor:
                 except Exception as e:  # noqa: BLE001
                     yield t, None, e
             return
-        ctx = multiprocessing.get_context("spawn")
         pending = {t.sample_id: t for t in tasks}
         attempts: Counter = Counter()
+        suspects: list[str] = []
+        blind = 0  # breaks that named no sample in flight
         while pending:
-            queue = ctx.Queue()
-            n = min(self.workers, len(pending))
-            pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_pool_init,
-                                       initargs=(os.getpid(), queue, self.render_threads or
-                                                 max(1, (os.cpu_count() or 1) // self.workers)))
-            self._pool = pool
-            futures = {pool.submit(_pool_task, t): t for t in pending.values()}
-            started: dict = {}
-            broken = aborted = False
-            try:
-                not_done = set(futures)
-                while not_done and not broken:
-                    done, not_done = wait(not_done, timeout=1.0, return_when=FIRST_COMPLETED)
-                    _drain(queue, started)
-                    for f in done:
-                        t = futures[f]
-                        exc = f.exception()
-                        if isinstance(exc, BrokenProcessPool):
-                            broken = True
-                            continue
-                        pending.pop(t.sample_id, None)
-                        yield (t, f.result(), None) if exc is None else (t, None, exc)
-                if broken:  # collect what finished before the break; the rest is retried
-                    _drain(queue, started)
-                    for f, t in futures.items():
-                        if t.sample_id in pending and f.done() and not f.cancelled() and f.exception() is None:
-                            pending.pop(t.sample_id)
-                            yield t, f.result(), None
-            except BaseException:  # Ctrl-C, or the consumer stopped: close(terminate=True) stops the workers
-                aborted = True
-                raise
-            finally:
-                if aborted:
-                    _terminate(pool)
+            if suspects:
+                sid = suspects.pop(0)
+                if sid not in pending:
+                    continue
+                self.isolated.append(sid)
+                broken, _ = yield from self._round([pending[sid]], 1, pending)
+                culprits = {sid} if broken else set()
+            else:
+                broken, in_flight = yield from self._round(list(pending.values()), self.workers, pending)
+                in_flight &= set(pending)
+                culprits = set()
+                if broken:
+                    if len(in_flight) == 1:
+                        culprits = in_flight
+                    elif in_flight:
+                        suspects.extend(sorted(in_flight))
+                    else:
+                        blind += 1
+                        if blind > self.retries:  # nothing tells who died: isolate every one left
+                            suspects.extend(sorted(pending))
+            for sid in sorted(culprits):
+                attempts[sid] += 1
+                if attempts[sid] > self.retries:
+                    t = pending.pop(sid)
+                    yield t, None, WorkerLost(f"its worker process died {attempts[sid]} times while running it "
+                                              "alone")
                 else:
-                    pool.shutdown(wait=not broken, cancel_futures=True)
-                    self._pool = None
-                    queue.close()
-            if broken:
-                suspects = {sid for sid in started.values() if sid in pending}
-                for sid in suspects or set(pending):
-                    attempts[sid] += 1
-                for sid in list(pending):
-                    if attempts[sid] > self.retries:
-                        t = pending.pop(sid)
-                        yield t, None, WorkerLost(f"worker process died {attempts[sid]} times while running it")
+                    suspects.insert(0, sid)  # a sample charged once runs alone until it succeeds or fails
+
+    def _round(self, tasks: list[SampleTask], workers: int, pending: dict):
+        """Run ``tasks`` on a fresh pool until all finish or a worker dies; yields results (and pops
+        them from ``pending``); returns (broken, sample ids in flight when it broke)."""
+        ctx = multiprocessing.get_context("spawn")
+        queue = ctx.Queue()
+        n = max(1, min(workers, len(tasks)))
+        pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_pool_init,
+                                   initargs=(os.getpid(), queue, self.render_threads or
+                                             max(1, (os.cpu_count() or 1) // self.workers)))
+        self._pool = pool
+        futures = {pool.submit(_pool_task, t): t for t in tasks}
+        started: dict = {}
+        broken = aborted = False
+        dataset = tasks[0].dataset if tasks else None
+        try:
+            not_done = set(futures)
+            while not_done and not broken:
+                done, not_done = wait(not_done, timeout=1.0, return_when=FIRST_COMPLETED)
+                _drain(queue, started)
+                for f in done:
+                    t = futures[f]
+                    exc = f.exception()
+                    if isinstance(exc, BrokenProcessPool):
+                        broken = True
+                        continue
+                    pending.pop(t.sample_id, None)
+                    yield (t, f.result(), None) if exc is None else (t, None, exc)
+            if broken:  # collect what finished before the break; the rest is retried
+                _drain(queue, started)
+                for f, t in futures.items():
+                    if t.sample_id in pending and f.done() and not f.cancelled() and f.exception() is None:
+                        pending.pop(t.sample_id)
+                        yield t, f.result(), None
+        except BaseException:  # Ctrl-C, or the consumer stopped: stop the workers
+            aborted = True
+            raise
+        finally:
+            if aborted:
+                _terminate(pool)
+            else:
+                pool.shutdown(wait=not broken, cancel_futures=True)
+                queue.close()
+            self._pool = None
+        in_flight = set()
+        if broken:
+            in_flight = {sid for sid in started.values() if sid in pending}
+            # a worker killed before its start message got through: its attempt directory names it
+            pids = set(started) | {p.pid for p in (getattr(pool, "_processes", None) or {}).values()}
+            for sid, host, pid, _path in ds.attempt_dirs(dataset):
+                if host == ds.HOST and not pid_alive(pid) and sid in pending and (pid in pids or not started):
+                    in_flight.add(sid)
+            ds.sweep_attempts(dataset)  # the dead workers' attempts
+        return broken, in_flight
 
     def close(self, terminate: bool = False) -> None:
         """Shut the pool down; ``terminate``: also stop the samples in flight (after Ctrl-C)."""
@@ -161,8 +213,8 @@ class LocalExecutor:
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Stop a pool now: cancel what is queued, terminate the workers (their staged writes are left as
-    ``.tmp-*`` leftovers, swept by the next run)."""
+    """Stop a pool now: cancel what is queued, terminate the workers (their attempt directories are
+    left, swept by the next run)."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     for p in procs:
         with contextlib.suppress(Exception):
@@ -184,17 +236,75 @@ def _drain(queue, started: dict) -> None:
 
 
 # ----------------------------------------------------------------------------- Dask
+_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+
+
+def check_scheduler_address(address) -> str:
+    """``tcp://HOST:PORT`` (or tls://), checked before any connection; one-line error otherwise."""
+    m = _ADDRESS.match(address) if isinstance(address, str) else None
+    if m is None or not 1 <= int(m.group(3)) <= 65535:
+        raise ExecutorError(f"--scheduler = {address!r} is not a scheduler address: allowed tcp://HOST:PORT "
+                            "(PORT 1 to 65535, e.g. tcp://127.0.0.1:8786)")
+    return address
+
+
+def probe_scheduler(address: str, timeout_s: float) -> dict:
+    """Ask ``address`` for its identity within ``timeout_s`` (connect, handshake and reply): a port that
+    is closed, or open but not a Dask scheduler, fails with one line instead of hanging."""
+    import asyncio  # noqa: PLC0415
+
+    from distributed.comm import connect  # noqa: PLC0415
+
+    async def ask():
+        comm = await asyncio.wait_for(connect(address, timeout=timeout_s), timeout_s)
+        try:
+            await asyncio.wait_for(comm.write({"op": "identity", "reply": True}), timeout_s)
+            return await asyncio.wait_for(comm.read(), timeout_s)
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(ask(), timeout_s + 1.0))
+    except (OSError, asyncio.TimeoutError, TimeoutError) as e:
+        why = "no answer" if isinstance(e, (asyncio.TimeoutError, TimeoutError)) else \
+            (str(e).splitlines()[0] if str(e) else type(e).__name__)
+        raise ExecutorError(f"cannot reach a Dask scheduler at {address} within {timeout_s:g} s ({why})") from None
+    except Exception as e:  # noqa: BLE001  (a peer that speaks something else: decode errors of any kind)
+        raise ExecutorError(f"{address} does not answer as a Dask scheduler ({type(e).__name__})") from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise ExecutorError(f"{address} is not a Dask scheduler (it answered {str(reply)[:60]!r})")
+    return reply
+
+
+def _quiet_dask_logs() -> None:
+    """The client logs every reconnection attempt with a traceback on stderr; the sweep reports a lost
+    scheduler itself, in one line (PLATEBENCH_DEBUG=1 keeps Dask's logs)."""
+    import logging  # noqa: PLC0415
+    if os.environ.get("PLATEBENCH_DEBUG"):
+        return
+    import distributed  # noqa: F401,PLC0415  (configures its loggers on import; set the levels after)
+    for name in ["distributed", "tornado", "asyncio",
+                 *(n for n in logging.root.manager.loggerDict if n.startswith("distributed."))]:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
 class DaskExecutor:
-    """Runs the samples on a Dask distributed cluster through ``distributed.Client``."""
+    """Runs the samples on a Dask distributed cluster through ``distributed.Client``.
+
+    Connections are bounded: the address is checked, then probed (``probe_scheduler``) within
+    ``connect_timeout_s`` before a client is made. While the sweep runs, the client's connection and
+    the number of workers are watched: a lost scheduler (the client's futures cancelled, or the
+    client no longer connected) or no worker for ``worker_timeout_s`` raises ``ExecutorLost``, an
+    error of the sweep; a task error (``KilledWorker``: its worker died repeatedly while running it)
+    fails that sample only."""
 
     def __init__(self, address: str, retries: int = 2, connect_timeout_s: float = 10.0,
-                 worker_timeout_s: float = 120.0):
-        if not isinstance(address, str) or "://" not in address:
-            raise ExecutorError(f"--scheduler = {address!r} is not an address: allowed tcp://HOST:PORT")
-        self.address = address
+                 worker_timeout_s: float = 60.0, poll_s: float = 0.2):
+        self.address = check_scheduler_address(address)
         self.retries = retries
         self.connect_timeout_s = connect_timeout_s
         self.worker_timeout_s = worker_timeout_s
+        self.poll_s = poll_s
         self._client = None
         self._futures = []
         self._workers = None
@@ -204,6 +314,8 @@ class DaskExecutor:
 
     def connect(self):
         if self._client is None:
+            _quiet_dask_logs()
+            probe_scheduler(self.address, self.connect_timeout_s)
             from distributed import Client  # noqa: PLC0415
             try:
                 self._client = Client(self.address, timeout=f"{self.connect_timeout_s}s", set_as_default=False)
@@ -215,44 +327,87 @@ class DaskExecutor:
             except (TimeoutError, OSError):
                 self.close()
                 raise ExecutorError(f"no Dask worker joined {self.address} within {self.worker_timeout_s:g} s") from None
-            self._workers = len(self._client.scheduler_info().get("workers", {}))
+            self._workers = self._n_workers()
         return self._client
 
+    def _n_workers(self) -> int:
+        c = self._client
+        return len(c.sync(c.scheduler.ncores, callback_timeout=max(self.connect_timeout_s, 5.0)))
+
+    def _lost(self, done: int, total: int, why: str) -> ExecutorLost:
+        return ExecutorLost(f"lost the Dask scheduler at {self.address} ({why}) with {total - done} of {total} "
+                            "samples not finished: the dataset keeps the finished ones (state interrupted); "
+                            "run the same command with --resume to finish it")
+
     def run(self, tasks: list[SampleTask]):
-        from distributed import as_completed  # noqa: PLC0415
         client = self.connect()
-        by_key = {}
         tag = ds.text_sha256(tasks[0].dataset)[:10] if tasks else ""
+        run_id = secrets.token_hex(3)
+        pending = {}
         for t in tasks:
-            key = f"platebench-sample-{tag}-{t.sample_id}-{t.config_sha256[:12]}"
+            key = f"platebench-sample-{tag}-{t.sample_id}-{t.config_sha256[:12]}-{run_id}"
             fut = client.submit(run_sample, t, key=key, pure=False, retries=self.retries)
-            by_key[fut.key] = t
+            pending[fut.key] = (fut, t)
             self._futures.append(fut)
-        for fut in as_completed(self._futures, loop=client.loop):
-            t = by_key[fut.key]
-            if fut.status == "finished":
+        total, done = len(tasks), 0
+        next_check = time.monotonic() + 2.0
+        no_workers_since = None
+        while pending:
+            progressed = False
+            for key, (fut, t) in list(pending.items()):
+                status = fut.status
+                if status in ("pending",):
+                    continue
+                if status in ("cancelled", "lost") or client.status != "running":
+                    raise self._lost(done, total, f"its futures were {status}" if status in ("cancelled", "lost")
+                                     else f"client {client.status}")
                 try:
-                    yield t, fut.result(), None
+                    if status == "finished":
+                        res, exc = fut.result(timeout=self.connect_timeout_s), None
+                    else:  # "error": the task raised, or its workers kept dying (KilledWorker)
+                        res, exc = None, fut.exception(timeout=self.connect_timeout_s)
+                except Exception as e:  # noqa: BLE001  (the result could not be fetched)
+                    if client.status != "running":
+                        raise self._lost(done, total, f"client {client.status}") from None
+                    res, exc = None, e
+                del pending[key]
+                done += 1
+                progressed = True
+                with contextlib.suppress(Exception):
+                    fut.release()
+                yield t, res, exc
+            if not pending:
+                break
+            now = time.monotonic()
+            if now >= next_check:
+                next_check = now + 2.0
+                try:
+                    n = self._n_workers()
                 except Exception as e:  # noqa: BLE001
-                    yield t, None, e
-            else:
-                try:
-                    exc = fut.exception()
-                except Exception as e:  # noqa: BLE001  (cancelled, lost)
-                    exc = e
-                yield t, None, exc
-            fut.release()
+                    raise self._lost(done, total, f"it does not answer: {type(e).__name__}") from None
+                self._workers = max(self._workers or 0, n)
+                if n == 0:
+                    no_workers_since = no_workers_since or now
+                    if now - no_workers_since >= self.worker_timeout_s:
+                        raise ExecutorLost(
+                            f"every Dask worker of {self.address} is gone (none for {self.worker_timeout_s:g} s) with "
+                            f"{total - done} of {total} samples not finished: the dataset keeps the finished ones "
+                            "(state interrupted); start workers and run the same command with --resume")
+                else:
+                    no_workers_since = None
+            if not progressed:
+                time.sleep(self.poll_s)
         self._futures = []
 
     def close(self, terminate: bool = False) -> None:
         if self._client is not None:
+            client, self._client = self._client, None
             with contextlib.suppress(Exception):
-                if self._futures:
-                    self._client.cancel(self._futures)
-            with contextlib.suppress(Exception):
-                self._client.close(timeout=10)
-            self._client = None
+                if self._futures and client.status == "running":
+                    client.cancel(self._futures)
             self._futures = []
+            with contextlib.suppress(Exception):
+                client.close(timeout=5)
 
 
 # ----------------------------------------------------------------------------- loopback cluster
@@ -276,14 +431,18 @@ def dask_cli() -> list[str]:
 class LoopbackCluster:
     """A real ``dask scheduler`` + ``n_workers`` ``dask worker`` processes on 127.0.0.1.
 
+    Everything listens on 127.0.0.1 only (scheduler, workers, nannies and their HTTP servers), with
+    no dashboard unless ``dashboard=True``.
+
     Every process runs in its own session (process group) so that ``kill_worker`` can
     kill -9 a worker with its nanny, and ``close`` tears everything down (SIGTERM, then
     SIGKILL after a bounded wait). Logs go to files in ``log_dir``.
     """
 
     def __init__(self, n_workers: int = 2, nthreads: int = 1, startup_timeout_s: float = 90.0,
-                 log_dir: Path | None = None, env: dict | None = None):
+                 log_dir: Path | None = None, env: dict | None = None, dashboard: bool = False):
         self.n_workers = n_workers
+        self.dashboard = dashboard
         self.nthreads = nthreads
         self.startup_timeout_s = startup_timeout_s
         self._tmp = tempfile.mkdtemp(prefix="platebench-dask-")
@@ -299,6 +458,11 @@ class LoopbackCluster:
     def address(self) -> str:
         return f"tcp://127.0.0.1:{self.port}"
 
+    def _http_flags(self) -> list[str]:
+        """Dask serves HTTP (health, metrics; the dashboard when asked) even with --no-dashboard, on
+        every interface by default: bind it to 127.0.0.1 (a free port) as well."""
+        return (["--dashboard"] if self.dashboard else ["--no-dashboard"]) + ["--dashboard-address", "127.0.0.1:0"]
+
     def _spawn(self, args: list[str], name: str) -> subprocess.Popen:
         log = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115
         self._logs.append(log)
@@ -310,7 +474,7 @@ class LoopbackCluster:
         for attempt in range(3):
             self.port = free_port()
             self.scheduler = self._spawn(["scheduler", "--host", "127.0.0.1", "--port", str(self.port),
-                                          "--no-dashboard"], f"scheduler-{attempt}")
+                                          *self._http_flags()], f"scheduler-{attempt}")
             if self._wait_port(deadline):
                 break
             self._stop(self.scheduler)
@@ -326,7 +490,7 @@ class LoopbackCluster:
         wdir = Path(self._tmp) / f"worker-{i}-{len(self.workers)}"
         wdir.mkdir(parents=True, exist_ok=True)
         p = self._spawn(["worker", self.address, "--nthreads", str(self.nthreads), "--nworkers", "1",
-                         "--no-dashboard", "--host", "127.0.0.1", "--name", f"w{i}-{len(self.workers)}",
+                         *self._http_flags(), "--host", "127.0.0.1", "--name", f"w{i}-{len(self.workers)}",
                          "--local-directory", str(wdir)], f"worker-{len(self.workers)}")
         self.workers.append(p)
         return p
@@ -436,36 +600,84 @@ def worker_stats(results) -> dict:
 def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: bool = False,
               retry_failed: bool = False, progress: bool | None = None, flush_every_s: float = 5.0,
               log=None, on_result=None) -> SweepSummary:
-    """Run ``spec`` into dataset directory ``out`` (see module doc); returns a summary.
+    """Run ``spec`` into dataset directory ``out``; returns a summary.
 
-    ``on_result(result_dict)`` is called as each sample finishes (in this process)."""
+    Holds the dataset lock (``dataset.dataset_lock``) for the whole run: a second writer is refused
+    with the holder's PID and host, a stale lock of a killed sweep is taken over (and said so).
+    ``overwrite``: the new dataset is made in a staging directory beside ``out`` and replaces it only
+    once complete (an interrupted ``--overwrite`` leaves the old dataset as it was). ``resume``:
+    samples whose committed files still match their checksums are kept, every other one is (re)done.
+    Each result is committed by this process (``dataset.commit_sample``) and the manifest and tables
+    are rewritten after it (at most every ``flush_every_s`` when that gets slow). The manifest ends
+    "complete" (every sample committed), "interrupted" (Ctrl-C, SIGTERM, or the executor lost:
+    ``ExecutorLost`` is raised after the manifest is written) or "incomplete".
+
+    ``on_result(result_dict)`` is called as each sample is committed (in this process)."""
     from platebench.bench.progress import bar  # noqa: PLC0415
-    out = Path(out).resolve()
+    out = Path(out).absolute()
     executor = executor if executor is not None else LocalExecutor(1)
-    ds.prepare_dataset(out, spec, resume, overwrite)
     say = log or (lambda msg: None)
-    old = ds.read_manifest(out) if resume else None
-    started = (old or {}).get("created_utc") or ds.now_utc()
+    lock = ds.dataset_lock(out)
+    lock.acquire()
+    stage = None
+    try:
+        if lock.stale_note():
+            say(f"note: {lock.stale_note()}")
+        sweep_stale(out.parent, only=out.name)  # staging of a killed --overwrite sweep into the same place
+        old = ds.check_dataset(out, spec, resume, overwrite)
+        if overwrite and old is not None:
+            stage = ds.make_stage_dataset(out)
+            work = stage
+        else:
+            work = out
+        if old is not None and not overwrite and old.get("state") == "interrupted" and old.get("state_note"):
+            say(f"note: the previous sweep into {out} did not finish (killed); its committed samples are kept")
+        ds.prepare_dataset(work, spec)
+        summary = _run(spec, work, executor, old if resume else None, retry_failed, progress, flush_every_s, say,
+                       on_result, bar)
+        if stage is not None:
+            if summary.interrupted or summary.total != summary.ok + summary.failed:
+                raise ExecutorLost(f"--overwrite sweep into {out} did not finish: {out} is left as it was")
+            swap_in(stage, out)
+            shutil.rmtree(stage, ignore_errors=True)  # the old dataset
+            stage = None
+            summary.dataset = out
+        return summary
+    finally:
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        lock.release()
+
+
+def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_every_s, say, on_result,
+         bar) -> SweepSummary:
+    started = (old_manifest or {}).get("created_utc") or ds.now_utc()
     packages = ds.package_versions()
+    listed = {e.get("id"): e.get("files_sha256") or {} for e in (old_manifest or {}).get("samples", [])}
     results: dict = {}
     todo = []
+    redo = 0
     for task in tasks_from_spec(spec, out, redo_failed=retry_failed):
-        res = ds.validate_result(out, task.sample_id, task.config_sha256) if resume else None
+        res = None
+        if old_manifest is not None or ds.sample_dir(out, task.sample_id).is_dir():
+            res = ds.validate_result(out, task.sample_id, task.config_sha256, listed.get(task.sample_id))
+            if res is None and (ds.sample_dir(out, task.sample_id) / ds.RESULT).exists():
+                redo += 1  # committed once, but its files no longer match: made again
         if res is not None and (res["status"] == "ok" or not retry_failed):
             res["_result_sha256"] = ds.file_sha256(ds.sample_dir(out, task.sample_id) / ds.RESULT)
             results[task.sample_id] = res
         else:
             todo.append(task)
     skipped = len(results)
-    desc = executor.describe()
 
-    def flush(state: str) -> None:
-        ds.write_results(out, list(results.values()))
+    def flush(state: str) -> None:  # the manifest first: a dataset with a manifest can always be resumed
         ds.write_manifest(out, ds.manifest_dict(spec, results, executor.describe(), started, state, packages))
+        ds.write_results(out, list(results.values()))
 
     flush("running")
-    if skipped:
-        say(f"resume: {skipped} of {len(spec.samples)} samples already done, {len(todo)} to run")
+    if skipped or redo:
+        say(f"resume: {skipped} of {len(spec.samples)} samples already done, {len(todo)} to run"
+            + (f" ({redo} whose files no longer match their checksums)" if redo else ""))
     t0 = time.perf_counter()
     counts = Counter(r["status"] for r in results.values())
     pbar = bar(len(spec.samples), f"sweep {spec.name}", unit="sample", enabled=progress)
@@ -473,6 +685,7 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
     pbar.set_postfix_str(f"failed {counts['failed']}")
     ran: list = []
     interrupted = False
+    lost = None
     last_flush = time.monotonic()
     flush_cost = 0.0
     try:
@@ -481,31 +694,37 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
                 if res is None:
                     res = failed_result(task, f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
                                         .rstrip(": ")[:500])
-                    ds.write_json_result(out, task.sample_id, res)
-                path = ds.sample_dir(out, task.sample_id) / ds.RESULT
-                res["_result_sha256"] = ds.file_sha256(path) if path.is_file() else None
+                try:
+                    res = ds.commit_sample(out, res)
+                except ds.CommitError as e:  # the attempt's files are not what its worker listed
+                    res = ds.commit_sample(out, failed_result(task, f"CommitError: {e}"))
                 results[task.sample_id] = res
                 ran.append(res)
                 counts[res["status"]] += 1
-                if on_result is not None:
-                    on_result(res)
                 pbar.update(1)
                 pbar.set_postfix_str(f"failed {counts['failed']}")
-                if time.monotonic() - last_flush >= max(flush_every_s, 20.0 * flush_cost):
+                if time.monotonic() - last_flush >= min(flush_every_s, 20.0 * flush_cost):
                     t = time.monotonic()
                     flush("running")
                     last_flush = time.monotonic()
                     flush_cost = last_flush - t
+                if on_result is not None:
+                    on_result(res)
     except KeyboardInterrupt:
         interrupted = True
+        raise
+    except ExecutorLost as e:
+        interrupted = True
+        lost = e
         raise
     finally:
         wall = time.perf_counter() - t0
         pbar.close()
         with contextlib.suppress(Exception):
             executor.close(terminate=interrupted)
+        if isinstance(executor, LocalExecutor) or lost is None:
+            ds.sweep_attempts(out)  # attempts of workers that are gone
         done = len(results) == len(spec.samples)
         flush("complete" if done and not interrupted else "interrupted" if interrupted else "incomplete")
-    desc = executor.describe()
-    return SweepSummary(out, len(spec.samples), skipped, len(ran), counts["ok"], counts["failed"], wall, results, desc,
-                        interrupted, worker_stats(ran))
+    return SweepSummary(out, len(spec.samples), skipped, len(ran), counts["ok"], counts["failed"], wall, results,
+                        executor.describe(), interrupted, worker_stats(ran))

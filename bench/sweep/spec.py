@@ -121,22 +121,24 @@ angle_rad = 6.98132 (400.00 deg) is out of range: allowed 0 to 350 deg``. An emp
 from __future__ import annotations
 
 import copy
+import dataclasses
 import hashlib
 import itertools
 import json
 import math
 import numbers
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
-from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig
+from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml
 from platebench.bench.config.axes import AXES as AXIS_INFO
+from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
 from platebench.errors import UserValueError
+from platebench.plates.spec import FAMILIES
 
 __all__ = ["SpecError", "SweepSpec", "SamplePlan", "load_spec", "parse_spec", "AXES",
            "family_defaults", "MAX_SAMPLES"]
@@ -147,11 +149,8 @@ _SWEEP_KEYS = ("name", "description", "mode", "methods", "seed", "count", "seed_
 _GRID_FORMS = ("start", "stop", "step", "num", "values")
 _RANDOM_FORMS = ("min", "max", "int", "values")
 
-_DEFORMATION_FIELDS = {  # fields each family takes (plates.spec)
-    "flat": (), "cylinder": ("angle_rad", "direction", "axis_rad"),
-    "fold": ("angle_rad", "position_m", "band_m", "direction", "axis_rad"), "twist": ("angle_rad",),
-    "dome": ("sag_m",), "dent": ("depth_m", "radius_m", "centre_u_m", "centre_v_m"),
-}
+# fields each family takes, read from the deformation dataclasses of plates.spec (one source)
+_DEFORMATION_FIELDS = {family: tuple(f.name for f in dataclasses.fields(cls)) for family, cls in FAMILIES.items()}
 
 
 class SpecError(ConfigError):
@@ -375,25 +374,13 @@ def _grid_values(key: str, axis: Axis, spec) -> list:
             return _grid_values(key, axis, vals if isinstance(vals, list) else [vals])
         if "start" not in spec or "stop" not in spec or ("step" in spec) == ("num" in spec):
             raise SpecError(f"{key} = {spec!r}: a range needs start, stop and exactly one of step or num")
-        start, stop = _num(f"{key}.start", spec["start"]), _num(f"{key}.stop", spec["stop"])
-        if "num" in spec:
-            num = _num(f"{key}.num", spec["num"], True)
-            if not 1 <= num <= MAX_SAMPLES:
-                raise SpecError(f"{key}.num = {num} is out of range: allowed 1 to {MAX_SAMPLES}")
-            raw = [float(x) for x in np.linspace(start, stop, num)]
-        else:
-            step = _num(f"{key}.step", spec["step"])
-            if step <= 0:
-                raise SpecError(f"{key}.step = {spec['step']!r} is out of range: allowed > 0")
-            if stop < start:
-                raise SpecError(f"{key}: stop = {spec['stop']!r} is below start = {spec['start']!r}: "
-                                "allowed stop >= start")
-            n = int(math.floor((stop - start) / step + 1e-9)) + 1
-            if n > MAX_SAMPLES:
-                raise SpecError(f"{key}: {n} values is too many: allowed at most {MAX_SAMPLES}")
-            ints = all(isinstance(spec[k], int) and not isinstance(spec[k], bool) for k in ("start", "stop", "step"))
-            raw = [start + i * step for i in range(n)]
-            raw = [int(round(x)) if ints else round(x, 12) for x in raw]
+        ints = "step" in spec and all(isinstance(spec[k], int) and not isinstance(spec[k], bool)
+                                      for k in ("start", "stop", "step"))
+        try:  # counted before it is expanded: {start = 0, stop = 1e12, step = 1e-3} is refused, not made
+            raw = expand_range(key, spec["start"], spec["stop"], spec.get("step"), spec.get("num"),
+                               max_count=MAX_SAMPLES, integers=ints)
+        except RangeError as e:
+            raise SpecError(str(e)) from None
         return [axis.parse(key, x) for x in raw]
     if isinstance(spec, list) and not (axis.name == "resolution" and _is_pair(spec)):
         values = spec
@@ -585,8 +572,8 @@ def _check_table_keys(where: str, d: dict, allowed) -> None:
         raise SpecError(f"unknown key {where}{bad[0]}: allowed keys are {', '.join(allowed)}")
 
 
-def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> SweepSpec:
-    """Validate a parsed spec and expand it into samples (raises SpecError, nothing is written)."""
+def _sweep_table(doc: dict) -> tuple[dict, str, str, str]:
+    """Check the spec's tables; (the [sweep] table, name, description, mode 'grid' or 'random')."""
     if not isinstance(doc, dict):
         raise SpecError("a sweep spec must be a TOML table")
     _check_table_keys("", doc, _TOP_KEYS)
@@ -610,10 +597,14 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
     other = "random" if mode == "grid" else "grid"
     if other in doc:
         raise SpecError(f"[{other}] is given but sweep.mode = {mode!r}: remove it")
-    # methods
+    return sweep, name, description if isinstance(description, str) else str(description), mode
+
+
+def _methods(sweep: dict, methods) -> tuple[tuple[str, ...], str]:
+    """(the methods, each known or loadable, without repeats; where they came from) from --methods
+    (``methods`` not None) or sweep.methods."""
     if methods is None:
-        methods = sweep.get("methods", ["paper"])
-        where = "sweep.methods"
+        methods, where = sweep.get("methods", ["paper"]), "sweep.methods"
     else:
         where = "--methods"
     if isinstance(methods, str):
@@ -625,7 +616,11 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
             get_method(m)
         except UserValueError as e:
             raise SpecError(f"{where}: {e}") from None
-    methods = tuple(dict.fromkeys(methods))
+    return tuple(dict.fromkeys(methods)), where
+
+
+def _seeding(sweep: dict, mode: str) -> tuple[int, bool, int | None]:
+    """(sweep.seed, sweep.seed_per_sample, sweep.count: random mode only), checked."""
     seed = _num("sweep.seed", sweep.get("seed", 0), True)
     if not 0 <= seed < 2**63:
         raise SpecError(f"sweep.seed = {seed} is out of range: allowed 0 to 2^63-1")
@@ -641,7 +636,11 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
             raise SpecError(f"sweep.count = {count} is out of range: allowed 1 to {MAX_SAMPLES}")
     elif count is not None:
         raise SpecError("sweep.count applies to random mode only: a grid's size is the product of its axes")
-    # base
+    return seed, seed_per_sample, count
+
+
+def _base(doc: dict) -> dict:
+    """The [base] table as a full, valid sample config dict."""
     try:
         base_cfg = SampleConfig.from_dict(copy.deepcopy(doc.get("base", {})))
         base_cfg.scene.build()
@@ -649,40 +648,45 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
         msg = str(e).splitlines()[0]
         raise SpecError(f"base: {msg}" if not msg.startswith("unknown key config.") else
                         "unknown key base." + msg[len("unknown key config."):]) from None
-    base = base_cfg.to_dict()
-    # axes
-    axes_doc = doc.get(mode, {})
+    return base_cfg.to_dict()
+
+
+def _plans(mode: str, axes_doc: dict, seed: int, count: int | None) -> tuple[list, list[tuple[dict, list]]]:
+    """(the axes [(key, Axis)], one (params, [(key, Axis, value)]) per planned sample): the grid's
+    product, or ``count`` draws of the random axes (draw i from the generator seeded [seed, i])."""
     if not axes_doc:
         raise SpecError(f"[{mode}] is empty: give at least one axis, e.g. bend_deg = [0, 20, 40]"
                         if mode == "grid" else "[random] is empty: give at least one axis to draw")
-    section = mode
     axes = [(k, _axis(k)) for k in axes_doc]
-    plans: list[tuple[dict, list]] = []  # (params, items)
+    plans: list[tuple[dict, list]] = []
     if mode == "grid":
-        value_lists = [_grid_values(f"{section}.{k}", a, axes_doc[k]) for k, a in axes]
+        value_lists = [_grid_values(f"{mode}.{k}", a, axes_doc[k]) for k, a in axes]
         total = math.prod(len(v) for v in value_lists)
         if total > MAX_SAMPLES:
             raise SpecError(f"[grid] expands to {total} samples: allowed at most {MAX_SAMPLES}")
         for combo in itertools.product(*value_lists):
             items = [(k, a, v) for (k, a), v in zip(axes, combo)]
             plans.append(({k: v for (k, _), v in zip(axes, combo)}, items))
-    else:
-        draws = [(k, a, _random_axis(f"{section}.{k}", a, axes_doc[k])) for k, a in sorted(axes, key=lambda x: x[0])]
-        for i in range(count):
-            rng = np.random.default_rng([seed, i])
-            items = [(k, a, r.draw(rng)) for k, a, r in draws]
-            order = {k: j for j, (k, _) in enumerate(axes)}
-            items.sort(key=lambda it: order[it[0]])
-            plans.append(({k: v for k, _, v in items}, items))
+        return axes, plans
+    draws = [(k, a, _random_axis(f"{mode}.{k}", a, axes_doc[k])) for k, a in sorted(axes, key=lambda x: x[0])]
+    order = {k: j for j, (k, _) in enumerate(axes)}
+    for i in range(count):
+        rng = np.random.default_rng([seed, i])
+        items = sorted(((k, a, r.draw(rng)) for k, a, r in draws), key=lambda it: order[it[0]])
+        plans.append(({k: v for k, _, v in items}, items))
+    return axes, plans
+
+
+def _samples(base: dict, plans, mode: str, methods: tuple, seed_per_sample: bool):
+    """(samples [(params, SampleConfig, pose, digest)], keys ignored {key: count}, duplicates dropped)."""
     width = max(4, len(str(len(plans) - 1)))
     samples, seen, ignored, cache = [], set(), {}, {}
     duplicates = 0
     base_seed = base["render"]["seed"]
     for i, (params, items) in enumerate(plans):
-        label = f"{i:0{width}d}"
         if seed_per_sample and "seed" not in params:
             items = items + [("seed", AXES["seed"], (base_seed + i) % 2**31)]
-        cfg, d, state, ign = _build_sample(base, items, section, label, cache)
+        cfg, _, state, ign = _build_sample(base, items, mode, f"{i:0{width}d}", cache)
         for k in ign:
             ignored[k] = ignored.get(k, 0) + 1
         pose = state.get("pose")
@@ -692,6 +696,18 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
             continue
         seen.add(digest)
         samples.append((params, cfg, pose, digest))
+    return samples, ignored, duplicates
+
+
+def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> SweepSpec:
+    """Validate a parsed spec and expand it into samples (raises SpecError, nothing is written)."""
+    sweep, name, description, mode = _sweep_table(doc)
+    methods, where = _methods(sweep, methods)
+    seed, seed_per_sample, count = _seeding(sweep, mode)
+    base = _base(doc)
+    axes_doc = doc.get(mode, {})
+    axes, plans = _plans(mode, axes_doc, seed, count)
+    samples, ignored, duplicates = _samples(base, plans, mode, methods, seed_per_sample)
     posed = [p for _, _, p, _ in samples if p and any(float(v) != 0.0 for k, v in p.items() if k == "tilt_deg")]
     rerender = [m for m in methods if get_method(m).rerenders_from_config]
     if posed and rerender:
@@ -700,20 +716,17 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
     width = max(4, len(str(len(samples) - 1)))
     plans_out = tuple(SamplePlan(j, f"{j:0{width}d}", p, c, pose, dg) for j, (p, c, pose, dg) in enumerate(samples))
     return SweepSpec(name, mode, methods, seed, count, seed_per_sample, base, tuple((k, axes_doc[k]) for k, _ in axes),
-                     plans_out, doc, text, description if isinstance(description, str) else str(description),
-                     ignored, duplicates)
+                     plans_out, doc, text, description, ignored, duplicates)
 
 
 def load_spec(path: Path, methods: tuple | None = None) -> SweepSpec:
     """Read, validate and expand a TOML sweep spec (raises SpecError with a one-line message)."""
     path = Path(path)
-    if not path.is_file():
-        raise SpecError(f"{path}: sweep spec file is missing")
-    text = path.read_text()
     try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise SpecError(f"{path}: invalid TOML ({e})") from None
+        doc = read_toml(path, "sweep spec")
+    except ConfigError as e:
+        raise SpecError(str(e)) from None
+    text = path.read_bytes().decode("utf-8")
     try:
         return parse_spec(doc, text, methods)
     except SpecError as e:

@@ -1,11 +1,15 @@
 """One sweep sample as a task: render, reconstruct with each method, evaluate, record.
 
 ``run_sample(task)`` is what every executor runs (local process pool, in-process, or a
-Dask worker). It is idempotent: if the sample's ``result.json`` already exists and
-validates, it is returned unchanged; otherwise the sample is (re)made from scratch,
-every output staged and renamed into place, and ``result.json`` written last. Any
-error of the sample (rendering, a method, scoring) is caught and recorded in the
-result with status "failed": it never stops the sweep.
+Dask worker). It writes only into a private attempt directory
+(``samples/.tmp-<id>~HOST~PID~R``, see ``dataset.make_attempt_dir``) and returns the result
+dict (status, rows, checksums of every file it wrote, the attempt directory): one writer
+per sample, since only the sweep process commits a result (``dataset.commit_sample``:
+checksums verified, ``result.json`` written, the directory renamed to ``samples/<id>``).
+A worker that outlives its scheduler, or a second attempt of the same sample, writes into
+its own attempt directory that nobody commits. Any error of the sample (rendering, a
+method, scoring) is caught and recorded in the result with status "failed": it never
+stops the sweep; a sample is failed only by its own work.
 
 Each worker process keeps one ``PlateRenderer`` (module global) and passes it back to
 ``render_sample`` for its next sample, so compiled kernels are reused. A lock makes
@@ -15,6 +19,7 @@ The methods a sample runs come from the registry ``bench.run.methods.METHODS``.
 """
 from __future__ import annotations
 
+import json
 import os
 import resource
 import socket
@@ -25,18 +30,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.layout import RECON, method_folder
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
 from platebench.bench.sweep.dataset import (
     RESULT_FORMAT,
     VERSION,
-    file_sha256,
+    make_attempt_dir,
     now_utc,
-    sample_dir,
-    sweep_sample_leftovers,
-    validate_result,
-    write_json_result,
+    tree_checksums,
 )
 from platebench.scenes.render import runtime
 
@@ -109,7 +112,7 @@ def _error_text(e: BaseException) -> str:
     return text[:500]
 
 
-def failed_result(task: SampleTask, error: str, phase: str = "executor") -> dict:
+def failed_result(task: SampleTask, error: str | None, phase: str | None = "executor") -> dict:
     """A result for a sample whose task could not run at all (e.g. its worker kept dying)."""
     return {"format": RESULT_FORMAT, "version": VERSION, "sample_id": task.sample_id, "index": task.index,
             "config_sha256": task.config_sha256, "status": "failed", "error": error, "phase": phase,
@@ -119,27 +122,24 @@ def failed_result(task: SampleTask, error: str, phase: str = "executor") -> dict
             "timings_s": {}, "files": {}, "images": {}, "worker": None, "finished_utc": now_utc()}
 
 
+def pose_supported() -> str | None:
+    """Why pose axes cannot run in this build (None: they can)."""
+    return None
+
+
 def run_sample(task: SampleTask) -> dict:
-    """Make one sample (idempotent; see module doc) and return its result dict."""
+    """Make one sample into a private staging directory and return its result dict (see module doc)."""
     with _LOCK:
         return _run_sample(task)
 
 
 def _run_sample(task: SampleTask) -> dict:
-    dataset = Path(task.dataset)
-    done = validate_result(dataset, task.sample_id, task.config_sha256)
-    if done is not None and (done["status"] == "ok" or not task.redo_failed):
-        done["cached"] = True
-        return done
-
     t0 = time.perf_counter()
-    sdir = sample_dir(dataset, task.sample_id)
-    sdir.mkdir(parents=True, exist_ok=True)
-    sweep_sample_leftovers(dataset, task.sample_id)
+    stage = make_attempt_dir(Path(task.dataset), task.sample_id)
     res = failed_result(task, None, None)
-    res.update(status="ok", error=None, phase=None, rows=[])
+    res.update(status="ok", error=None, phase=None, rows=[], stage=str(stage))
     timings = res["timings_s"]
-    files = res["files"]
+    written = False
     sample = None
     try:
         cfg = SampleConfig.from_dict(task.config)
@@ -158,28 +158,25 @@ def _run_sample(task: SampleTask) -> dict:
         _STATE["renderer"] = renderer
         timings["render_s"] = time.perf_counter() - t
         t = time.perf_counter()
-        write_sample(sdir / "sample", sample, overwrite=True)
+        write_sample(stage / "sample", sample, overwrite=False)
         timings["write_s"] = time.perf_counter() - t
         res["variant"] = sample.variant
         res["false_boundary_gt"] = bool(any(v.false_boundary for v in sample.visibility.values()))
-        files["sample/sample.json"] = file_sha256(sdir / "sample" / "sample.json")
-        import json  # noqa: PLC0415
-        res["images"] = json.loads((sdir / "sample" / "sample.json").read_text()).get("images", {})
+        res["images"] = json.loads((stage / "sample" / "sample.json").read_text()).get("images", {})
+        written = True
     except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
         err = _error_text(e)
         res.update(status="failed", error=err, phase="render",
                    rows=[{"method": m, "status": "failed", "error": err, "metrics": {}} for m in task.methods])
-    if sample is not None:
+    del sample
+    if written:  # methods run only on a sample that was rendered AND written: one row per method, always
         for name in task.methods:
-            rdir = sdir / "recon" / name
-            ctx = MethodContext(sdir / "sample", rdir, _STATE["renderer"], task.pose)
+            ctx = MethodContext(stage / "sample", stage / RECON / method_folder(name), _STATE["renderer"], task.pose)
             try:
                 out = get_method(name).run(ctx)
                 row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
                        "time_recon_s": out.time_recon_s, "time_eval_s": out.time_eval_s,
                        "time_render_extra_s": out.time_render_extra_s}
-                for p in sorted(rdir.rglob("*.json")):
-                    files[str(p.relative_to(sdir))] = file_sha256(p)
             except Exception as e:  # noqa: BLE001
                 row = {"method": name, "status": "failed", "error": _error_text(e), "metrics": {}}
             res["rows"].append(row)
@@ -187,10 +184,9 @@ def _run_sample(task: SampleTask) -> dict:
         if failed:
             res.update(status="failed", phase="method",
                        error="; ".join(f"{r['method']}: {r['error']}" for r in failed)[:1000])
-    del sample
+    res["files"] = tree_checksums(stage)  # every file of the sample; --resume checks them all
     _STATE["samples"] += 1
     timings["total_s"] = time.perf_counter() - t0
     res["worker"] = worker_info()
     res["finished_utc"] = now_utc()
-    write_json_result(dataset, task.sample_id, res)  # last: the sample counts as done from here on
-    return res
+    return res  # the sweep process verifies the files and commits the sample (dataset.commit_sample)

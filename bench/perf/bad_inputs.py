@@ -1,0 +1,333 @@
+"""Bad-input harness: every input a user can get wrong, tried as a new user would, and scored.
+
+``python -m platebench.bench.perf.bad_inputs [--json FILE] [-k SUBSTRING]`` (or
+``platebench perf bad-input``) makes a scratch directory with one small rendered sample and its
+reconstruction, then runs ``platebench`` in a fresh process for each case: bad TOML values and
+types, damaged files (truncated PNG/EXR/PFM/NPY, corrupt PLY, malformed JSON structure, non-UTF-8
+text), unreadable or unwritable paths (run as user ``nobody`` where this runs as root), bad flags,
+bad scheduler addresses, huge ranges. A case is *clean* when the command exits 2 with exactly one
+stderr line ``platebench: error: ...`` that names what the case expects (the file, key or value);
+a *traceback* is any "Traceback" or "Exception ignored" on stderr; *leftovers* are files the
+failed command left behind (a new output, a staging directory, a lock). The table it prints is the
+one in the issue's note; goal: every case clean, no traceback, no leftover.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+NOBODY = 65534
+
+
+@dataclass
+class Case:
+    name: str
+    args: list  # platebench arguments ({W} = the scratch directory)
+    expect: tuple  # substrings the one error line must contain
+    setup: object = None  # callable(work: Path) -> None
+    as_nobody: bool = False
+    watch: tuple = ()  # paths (relative to W) that must not exist afterwards
+    memory_gb: float = 4.0  # address-space limit of the command (a range that expands must not take the host)
+
+
+@dataclass
+class Outcome:
+    case: str
+    rc: int
+    lines: list
+    clean: bool
+    traceback: bool
+    leftovers: list = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def _write(rel: str, data):
+    def setup(w: Path):
+        p = w / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(data if isinstance(data, bytes) else data.encode())
+    return setup
+
+
+def _damage(rel: str, how: str):
+    """Copy the good sample/recon to a new name and damage one file in it."""
+    def setup(w: Path):
+        kind = "recon" if rel.startswith("recon/") else "sample"
+        src = w / ("good_recon" if kind == "recon" else "good")
+        dst = w / ("bad_recon" if kind == "recon" else "bad")
+        shutil.rmtree(dst, ignore_errors=True)
+        shutil.copytree(src, dst)
+        p = dst / rel.split("/", 1)[1] if kind == "recon" else dst / rel
+        data = p.read_bytes()
+        if how == "truncate":
+            p.write_bytes(data[: max(1, len(data) // 2)])
+        elif how == "garbage":
+            p.write_bytes(b"\x00\xff garbage \x13" * 20)
+        elif how == "delete":
+            p.unlink()
+        elif how == "latin1":
+            p.write_bytes(b"\xff\xfe" + data)
+        else:
+            p.write_bytes(how.encode())
+    return setup
+
+
+def _chmod(rel: str, mode: int):
+    def setup(w: Path):
+        (w / rel).chmod(mode)
+    return setup
+
+
+def _both(*fs):
+    def setup(w: Path):
+        for f in fs:
+            f(w)
+    return setup
+
+
+TOML_BASE = "[scene]\nwidth = 64\nheight = 48\n"
+
+
+def cases() -> list[Case]:
+    tiny = ["--width", "64", "--height", "48", "--spp", "1"]
+    c = []
+    # --- configuration values and types (render --config)
+    for name, text, expect in (
+            ("toml spp = inf", "[render]\nspp = inf\n", ("render.spp = inf", "integer 1 to 65536")),
+            ("toml seed = inf", "[render]\nseed = inf\n", ("render.seed = inf", "0 to 2^31-1")),
+            ("toml spp = nan", "[render]\nspp = nan\n", ("render.spp = nan", "integer")),
+            ("toml spp = \"16\"", "[render]\nspp = \"16\"\n", ("render.spp = '16'", "integer 1 to 65536")),
+            ("toml width = 160.5", "[scene]\nwidth = 160.5\n", ("scene.width = 160.5", "integer 16 to 8192")),
+            ("toml width = \"160\"", "[scene]\nwidth = \"160\"\n", ("scene.width = '160'", "integer")),
+            ("toml distance_m = \"0.4\"", "[scene]\ndistance_m = \"0.4\"\n", ("scene.distance_m", "finite number")),
+            ("toml distance_m = inf", "[scene]\ndistance_m = inf\n", ("scene.distance_m = inf", "finite number")),
+            ("toml bit_depth = 12", "[sensor]\nbit_depth = 12\n", ("bit_depth = 12", "8 or 16")),
+            ("toml gamma = true", "[sensor]\ngamma = true\n", ("sensor.gamma = True", "finite number")),
+            ("toml angle_rad = nan", "[plate]\nlength_m = 0.1\nwidth_m = 0.07\n[plate.deformation]\nfamily = "
+             "\"cylinder\"\nangle_rad = nan\n", ("plate.deformation.angle_rad = nan", "finite number")),
+            ("toml length_m = \"a\"", "[plate]\nlength_m = \"a\"\nwidth_m = 0.07\n", ("plate.length_m = 'a'",
+                                                                                     "finite number")),
+            ("toml unknown key", "[scene]\nwdth = 3\n", ("scene.wdth", "allowed keys")),
+            ("toml scene not a table", "scene = 3\n", ("scene = 3", "not a table")),
+            ("toml syntax error", "[scene\nwidth = 3\n", ("cfg.toml", "invalid TOML")),
+    ):
+        c.append(Case(name, ["render", "--config", "{W}/cfg.toml", "--out", "{W}/o_render", *tiny], ("cfg.toml",
+                      *expect), _write("cfg.toml", text), watch=("o_render",)))
+    c.append(Case("toml not UTF-8", ["render", "--config", "{W}/cfg.toml", "--out", "{W}/o_render"],
+                  ("cfg.toml", "not UTF-8"), _write("cfg.toml", b"[scene]\nname = \"\xff\xfe\"\n"), watch=("o_render",)))
+    c.append(Case("config missing", ["render", "--config", "{W}/none.toml", "--out", "{W}/o_render"],
+                  ("none.toml", "missing"), watch=("o_render",)))
+    c.append(Case("config is a directory", ["render", "--config", "{W}", "--out", "{W}/o_render"],
+                  ("is a directory",), watch=("o_render",)))
+    c.append(Case("config unreadable", ["render", "--config", "{W}/secret.toml", "--out", "{W}/pub/o"],
+                  ("secret.toml", "permission denied"), _both(_write("secret.toml", TOML_BASE),
+                                                              _chmod("secret.toml", 0o600)), as_nobody=True,
+                  watch=("pub/o",)))
+    # --- flags
+    for name, flags, expect in (("--width 10", ["--width", "10"], ("scene.width = 10", "16 to 8192")),
+                                ("--spp 0", ["--spp", "0"], ("spp = 0", "1 to 65536")),
+                                ("--bend-deg nan", ["--bend-deg", "nan"], ("--bend-deg = nan", "0 to 350")),
+                                ("--grid 4x4", ["--grid", "4x4"], ("--grid", "ROWSxCOLS@SQUARE_PX"))):
+        c.append(Case(name, ["render", "--out", "{W}/o_render", *tiny, *flags], expect, watch=("o_render",)))
+    # --- output targets
+    c.append(Case("render --out under a file", ["render", "--out", "{W}/afile/s", *tiny], ("afile",),
+                  _write("afile", "x")))
+    c.append(Case("render --out is a file", ["render", "--out", "{W}/afile", "--overwrite", *tiny],
+                  ("afile", "not a directory"), _write("afile", "x")))
+    c.append(Case("render --out exists", ["render", "--out", "{W}/good", *tiny], ("good", "already exists")))
+    c.append(Case("render --out unwritable", ["render", "--out", "{W}/ro/s", *tiny], ("ro", "permission denied"),
+                  _both(lambda w: (w / "ro").mkdir(exist_ok=True), _chmod("ro", 0o755)), as_nobody=True))
+    c.append(Case("reconstruct --out unwritable", ["reconstruct", "{W}/good", "--out", "{W}/ro/r"],
+                  ("ro", "permission denied"), _both(lambda w: (w / "ro").mkdir(exist_ok=True), _chmod("ro", 0o755)),
+                  as_nobody=True))
+    c.append(Case("sweep --out unwritable", ["sweep", "{W}/spec.toml", "--out", "{W}/ro/ds", "--workers", "0"],
+                  ("ro", "permission denied"), _both(_write("spec.toml", "[base.scene]\nwidth = 64\nheight = 48\n"
+                                                     "[grid]\nbend_deg = [0]\n"),
+                                              lambda w: (w / "ro").mkdir(exist_ok=True), _chmod("ro", 0o755)),
+                  as_nobody=True))
+    c.append(Case("demo --out is a file", ["demo", "--quick", "--out", "{W}/afile", "--overwrite"],
+                  ("afile", "not a directory"), _write("afile", "x")))
+    # --- sweep specs and executors
+    spec_ok = "[base.scene]\nwidth = 64\nheight = 48\n[grid]\nbend_deg = [0]\n"
+    for name, text, expect in (
+            ("spec spp = inf", "[base.render]\nspp = inf\n[grid]\nbend_deg = [0]\n", ("render.spp = inf",)),
+            ("spec huge range", "[grid]\nbend_deg = {start = 0, stop = 1e12, step = 1e-3}\n",
+             ("grid.bend_deg", "allowed at most 100000")),
+            ("spec width 160.5 axis", "[grid]\nwidth_px = [160.5]\n", ("grid.width_px = 160.5", "integer")),
+            ("spec not UTF-8", b"[grid]\nbend_deg = [0]\n# \xff\n", ("spec.toml", "not UTF-8")),
+    ):
+        c.append(Case(name, ["sweep", "{W}/spec.toml", "--out", "{W}/o_ds", "--workers", "0"], ("spec.toml", *expect),
+                      _write("spec.toml", text), watch=("o_ds",)))
+    c.append(Case("spec unreadable", ["sweep", "{W}/secret.toml", "--out", "{W}/pub/ds"], ("secret.toml",
+                  "permission denied"), _both(_write("secret.toml", spec_ok), _chmod("secret.toml", 0o600)),
+                  as_nobody=True, watch=("pub/ds",)))
+    for name, addr, expect in (("--scheduler without port", "tcp://127.0.0.1", ("tcp://HOST:PORT",)),
+                               ("--scheduler not an address", "localhost", ("tcp://HOST:PORT",)),
+                               ("--scheduler closed port", "tcp://127.0.0.1:9", ("cannot reach",)),
+                               ("--scheduler not Dask", "tcp://127.0.0.1:{PORT}", ("within 3 s",))):
+        c.append(Case(name, ["sweep", "{W}/spec.toml", "--out", "{W}/o_ds", "--scheduler", addr,
+                             "--connect-timeout-s", "3"], expect, _write("spec.toml", spec_ok), watch=("o_ds",)))
+    c.append(Case("--workers -1", ["sweep", "{W}/spec.toml", "--out", "{W}/o_ds", "--workers", "-1"],
+                  ("--workers = -1", "0 to 256"), _write("spec.toml", spec_ok), watch=("o_ds",)))
+    # --- damaged samples (reconstruct reads images, calib.json, pattern.json)
+    for name, rel, how, expect in (
+            ("truncated image PNG", "images/left_active.png", "truncate", ("left_active.png", "truncated PNG")),
+            ("garbage image PNG", "images/left_passive.png", "garbage", ("left_passive.png", "not a PNG")),
+            ("missing image", "images/right_active.png", "delete", ("right_active.png", "missing")),
+            ("pattern.json features not a list", "pattern.json", '{"features": 3}', ("pattern.json", "features")),
+            ("pattern.json feature lacks keys", "pattern.json", '{"features": [{"id": 0}]}', ("pattern.json",)),
+            ("pattern.json is a list", "pattern.json", "[1, 2]", ("pattern.json", "allowed a JSON object")),
+            ("pattern.json truncated", "pattern.json", "truncate", ("pattern.json", "invalid JSON")),
+            ("calib.json is a list", "calib.json", "[]", ("calib.json", "allowed a JSON object")),
+            ("calib.json lacks left", "calib.json", '{"right": {}}', ("calib.json", "left")),
+            ("calib.json not UTF-8", "calib.json", "latin1", ("calib.json", "UTF-8")),
+    ):
+        c.append(Case(name, ["reconstruct", "{W}/bad", "--out", "{W}/o_recon"], expect, _damage(rel, how),
+                      watch=("o_recon",)))
+    c.append(Case("sample unreadable", ["reconstruct", "{W}/good_ro", "--out", "{W}/pub/r"],
+                  ("calib.json", "permission denied"),
+                  _both(lambda w: shutil.copytree(w / "good", w / "good_ro", dirs_exist_ok=True),
+                        _chmod("good_ro/calib.json", 0o600)), as_nobody=True, watch=("pub/r",)))
+    c.append(Case("reconstruct missing sample", ["reconstruct", "{W}/nothing", "--out", "{W}/o_recon"],
+                  ("nothing", "missing"), watch=("o_recon",)))
+    # --- damaged ground truth and reconstructions (evaluate reads them)
+    for name, rel, how, expect in (
+            ("corrupt plate.ply", "plate.ply", "garbage", ("plate.ply", "PLY")),
+            ("truncated boundary.npy", "boundary.npy", "truncate", ("boundary.npy", "truncated")),
+            ("truncated disp0GT.pfm", "gt/disp0GT.pfm", "truncate", ("disp0GT.pfm", "truncated PFM")),
+            ("garbage disp0GT.pfm", "gt/disp0GT.pfm", "garbage", ("disp0GT.pfm", "not a PFM")),
+            ("truncated depth EXR", "gt/left_depth.exr", "truncate", ("left_depth.exr", "OpenEXR")),
+            ("truncated mask PNG", "gt/left_mask.png", "truncate", ("left_mask.png", "truncated PNG")),
+            ("sample.json truncated", "sample.json", "truncate", ("sample.json", "invalid JSON")),
+            ("sample.json is a list", "sample.json", "[]", ("sample.json", "allowed a JSON object")),
+            ("sample.json config not a table", "sample.json", '{"layout_version": 1, "config": 5}',
+             ("sample.json", "config")),
+    ):
+        c.append(Case(name, ["evaluate", "{W}/bad", "{W}/good_recon"], expect, _damage(rel, how)))
+    for name, rel, how, expect in (
+            ("garbage points.csv", "recon/points.csv", "garbage", ("points.csv",)),
+            ("truncated recon boundary.npy", "recon/boundary.npy", "truncate", ("boundary.npy", "truncated")),
+            ("recon.json is a list", "recon/recon.json", "[]", ("recon.json", "allowed a JSON object")),
+    ):
+        c.append(Case(name, ["evaluate", "{W}/good", "{W}/bad_recon"], expect, _damage(rel, how)))
+    c.append(Case("study --bend 0:1e12:1e-3", ["study", "false-boundary", "--bend", "0:1e12:1e-3", "--out",
+                                                "{W}/o_study"], ("--bend", "allowed at most"), watch=("o_study",)))
+    return c
+
+
+def _prepare(work: Path) -> None:
+    """One small sample (160 x 120, spp 2) and its reconstruction: the material the damage cases copy.
+    Made through the CLI in a subprocess, as a user would (perf sits below the CLI's layer)."""
+    cfg = work / "small.toml"
+    cfg.write_text("[scene]\nwidth = 160\nheight = 120\n[render]\nspp = 2\n")
+    for argv in (["render", "--config", str(cfg), "--out", str(work / "good")],
+                 ["reconstruct", str(work / "good"), "--out", str(work / "good_recon")]):
+        p = subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *argv], capture_output=True, text=True)
+        if p.returncode != 0:
+            raise SystemExit(f"bad_inputs: could not prepare {argv}: {p.stderr.strip()[-500:]}")
+
+
+def _snapshot(work: Path) -> set:
+    return {str(p.relative_to(work)) for p in work.rglob("*")}
+
+
+def _as_nobody() -> bool:
+    return os.geteuid() == 0 and shutil.which("setpriv") is not None
+
+
+def run_case(case: Case, work: Path, port: int, timeout: float = 120.0) -> Outcome:
+    if case.setup is not None:
+        case.setup(work)
+    before = _snapshot(work)
+    args = [a.replace("{W}", str(work)).replace("{PORT}", str(port)) for a in case.args]
+    cmd = [sys.executable, "-m", "platebench.bench.cli.main", *args]
+    env = dict(os.environ)
+    env.pop("PLATEBENCH_DEBUG", None)
+    if case.as_nobody and _as_nobody():
+        (work / "home").mkdir(exist_ok=True)
+        os.chown(work / "home", NOBODY, NOBODY)
+        env["HOME"] = str(work / "home")
+        cmd = ["setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups", *cmd]
+    limit = int(case.memory_gb * 2**30)
+    t0 = time.monotonic()
+    try:
+        r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=timeout,
+                           preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+        rc, err = r.returncode, r.stderr
+    except subprocess.TimeoutExpired as e:
+        rc, err = 124, (e.stderr.decode() if isinstance(e.stderr, bytes) else e.stderr or "") + "\n(timed out)"
+    seconds = time.monotonic() - t0
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    tb = "Traceback" in err or "Exception ignored" in err
+    named = all(x in (lines[0] if lines else "") for x in case.expect)
+    clean = rc == 2 and len(lines) == 1 and lines[0].startswith("platebench: error:") and named
+    new = sorted(_snapshot(work) - before)
+    from platebench.bench.io.atomic import is_temp_name  # noqa: PLC0415
+    left = [p for p in new if is_temp_name(Path(p).name) or p.endswith(".lock")
+            or any(p == w or p.startswith(w + "/") for w in case.watch)]
+    left += [w for w in case.watch if (work / w).exists() and w not in left]
+    return Outcome(case.name, rc, lines, clean, tb, sorted(set(left)), seconds)
+
+
+def run_all(select: str | None = None, work: Path | None = None) -> list[Outcome]:
+    own = work is None
+    work = Path(tempfile.mkdtemp(prefix="platebench-badinput-")) if own else Path(work)
+    os.chmod(work, 0o755)
+    (work / "pub").mkdir(exist_ok=True)
+    os.chmod(work / "pub", 0o777)
+    srv = socket.socket()  # a listening port that is not a Dask scheduler
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(16)
+    try:
+        _prepare(work)
+        for p in work.rglob("*"):
+            os.chmod(p, 0o755 if p.is_dir() else 0o644)
+        os.chmod(work / "pub", 0o777)
+        out = []
+        for case in cases():
+            if select and select not in case.name:
+                continue
+            out.append(run_case(case, work, srv.getsockname()[1]))
+        return out
+    finally:
+        srv.close()
+        if own:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def table(outcomes: list[Outcome]) -> str:
+    rows = [f"{'case':40s} {'exit':>4s} {'clean':>5s} {'tb':>3s} {'left':>4s}  first line of stderr"]
+    for o in outcomes:
+        rows.append(f"{o.case[:40]:40s} {o.rc:4d} {'yes' if o.clean else 'NO':>5s} {'YES' if o.traceback else '-':>3s} "
+                    f"{len(o.leftovers):4d}  {(o.lines[0] if o.lines else '')[:150]}")
+    n = len(outcomes)
+    rows.append(f"bad inputs tried {n}, handled with one clean line {sum(o.clean for o in outcomes)}, "
+                f"tracebacks {sum(o.traceback for o in outcomes)}, leftovers {sum(bool(o.leftovers) for o in outcomes)}")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m platebench.bench.perf.bad_inputs", description=__doc__.split("\n\n")[0])
+    p.add_argument("-k", dest="select", help="only cases whose name contains this")
+    p.add_argument("--json", type=Path, help="also write the outcomes as JSON here")
+    args = p.parse_args(argv)
+    outcomes = run_all(args.select)
+    print(table(outcomes))
+    if args.json:
+        args.json.write_text(json.dumps([o.__dict__ for o in outcomes], indent=2))
+    return 0 if all(o.clean and not o.traceback and not o.leftovers for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,53 @@
+"""Issue 13, item 13: installs are reproducible. The lock pins exact versions (pip-compile of
+pyproject.toml), README's commands and CI install from it, ``platebench info`` compares."""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+from conftest import run_cli
+
+from platebench.bench.io.versions import check_lock, normalize, read_lock
+
+REPO = Path(__file__).resolve().parents[1]
+LOCK = REPO / "requirements.lock"
+
+
+def test_lock_pins_exact_versions_of_what_the_bench_depends_on():
+    pins = read_lock(LOCK)
+    assert len(pins) >= 5
+    assert "pip-compile" in LOCK.read_text()  # made by a standard tool
+    for name, version in (("mitsuba", "3.9.1"), ("drjit", "1.5.0"), ("opencv-contrib-python-headless", "5.0.0.93")):
+        assert pins[name][0] == version, (name, pins[name])
+    for name in ("numpy", "trimesh", "karellen-llvm-core", "dask", "distributed", "pyarrow", "pandas", "jinja2",
+                 "pytest", "pytest-xdist", "scipy", "openexr"):
+        assert re.fullmatch(r"[0-9][0-9A-Za-z.+-]*", pins[name][0]), (name, pins.get(name))
+    declared = re.findall(r'^\s*"([A-Za-z0-9_.-]+)', (REPO / "pyproject.toml").read_text().split("[project.scripts]")[0],
+                          re.M)
+    for name in declared:
+        if name not in ("setuptools",):
+            assert normalize(name) in pins, f"{name} of pyproject.toml is not in the lock"
+
+
+def test_set_up_commands_install_from_the_lock():
+    make = (REPO / "Makefile").read_text()
+    assert "pip install --quiet -r requirements.lock" in make and "pip install --quiet --no-deps -e ." in make
+    assert "make test" in (REPO / ".ci" / "run").read_text()
+    readme = (REPO / "README.md").read_text()
+    assert "requirements.lock" in readme and "make lock" in readme
+
+
+def test_info_prints_versions_against_the_lock_and_flags_differences(tmp_path):
+    r = run_cli("info")
+    assert r.returncode == 0, r.stderr
+    lock = json.loads(r.stdout)["lock"]
+    assert lock["file"] == str(LOCK) and lock["packages"] == len(read_lock(LOCK))
+    # a lock that differs from what is installed is flagged, package by package
+    other = tmp_path / "requirements.lock"
+    other.write_text("numpy==0.0.1\nmitsuba==3.9.1\nnot-installed-pkg==1.0\nwinonly==1.0 ; sys_platform == 'win32'\n")
+    check = check_lock(other)
+    status = {name: st for name, _, _, st in check.rows}
+    assert status == {"numpy": "differs", "mitsuba": "ok", "not-installed-pkg": "missing",
+                      "winonly": "not for this platform"}
+    assert check.to_dict()["differs"]["numpy"]["locked"] == "0.0.1"
