@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
-from platebench.bench.io.atomic import staged_directory
+from platebench.bench.io.atomic import staged_output
 from platebench.bench.progress import bar, step_callback
 from platebench.bench.run.sensing import (
     OUTCOME_TEXT,
@@ -102,7 +102,8 @@ def run(args) -> int:
     if not (0 <= args.max_cures <= 20):
         raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
     opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures)
-    with staged_directory(args.out, overwrite=args.overwrite) as stage:
+    # staged: --out checked (exists? locked? writable?) before the first render, replaced only once complete
+    with staged_output(args.out, overwrite=args.overwrite, what="sensing run") as stage:
         with bar(4 + opts.max_views, "sense") as pbar:
             s = run_sensing(cfg, stage, opts, progress=step_callback(pbar))
     for line in step_lines(s) + summary_lines(s):

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams, parse_grid
+from platebench.bench.config.ranges import parse_range_text
 from platebench.bench.progress import bar
 from platebench.bench.run.study import DEFAULT_BENDS_DEG, study_cases, write_study
 from platebench.errors import UserValueError
@@ -12,27 +13,7 @@ from platebench.reconstruction.strategy.detectors import DETECTORS
 from platebench.scenes.scene_spec import RenderSettings
 
 DEFAULT_GRID = "6x12@12"
-
-
-def parse_range(text: str, name: str, lo: float, hi: float) -> list[float]:
-    """'START:STOP:STEP' (inclusive stop) or 'a,b,c' -> floats within [lo, hi]."""
-    import numpy as np  # noqa: PLC0415
-    try:
-        if ":" in text:
-            a, b, c = (float(x) for x in text.split(":"))
-            if c <= 0:
-                raise UserValueError(f"{name} = {text!r}: STEP must be > 0")
-            vals = list(np.arange(a, b + c * 1e-9, c))
-        else:
-            vals = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise UserValueError(f"{name} = {text!r} is not START:STOP:STEP or a comma list") from None
-    if not vals:
-        raise UserValueError(f"{name} = {text!r} is an empty range")
-    bad = [v for v in vals if not (lo <= v <= hi)]
-    if bad:
-        raise UserValueError(f"{name} value {bad[0]:g} is out of range: allowed {lo:g} to {hi:g}")
-    return [float(v) for v in vals]
+MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
 
 
 def add_parser(sub) -> None:
@@ -63,8 +44,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    bends = parse_range(args.bend, "--bend", 0.0, 350.0)
-    l_bends = parse_range(args.l_bends, "--l-bends", 1.0, 179.0) if args.l_bends.strip() else []
+    bends = parse_range_text(args.bend, "--bend", 0.0, 350.0, max_count=MAX_BENDS)
+    l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
+        if args.l_bends.strip() else []
     if not (160 <= args.width <= 4096):
         raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
     if not (1 <= args.spp <= 1024):

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.atomic import staged_directory, write_json, write_text
+from platebench.bench.io.atomic import staged_output, write_json, write_text
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
@@ -346,8 +346,8 @@ def study_csv(rows: list[dict]) -> str:
 def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite: bool = False, progress=None,
                 settings: dict | None = None, l_bends_deg=()) -> dict:
     """Run the study (``run_study``) and write ``out/study.json`` and ``out/study.csv``; the folder
-    appears complete or not at all (staged, then renamed). Returns study.json's dict."""
-    with staged_directory(out, overwrite=overwrite) as stage:
+    appears complete or not at all (``staged_output``: checked and locked before the first plate). Returns study.json's dict."""
+    with staged_output(out, overwrite=overwrite, what="study") as stage:
         doc = run_study(cases, base, progress=progress, settings=settings, l_bends_deg=l_bends_deg).to_dict()
         write_json(stage / "study.json", doc)
         write_text(stage / "study.csv", study_csv(doc["rows"]))
