@@ -39,7 +39,7 @@ chromium:
 	  || echo "note: chromium not installed; the report screenshot test will be skipped"; }
 
 test: $(STAMP) chromium
-	$(VENV)/bin/python -m pytest -q
+	$(VENV)/bin/python -m pytest -q -n 2 --durations=15
 
 clean:
 	rm -rf $(VENV) $(TOOLS) out

@@ -145,7 +145,8 @@ def test_all_workers_lost_stops_the_sweep_with_an_error(tmp_path):
     last = stderr.strip().splitlines()[-1]
     assert last.startswith("platebench: error: every Dask worker of") and "--resume" in last, stderr
     m = read_manifest(out)
-    assert m["state"] == "interrupted" and m["counts"]["failed"] == 0
+    failed = [(e.get("id"), e.get("error")) for e in m.get("samples", []) if e.get("status") == "failed"]
+    assert m["state"] == "interrupted" and m["counts"]["failed"] == 0, failed
 
 
 def test_scheduler_address_errors_are_one_line_within_a_time_limit(tmp_path):

@@ -236,6 +236,7 @@ def _drain(queue, started: dict) -> None:
 
 
 # ----------------------------------------------------------------------------- Dask
+MAX_REFETCH = 2  # a sample whose result died with its worker before it was fetched is run again at most this often
 _ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 
 
@@ -343,12 +344,17 @@ class DaskExecutor:
         client = self.connect()
         tag = ds.text_sha256(tasks[0].dataset)[:10] if tasks else ""
         run_id = secrets.token_hex(3)
-        pending = {}
-        for t in tasks:
-            key = f"platebench-sample-{tag}-{t.sample_id}-{t.config_sha256[:12]}-{run_id}"
+        pending, refetched = {}, Counter()
+
+        def submit(t: SampleTask, attempt: int = 0) -> None:
+            key = f"platebench-sample-{tag}-{t.sample_id}-{t.config_sha256[:12]}-{run_id}" + (
+                f"-r{attempt}" if attempt else "")
             fut = client.submit(run_sample, t, key=key, pure=False, retries=self.retries)
             pending[fut.key] = (fut, t)
             self._futures.append(fut)
+
+        for t in tasks:
+            submit(t)
         total, done = len(tasks), 0
         next_check = time.monotonic() + 2.0
         no_workers_since = None
@@ -369,6 +375,19 @@ class DaskExecutor:
                 except Exception as e:  # noqa: BLE001  (the result could not be fetched)
                     if client.status != "running":
                         raise self._lost(done, total, f"client {client.status}") from None
+                    # The worker holding the result died before it was fetched: the sample did not fail,
+                    # its result was lost. Run it again (the sweep process commits only verified
+                    # attempts); if no worker is left, the no-worker timeout below stops the sweep with
+                    # the sample still pending, never recorded as failed.
+                    del pending[key]
+                    with contextlib.suppress(Exception):
+                        fut.release()
+                    refetched[t.sample_id] += 1
+                    if refetched[t.sample_id] <= MAX_REFETCH:
+                        submit(t, refetched[t.sample_id])
+                        progressed = True
+                        continue
+                    pending[key] = (fut, t)
                     res, exc = None, e
                 del pending[key]
                 done += 1
