@@ -379,15 +379,14 @@ class DaskExecutor:
                     # its result was lost. Run it again (the sweep process commits only verified
                     # attempts); if no worker is left, the no-worker timeout below stops the sweep with
                     # the sample still pending, never recorded as failed.
-                    del pending[key]
-                    with contextlib.suppress(Exception):
-                        fut.release()
                     refetched[t.sample_id] += 1
                     if refetched[t.sample_id] <= MAX_REFETCH:
+                        del pending[key]
+                        with contextlib.suppress(Exception):
+                            fut.release()
                         submit(t, refetched[t.sample_id])
                         progressed = True
                         continue
-                    pending[key] = (fut, t)
                     res, exc = None, e
                 del pending[key]
                 done += 1

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.layout import RECON, method_folder
+from platebench.bench.io.layout import RECON, SAMPLE, method_folder
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
@@ -158,11 +158,11 @@ def _run_sample(task: SampleTask) -> dict:
         _STATE["renderer"] = renderer
         timings["render_s"] = time.perf_counter() - t
         t = time.perf_counter()
-        write_sample(stage / "sample", sample, overwrite=False)
+        write_sample(stage / SAMPLE, sample, overwrite=False)
         timings["write_s"] = time.perf_counter() - t
         res["variant"] = sample.variant
         res["false_boundary_gt"] = bool(any(v.false_boundary for v in sample.visibility.values()))
-        res["images"] = json.loads((stage / "sample" / "sample.json").read_text()).get("images", {})
+        res["images"] = json.loads((stage / SAMPLE / "sample.json").read_text()).get("images", {})
         written = True
     except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
         err = _error_text(e)
@@ -171,7 +171,7 @@ def _run_sample(task: SampleTask) -> dict:
     del sample
     if written:  # methods run only on a sample that was rendered AND written: one row per method, always
         for name in task.methods:
-            ctx = MethodContext(stage / "sample", stage / RECON / method_folder(name), _STATE["renderer"], task.pose)
+            ctx = MethodContext(stage / SAMPLE, stage / RECON / method_folder(name), _STATE["renderer"], task.pose)
             try:
                 out = get_method(name).run(ctx)
                 row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
