@@ -138,9 +138,9 @@ def test_sample_flags_set_bend_direction_axis_and_grid(tmp_path):
 
 # ---------------------------------------------------------------- pure: outcome classes, verdict, planner
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, outcome_class, run_sensing  # noqa: E402
-from platebench.reconstruction.strategy.multiview import ViewOutline, verify  # noqa: E402
-from platebench.reconstruction.strategy.planner import PlannedView, decide  # noqa: E402
-from platebench.reconstruction.strategy.poses import rotated_pose  # noqa: E402
+from platebench.reconstruction.strategy.multiview import ViewOutline, confirm, verify  # noqa: E402
+from platebench.reconstruction.strategy.planner import PlannedView, decide, verification_views  # noqa: E402
+from platebench.reconstruction.strategy.poses import Reach, rotated_pose  # noqa: E402
 from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane  # noqa: E402
 
 
@@ -229,6 +229,43 @@ def test_decide_picks_a_view_that_sees_past_a_gap_or_stops_with_the_reason():
     # a candidate too close to a pose already measured adds nothing
     same = [PlannedView("again", poses[0], "cure", "multi-view", "")]
     assert decide(v, views, poses, same, model, 0.1).kind == "stop"
+
+
+def _turned_about_x(deg):
+    """A pose 0.4 m from the origin, turned ``deg`` about the x axis from straight above."""
+    a = math.radians(deg)
+    return np.array([0.0, 0.4 * math.sin(a), 0.4 * math.cos(a)])
+
+
+@pytest.mark.parametrize("about_deg, confirmed", [(14.0, False), (17.0, False), (24.0, True), (30.0, True)])
+def test_a_pair_turned_little_about_an_edge_does_not_confirm_it(about_deg, confirmed):
+    """Two poses that put an edge along x at the same place confirm it only when they are turned at
+    least CONFIRM_SLIDE_ANGLE_RAD about it (and CONFIRM_ANGLE_RAD in all): a crease's occluding
+    contour (R of 3 to 7 mm) slides by less than the measurement noise under a smaller turn, so
+    agreement proves nothing there. The extra turn about y keeps the overall angle at 25 degrees and
+    more."""
+    x = np.linspace(-0.02, 0.02, 81)
+    P = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    b = math.radians(about_deg)
+    tilt = math.radians(24.0)  # about y: does not slide a contour running along x
+    other = 0.4 * np.array([math.sin(tilt) * math.cos(b), math.sin(b), math.cos(tilt) * math.cos(b)])
+    views = [_outline("a", P, _turned_about_x(0.0)), _outline("b", P, other)]
+    conf = confirm(views)
+    assert bool(conf[0][10:-10].all()) is confirmed and bool(conf[0].any()) is confirmed
+
+
+def test_every_plate_gets_twelve_verification_views_turned_about_g_e_and_the_diagonals():
+    first = SensorPose(np.array([0.0, 0.0, 0.4]), np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    g, e = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])
+    cam = Camera(intrinsics(1000, 640, 480), np.eye(3), np.zeros(3), 640, 480)
+    measured = _rectangle()
+    views, skipped = verification_views(first, g, e, Reach(), measured, cam, 0.1)
+    assert not skipped and len(views) == 12 and all(v.purpose == "verification" for v in views)
+    axes = {v.name.split()[1] for v in views}
+    assert axes == {"g", "e", "g+e", "g-e"}
+    for v in views:  # each is turned by its angle about the boundary centre, at the same distance
+        turn = math.degrees(math.acos(np.clip(v.pose.view_dir @ first.view_dir, -1, 1)))
+        assert abs(turn - abs(float(v.name.split()[2]))) < 1.0, v.name
 
 
 # ---------------------------------------------------------------- rendered: outcomes over small families

@@ -28,8 +28,11 @@ that leaves loose ends elsewhere may be a short-cut (on a 300-degree curl one co
 the boundary), and no other group stands apart (two groups closed on themselves: one of them is
 not the boundary; on a 300-degree curl such a pair covered 44 % of it).
 
-Limits (measured on the bench, see DESIGN.md): a contour slides less than ``CONFIRM_TOL_M`` when
-``R`` is under about 2.3 mm (a crease): such a contour cannot be told from an edge this way.
+Limits: a contour turned ``CONFIRM_SLIDE_ANGLE_RAD`` (20 degrees) about its own direction slides
+``R * 0.35``, less than ``CONFIRM_TOL_M`` when ``R`` is under about 2.9 mm (a crease): such a
+contour cannot be told from an edge this way. With 12 degrees (R under 4.8 mm, and within noise up
+to about 7 mm), the crease contour of a 170-degree fold over a 20 mm band (R = 6.7 mm) and the
+fjord of a 300-degree curl were confirmed as edges: two silent wrong verdicts in the study.
 World frame, metres, radians.
 """
 from __future__ import annotations
@@ -42,7 +45,7 @@ from scipy.spatial import cKDTree
 MATCHED_SOURCES = ("row", "side")  # BoundaryStereo sources whose disparity was measured on the row
 CONFIRM_TOL_M = 1.0e-3  # two poses' points of a true edge agree within this (row-matched: ~0.3 mm each)
 CONFIRM_ANGLE_RAD = float(np.radians(25.0))  # ... when their rays differ by this much
-CONFIRM_SLIDE_ANGLE_RAD = float(np.radians(12.0))  # ... of which this much about the edge's own direction
+CONFIRM_SLIDE_ANGLE_RAD = float(np.radians(20.0))  # ... of which this much about the edge's own direction
 FACING_RAD = float(np.radians(20.0))  # ... unless the surface measured near it faces the pose this much
 TANGENT_HALF_POINTS = 4  # outline points on either side for the local 3D direction
 MIN_PIECE_M = 2e-3  # confirmed runs shorter than this are noise, not pieces

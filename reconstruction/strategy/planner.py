@@ -4,8 +4,11 @@ geometry when the boundary is not verified (``decide``, a pure function).
 Verification views (not cures: every plate gets them). The stage-2 pose turned about the boundary
 centre by +-30 and +-60 degrees about the ruling direction ``g`` (the boundary plane's direction
 across the most-bent direction ``e``: a bend's occluding contours run along ``g`` and slide under
-these turns) and by +-30 and +-60 degrees about ``e`` (for edges running along ``e``; a bend
-about an oblique axis needs the 60-degree turns to confirm them). Their baselines lie
+these turns), by +-30 and +-60 degrees about ``e`` (for edges running along ``e``; a bend
+about an oblique axis needs the 60-degree turns to confirm them) and by +-45 degrees about the
+diagonals ``g+e`` and ``g-e`` (they turn about both at once, and confirm the corners and the
+oblique edges the others leave as loose ends: without them, 6 of 31 study plates with nothing
+hidden got a cure, a false alarm; with them, none). Their baselines lie
 at 45 degrees between ``g`` and ``e``, so that edges along either cross the image rows and are
 matched on the rows, not interpolated.
 
@@ -44,14 +47,14 @@ from platebench.reconstruction.strategy.surface_model import SurfaceModel
 from platebench.scenes.camera import Camera
 
 VERIFY_TURNS_DEG = (("g", -30.0), ("g", 30.0), ("g", -60.0), ("g", 60.0), ("e", -30.0), ("e", 30.0), ("e", -60.0),
-                    ("e", 60.0))
+                    ("e", 60.0), ("g+e", -45.0), ("g+e", 45.0), ("g-e", -45.0), ("g-e", 45.0))
 CANDIDATE_TURNS_DEG = tuple([("g", a) for a in (-15, 15, -45, 45, -75, 75)] +
                             [("e", a) for a in (-45, 45, -60, 60, -75, 75)] +
                             [(d, a) for a in (-45, 45, -60, 60, -75, 75) for d in ("g+e", "g-e")])
 FRONT_MARGIN_RAD = float(np.radians(15.0))
 LOOK_AHEAD_M = (3e-3, 8e-3)
 SAME_VIEW_RAD = float(np.radians(8.0))  # a candidate this close in direction to a done pose adds nothing
-MAX_VIEWS = 14
+MAX_VIEWS = 18  # measuring poses at most: stage 2, the 12 verification views, 5 cures
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,321 @@
+"""The paper's closed sensing loop (sections II, IV-B, V-B, VI) with a simulated robot, made to
+say when it is not sure.
+
+1. ``first_stages``. Stage 1: a far pose, a rough boundary (passive stereo). Stage 2: the pose of
+   the paper's exploring strategy, the precise boundary. Stage 3: the projector on its centre
+   line, active stereo, the paper's counting test and Fig. 2 symptom (reported as they are).
+2. ``verification_stage``: views every plate gets (not cures), the stage-2 pose turned about the
+   boundary centre (``reconstruction.strategy.planner``). Each measures the outline by passive stereo.
+3. The verdict (``reconstruction.strategy.multiview.verify``): outline points confirmed by a second,
+   turned pose; pieces that close into one loop mean a verified boundary. The detectors of a false
+   boundary at stage 2 are reported one by one (``reconstruction.strategy.detectors``).
+4. ``cure_stage``: while not verified, ``planner.decide`` picks the paper's cure 1 or 2 or a
+   further pose, checked against the reconstructed surface model, or stops with the reason.
+5. ``final_record``: the verdict, and its scores against ground truth (``scoring``).
+
+Decisions are pure functions of measurements in ``reconstruction.strategy``; the simulated robot
+(``sensor``) renders, and holds the ground truth for scoring only: each step's ``gt_visibility``
+and, at the end, the visibility of the true boundary from the final poses, the accuracy and the
+outcome class (``records.OUTCOMES``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.io.atomic import write_json
+from platebench.bench.io.recon_files import image_checksums, write_reconstruction
+from platebench.bench.io.sample_files import write_sample
+from platebench.bench.run.render import RenderedSample
+from platebench.bench.run.sensing.records import (
+    ActiveRecord,
+    FinalRecord,
+    SensingOptions,
+    SensingResult,
+    StageRecord,
+    ViewRecord,
+    gt_visibility_dict,
+    hidden,
+    outcome_class,
+)
+from platebench.bench.run.sensing.scoring import final_visibility, merged_accuracy, stage3_accuracy
+from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, SimulatedSensor, measure_outline
+from platebench.reconstruction.paper.pipeline import passive_stereo, projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.plate_region import ReconstructionError
+from platebench.reconstruction.strategy.detectors import (
+    DetectorResult,
+    end_tangents,
+    occluding_contour,
+    paper_tests,
+    viewpoint_consistency,
+)
+from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline, verify
+from platebench.reconstruction.strategy.planner import (
+    Decision,
+    PlannedView,
+    candidate_views,
+    decide,
+    paper_cure_views,
+    sensing_axes,
+    verification_views,
+)
+from platebench.reconstruction.strategy.poses import (
+    PoseError,
+    SensorPose,
+    ensure_in_view,
+    most_bent_direction,
+    stage1_pose,
+    stage2_pose,
+    validate_pose,
+)
+from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
+
+
+@dataclass(frozen=True)
+class FirstStages:
+    """Stages 1-3: their records, the stage-2 pose and its passive view, the stage-3 sample and
+    reconstruction (None when the active stage failed; ``notes`` says why)."""
+
+    records: tuple
+    pose2: SensorPose
+    view2: PassiveView
+    plane2: object  # the stage-2 BoundaryPlane
+    boundary2: np.ndarray  # (N,3) the stage-2 passive boundary
+    sample3: RenderedSample
+    rec: object | None
+    notes: tuple[str, ...]
+
+
+def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> FirstStages:
+    """Stages 1, 2 and 3 of the paper (module doc). Raises ``PoseError`` on an unreachable pose and
+    ``ReconstructionError`` when passive stereo fails at stage 1 or 2."""
+    cam, pcam, B = sensor.camera, sensor.projector_camera, sensor.baseline_m
+    pose1 = stage1_pose(np.zeros(3), options.workspace_radius_m, cam, B)
+    s1 = sensor.shoot(pose1, PASSIVE, label="stage 1")
+    p1 = passive_stereo(s1.digital["left_passive"], s1.digital["right_passive"], s1.scene.rig)
+    r1 = StageRecord(1, pose1, len(p1.boundary), p1.stereo.method, gt_visibility_dict(s1.gt_visibility), p1.plane)
+
+    pose2 = stage2_pose(p1.boundary, p1.plane, cam, B, options.working_distance_m)
+    validate_pose(pose2, p1.boundary, p1.plane, cam, B)
+    s2 = sensor.shoot(pose2, PASSIVE, label="stage 2")
+    p2 = passive_stereo(s2.digital["left_passive"], s2.digital["right_passive"], s2.scene.rig)
+    r2 = StageRecord(2, pose2, len(p2.boundary), p2.stereo.method, gt_visibility_dict(s2.gt_visibility))
+
+    # stage 3 (paper V-B): the projector's centre ray through the boundary centre along the normal
+    pd = options.projector_distance_m or pose2.distance_m
+    proj_pose = SensorPose(p2.plane.point + p2.plane.normal * pd, p2.plane.point.copy(), pose2.baseline_dir,
+                           "stage 3: projector centre ray through the boundary centre, perpendicular to the "
+                           "boundary plane")
+    proj_pose = ensure_in_view(proj_pose, p2.boundary, pcam, 0.0)
+    validate_pose(proj_pose, p2.boundary, p2.plane, pcam, 0.0)
+    s3 = sensor.shoot(pose2, ACTIVE, projector=proj_pose, label="stage 3")
+    gt3, vis3 = sensor.dense_ground_truth()
+    sample3 = RenderedSample(sensor.cfg, sensor.plate, s3.scene, {**s2.radiance, **s3.radiance},
+                             {**s2.digital, **s3.digital}, gt3, vis3, {}, sensor.renderer.variant)
+    rec, error, notes = None, None, []
+    try:
+        rec = reconstruct(sample3.digital, s3.scene.rig, rays_for(s3.scene), s3.scene.projector.pattern)
+    except ReconstructionError as e:
+        error = f"active stage failed: {e}"
+        notes.append(error)
+    r3 = ActiveRecord(pose2, proj_pose, None if rec is None else rec.false_boundary,
+                      0 if rec is None else len(rec.points), () if rec is None else tuple(rec.unmatched),
+                      gt_visibility_dict(vis3), error)
+    # the stage-2 pose's own outline, measured by the general outline stereo (as every later pose's)
+    view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.scene, s2.digital), s2.scene.rig.left,
+                        s2.gt_visibility)
+    return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
+
+
+class Measurements:
+    """The poses measured so far (each with an outline), their membranes, the surface model and the
+    verdict over them. The stage-2 pose is first; its membrane also holds stage 3's square centres."""
+
+    def __init__(self, first: FirstStages):
+        rec = first.rec
+        v = first.view2
+        self.views: list[PassiveView] = [v]
+        self.membranes = [view_membrane(v.outline, None if rec is None else rec.uv_left,
+                                        None if rec is None else rec.points)]
+        self.model, self.verdict = None, None
+        self.update()
+
+    @property
+    def outlines(self) -> list[ViewOutline]:
+        return [v.outline for v in self.views]
+
+    @property
+    def poses(self) -> list[SensorPose]:
+        return [v.pose for v in self.views]
+
+    @property
+    def points(self) -> np.ndarray:
+        """(M,3) every measured outline point."""
+        return np.vstack([o.points for o in self.outlines])
+
+    def add(self, view: PassiveView) -> None:
+        if view.outline is not None:
+            self.views.append(view)
+            self.membranes.append(view_membrane(view.outline))
+
+    def update(self) -> BoundaryVerdict:
+        """Rebuild the surface model and the verdict from every pose measured so far."""
+        self.model = SurfaceModel.build(self.membranes)
+        self.verdict = verify(self.outlines, self.model)
+        return self.verdict
+
+
+def _measure(sensor: SimulatedSensor, view: PlannedView, into: Measurements, steps: list) -> None:
+    pv = sensor.passive_view(view.name, view.pose)
+    o = pv.outline
+    steps.append(ViewRecord(view, 0 if o is None else len(o.points), "" if o is None else o.method,
+                            gt_visibility_dict(pv.gt_visibility), pv.error))
+    into.add(pv)
+
+
+def _axes(first: FirstStages) -> tuple[np.ndarray, np.ndarray]:
+    """(g, e) of ``planner.sensing_axes`` from the stage-3 reconstruction, else the stage-2 boundary."""
+    rec = first.rec
+    if rec is not None:
+        return sensing_axes(most_bent_direction(rec.boundary, rec.boundary_plane, rec.points),
+                            rec.boundary_plane.normal)
+    return sensing_axes(most_bent_direction(first.boundary2, first.plane2), first.plane2.normal)
+
+
+def verification_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, options: SensingOptions,
+                       steps: list, notes: list) -> tuple[PlannedView, ...]:
+    """Measure the verification views (every plate gets them) and update the verdict."""
+    if not options.verification:
+        return ()
+    g, e = _axes(first)
+    verif, skipped = verification_views(first.pose2, g, e, options.reach, first.view2.outline.points,
+                                        sensor.camera, sensor.baseline_m)
+    notes.extend(f"verification view left out: {s}" for s in skipped)
+    for v in verif:
+        _measure(sensor, v, m, steps)
+    m.update()
+    return tuple(verif)
+
+
+def detectors(first: FirstStages, m: Measurements) -> tuple[DetectorResult, ...]:
+    """The detectors of a false boundary at the stage-2 pose (``reconstruction.strategy.detectors``)."""
+    rec, view2 = first.rec, first.view2
+    rig = first.sample3.scene.rig
+    cams = np.array([rig.left.center, rig.right.center])
+    return tuple(paper_tests(rec.false_boundary) if rec is not None else []) + (
+        viewpoint_consistency(view2.outline, m.verdict), occluding_contour(view2.outline, m.model),
+        end_tangents(rec, cams) if rec is not None else
+        DetectorResult("end_tangents", None, None, "mm", "no stage-3 reconstruction"))
+
+
+def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, options: SensingOptions,
+               steps: list, notes: list) -> tuple[tuple[PlannedView, ...], tuple[PlannedView, ...]]:
+    """While the boundary is not verified: ``planner.decide`` (module doc). Returns (cures applied,
+    the candidates considered)."""
+    if not options.verification:
+        steps.append(Decision("done" if m.verdict.verified else "stop", None,
+                              "verification views off: " + m.verdict.reason))
+        return (), ()
+    g, e = _axes(first)
+    cam, B = sensor.camera, sensor.baseline_m
+    measured = m.points
+    paper, note = paper_cure_views(first.rec, first.pose2, options.reach, measured, cam, B) \
+        if first.rec is not None else ([], "")
+    if note:
+        notes.append(note)
+    cands = candidate_views(first.pose2, g, e, options.reach, measured, cam, B, paper)
+    cures: list[PlannedView] = []
+    while True:
+        d = decide(m.verdict, m.outlines, m.poses, cands, m.model, B, options.max_views)
+        if d.kind == "view" and len(cures) >= options.max_cures:
+            d = Decision("stop", None, f"{len(cures)} cures applied, the most allowed; " + m.verdict.reason,
+                         d.gaps_targeted)
+        steps.append(d)
+        if d.kind != "view":
+            return tuple(cures), tuple(cands)
+        cures.append(d.view)
+        _measure(sensor, d.view, m, steps)
+        m.update()
+
+
+def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, cures, reach_poses,
+                 options: SensingOptions) -> FinalRecord:
+    """The loop's verdict and its scores against ground truth (``scoring``)."""
+    verdict, rec = m.verdict, first.rec
+    P = np.asarray(sensor.plate.boundary, float)
+    gt_final = gt_visibility_dict(final_visibility(P, m.views))
+    gt_first = gt_visibility_dict(first.view2.gt_visibility)
+    # Not verified: the gaps, and the outline stretches no confirmed piece runs along. Verified: none
+    # (outline stretches no other pose confirmed are then occluding contours; sensing.json's
+    # verdict lists them all under "unconfirmed_outline").
+    unverified = () if verdict.verified else tuple(
+        [g_.to_dict() for g_ in verdict.gaps]
+        + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline no other pose confirmed", **u.to_dict()}
+           for u in verdict.unconfirmed if not u.covered])
+    outcome = outcome_class(hidden(gt_first), hidden(gt_final), verdict.verified,
+                            bool(cures) or not verdict.verified)
+    reach_vis = None
+    if options.ground_truth_reach:
+        from platebench.scenes.render.ground_truth import combined_visibility  # noqa: PLC0415
+        masks = sensor.boundary_visible_from(reach_poses)
+        reach_vis = gt_visibility_dict({c: combined_visibility(P, masks[c]) for c in ("left", "right")})
+    accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None
+    merged = merged_accuracy(sensor.plate, verdict, m.model,
+                             None if rec is None else np.vstack([rec.surface_vertices, rec.points]))
+    merged["poses"] = len(m.views)
+    return FinalRecord(first.pose2, "stage3", None if rec is None else rec.false_boundary,
+                       0 if rec is None else len(rec.points), verdict.verified, verdict.reason, unverified,
+                       tuple(v.name for v in m.views), gt_final, gt_first, accuracy, merged, outcome, reach_vis)
+
+
+def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = SensingOptions(),
+                feature_rays=None, progress=None, sensor: SimulatedSensor | None = None) -> SensingResult:
+    """Run stages 1-3, the verification views and the cures on the plate of ``cfg``.
+
+    ``feature_rays``: a function scene -> FeatureRays (default: the projector's true K, R, t; the
+    calibration module supplies estimated rays). ``sensor``: the simulated robot (default: a new
+    ``SimulatedSensor`` of ``cfg``). With ``out``: stage 3's sample and reconstruction under
+    ``out/stage3``, ``sensing.json`` and ``multiview.npz`` (every pose's outline, its confirmed
+    points, the merged boundary, and the true boundary for plots)."""
+    t0 = time.perf_counter()
+    sensor = sensor or SimulatedSensor(cfg, progress)
+    rays_for = feature_rays or (lambda scene: projector_feature_rays(scene.projector.camera, scene.projector.pattern))
+    first = first_stages(sensor, options, rays_for)
+    steps, notes = list(first.records), list(first.notes)
+    if out is not None and options.write_stages:
+        write_sample(Path(out) / "stage3" / "sample", first.sample3, overwrite=True)
+        if first.rec is not None:
+            write_reconstruction(Path(out) / "stage3" / "recon", first.rec, Path(out) / "stage3" / "sample",
+                                 image_checksums(first.sample3.digital), overwrite=True)
+    m = Measurements(first)
+    verif = verification_stage(sensor, first, m, options, steps, notes)
+    dets = detectors(first, m)
+    cures, cands = cure_stage(sensor, first, m, options, steps, notes)
+    reach_poses = m.poses + [v.pose for v in verif] + [v.pose for v in cands]
+    final = final_record(sensor, first, m, cures, reach_poses, options)
+    result = SensingResult(cfg, tuple(steps), dets, verif, cures, m.verdict, final, tuple(notes),
+                           time.perf_counter() - t0, tuple(m.outlines))
+    if out is not None:
+        write_json(Path(out) / "sensing.json", result.to_dict())
+        write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary))
+    return result
+
+
+def write_multiview(path: Path, views: list[ViewOutline], verdict: BoundaryVerdict, true_boundary) -> None:
+    """The poses' outlines (points, pose index, confirmed), the merged boundary, the gaps and the true
+    boundary (for plots), in metres."""
+    conf = verdict.confirmed if verdict.confirmed else [np.zeros(len(v.points), bool) for v in views]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, outline_points=np.vstack([v.points for v in views]),
+                        outline_view=np.concatenate([np.full(len(v.points), k) for k, v in enumerate(views)]),
+                        outline_confirmed=np.concatenate(conf), view_names=np.array([v.name for v in views]),
+                        merged=verdict.merged, gaps=np.array([g.position_m for g in verdict.gaps]).reshape(-1, 3),
+                        true_boundary=np.asarray(true_boundary))
+
+
+__all__ = ["run_sensing", "first_stages", "verification_stage", "cure_stage", "final_record", "detectors",
+           "Measurements", "FirstStages", "write_multiview", "PoseError"]

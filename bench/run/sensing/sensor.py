@@ -1,0 +1,108 @@
+"""The simulated robot: the plate's stereo rig and projector, moved to any pose and rendered.
+
+``SimulatedSensor`` owns the one renderer of a sensing run (parameters are updated from pose to
+pose, never a scene rebuilt) and hands back what a real sensor would give (images), with ground
+truth's boundary visibility beside it for scoring only. ``passive_view`` is one measuring pose of
+the loop: the passive pair rendered and its outline measured by the general outline stereo.
+World frame, metres.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.run.render import ground_truth_at, render_images
+from platebench.plates import build_plate
+from platebench.reconstruction.paper.outline_stereo import match_outlines
+from platebench.reconstruction.paper.plate_region import ReconstructionError, plate_mask
+from platebench.reconstruction.strategy.multiview import ViewOutline
+from platebench.reconstruction.strategy.poses import SensorPose
+from platebench.scenes.render.ground_truth import GroundTruthCaster
+from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
+
+PASSIVE = ("left_passive", "right_passive")
+ACTIVE = ("left_active", "right_active")
+
+
+@dataclass(frozen=True)
+class Shot:
+    """One render at a pose: the scene, images by name (radiance and digitised), and ground truth's
+    boundary visibility (camera -> ``BoundaryVisibility``; for scoring only)."""
+
+    scene: SceneSpec
+    radiance: dict
+    digital: dict
+    gt_visibility: dict
+
+
+@dataclass(frozen=True)
+class PassiveView:
+    """A measuring pose's result: its outline (None when passive stereo failed, with ``error``), its
+    left camera, and ground truth's visibility from both cameras (scoring only)."""
+
+    name: str
+    pose: SensorPose
+    outline: ViewOutline | None
+    left_camera: object
+    gt_visibility: dict
+    error: str | None = None
+
+
+def measure_outline(name: str, scene: SceneSpec, digital: dict) -> ViewOutline:
+    """The plate's outline in the world frame from a passive pair (general outline stereo)."""
+    m = {c: plate_mask(digital[f"{c}_passive"], f"{c}_passive") for c in ("left", "right")}
+    st = match_outlines(digital["left_passive"], digital["right_passive"], m["left"], m["right"], scene.rig)
+    return ViewOutline.from_stereo(name, st, scene.rig.center)
+
+
+class SimulatedSensor:
+    """The rig of ``cfg``'s scene on a robot; the passive light rides with it (``follows_rig``)."""
+
+    def __init__(self, cfg: SampleConfig, progress=None):
+        self.cfg = cfg
+        built = cfg.scene.build()
+        self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
+        self.plate = build_plate(cfg.plate)
+        self.camera = self.base.rig.left
+        self.projector_camera = self.base.projector.camera
+        self.baseline_m = self.base.rig.baseline_m
+        self.renderer = None
+        self._progress = progress or (lambda name: None)
+
+    def scene_at(self, pose: SensorPose, projector: SensorPose | None = None) -> SceneSpec:
+        return scene_for_pose(pose.center, pose.target, pose.baseline_dir, self.base,
+                              projector_center=None if projector is None else projector.center,
+                              projector_target=None if projector is None else projector.target)
+
+    def shoot(self, pose: SensorPose, names, projector: SensorPose | None = None, label: str = "") -> Shot:
+        """Render the images ``names`` with the rig at ``pose`` (and the projector at ``projector``)."""
+        self._progress(f"{label}: render" if label else "render")
+        scene = self.scene_at(pose, projector)
+        rad, dig, vis, self.renderer = render_images(self.cfg, self.renderer, scene, self.plate, names)
+        return Shot(scene, rad, dig, vis)
+
+    def dense_ground_truth(self) -> tuple[dict, dict]:
+        """Dense ground truth and boundary visibility at the last shot's scene (scoring only)."""
+        return ground_truth_at(self.renderer)
+
+    def passive_view(self, name: str, pose: SensorPose) -> PassiveView:
+        """Render the passive pair at ``pose`` and measure its outline."""
+        shot = self.shoot(pose, PASSIVE, label=name)
+        try:
+            o = measure_outline(name, shot.scene, shot.digital)
+        except ReconstructionError as err:
+            return PassiveView(name, pose, None, shot.scene.rig.left, shot.gt_visibility,
+                               f"passive stereo failed: {err}")
+        return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility)
+
+    def boundary_visible_from(self, poses) -> dict[str, list[np.ndarray]]:
+        """camera -> per pose, (N,) ground truth's visibility of the true boundary (scoring only)."""
+        masks = {"left": [], "right": []}
+        for p in poses:
+            self.renderer.set_scene(self.scene_at(p))
+            caster = GroundTruthCaster(self.renderer)
+            for c in ("left", "right"):
+                masks[c].append(np.asarray(caster.boundary_visibility(c).visible, bool))
+        return masks
