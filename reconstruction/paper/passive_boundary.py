@@ -124,14 +124,22 @@ def _corner(side, tb, near_start_side: bool, near_start_tb: bool) -> np.ndarray:
     ps = np.polyfit(rs, uu, 2 if len(rs) > 5 else 1)
     pt = np.polyfit(cs, vv, 2 if len(cs) > 5 else 1)
     # Fixed point: start at the ends of the two fitted stretches, alternate the two curves.
-    v = float(rs[0] if near_start_side else rs[-1])
-    for _ in range(50):
-        u = float(np.polyval(ps, v))
-        v_new = float(np.polyval(pt, u))
-        if abs(v_new - v) < 1e-9:
-            break
-        v = v_new
-    return np.array([float(np.polyval(ps, v)), v])
+    # Curves that do not meet near the stretches diverge to inf/nan: no corner. That is an error
+    # (``boundary_stereo`` then uses the general outline stereo), never a NaN corner, whose
+    # disparity would silently drop the corner and its top/bottom edge from the boundary.
+    v, step = float(rs[0] if near_start_side else rs[-1]), np.inf
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(50):
+            u = float(np.polyval(ps, v))
+            v_new = float(np.polyval(pt, u))
+            step = abs(v_new - v)
+            if step < 1e-9:
+                break
+            v = v_new
+        corner = np.array([float(np.polyval(ps, v)), v])
+    if not np.all(np.isfinite(corner)) or not step < 1e-2:  # diverged, or still moving (a cycle)
+        raise ReconstructionError("plate outline: the edge fits near a corner do not meet (corner not found)")
+    return corner
 
 
 def match_boundary(left: ImageOutline, right: ImageOutline, rig: StereoRig) -> BoundaryStereo:
