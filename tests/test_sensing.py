@@ -303,6 +303,17 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
 
 
 @pytest.mark.render
+def test_the_papers_loop_alone_does_not_claim_a_verified_boundary():
+    """With the verification views off (stages 1-3 only), one pose cannot confirm its own outline:
+    the loop measures, applies no cure, and says the boundary is not verified, and why."""
+    s = run_sensing(SENSE, None, SensingOptions(verification=False))
+    assert s.verification_views == () and s.cures == 0 and len(s.views) == 1
+    assert not s.final.boundary_verified and s.final.unverified_parts
+    assert s.steps[-1].kind == "stop" and s.steps[-1].reason.startswith("verification views off")
+    assert s.final.accuracy["points_scored"] == 16
+
+
+@pytest.mark.render
 @pytest.mark.parametrize("axis_deg", [89.0, 91.0])
 def test_a_hidden_boundary_is_never_reported_verified_while_still_hidden(axis_deg):
     """Concave 200 degrees across the width: the stage-2 pose hides part of the boundary (ground

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +45,8 @@ from platebench.bench.run.sensing.records import (
 )
 from platebench.bench.run.sensing.scoring import final_visibility, merged_accuracy, stage3_accuracy
 from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, SimulatedSensor, measure_outline
-from platebench.reconstruction.paper.pipeline import passive_stereo, projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
+from platebench.reconstruction.paper.pipeline import Reconstruction, passive_stereo, projector_feature_rays, reconstruct
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.reconstruction.strategy.detectors import (
     DetectorResult,
@@ -83,11 +85,20 @@ class FirstStages:
     records: tuple
     pose2: SensorPose
     view2: PassiveView
-    plane2: object  # the stage-2 BoundaryPlane
+    plane2: BoundaryPlane
     boundary2: np.ndarray  # (N,3) the stage-2 passive boundary
     sample3: RenderedSample
-    rec: object | None
+    rec: Reconstruction | None
     notes: tuple[str, ...]
+
+    @cached_property
+    def axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(g, e) of ``planner.sensing_axes``: from the stage-3 reconstruction, else the stage-2 boundary."""
+        rec = self.rec
+        if rec is not None:
+            return sensing_axes(most_bent_direction(rec.boundary, rec.boundary_plane, rec.points),
+                                rec.boundary_plane.normal)
+        return sensing_axes(most_bent_direction(self.boundary2, self.plane2), self.plane2.normal)
 
 
 def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> FirstStages:
@@ -132,8 +143,9 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
 
 
 class Measurements:
-    """The poses measured so far (each with an outline), their membranes, the surface model and the
-    verdict over them. The stage-2 pose is first; its membrane also holds stage 3's square centres."""
+    """The poses measured so far (each with an outline), their membranes, and the surface model and
+    verdict over them (None until ``update``). The stage-2 pose is first; its membrane also holds
+    stage 3's square centres."""
 
     def __init__(self, first: FirstStages):
         rec = first.rec
@@ -141,8 +153,8 @@ class Measurements:
         self.views: list[PassiveView] = [v]
         self.membranes = [view_membrane(v.outline, None if rec is None else rec.uv_left,
                                         None if rec is None else rec.points)]
-        self.model, self.verdict = None, None
-        self.update()
+        self.model: SurfaceModel | None = None
+        self.verdict: BoundaryVerdict | None = None
 
     @property
     def outlines(self) -> list[ViewOutline]:
@@ -177,26 +189,18 @@ def _measure(sensor: SimulatedSensor, view: PlannedView, into: Measurements, ste
     into.add(pv)
 
 
-def _axes(first: FirstStages) -> tuple[np.ndarray, np.ndarray]:
-    """(g, e) of ``planner.sensing_axes`` from the stage-3 reconstruction, else the stage-2 boundary."""
-    rec = first.rec
-    if rec is not None:
-        return sensing_axes(most_bent_direction(rec.boundary, rec.boundary_plane, rec.points),
-                            rec.boundary_plane.normal)
-    return sensing_axes(most_bent_direction(first.boundary2, first.plane2), first.plane2.normal)
-
-
 def verification_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, options: SensingOptions,
                        steps: list, notes: list) -> tuple[PlannedView, ...]:
-    """Measure the verification views (every plate gets them) and update the verdict."""
-    if not options.verification:
-        return ()
-    g, e = _axes(first)
-    verif, skipped = verification_views(first.pose2, g, e, options.reach, first.view2.outline.points,
-                                        sensor.camera, sensor.baseline_m)
-    notes.extend(f"verification view left out: {s}" for s in skipped)
-    for v in verif:
-        _measure(sensor, v, m, steps)
+    """Measure the verification views (every plate gets them; none with ``options.verification``
+    off) and form the verdict over every pose measured."""
+    verif: list[PlannedView] = []
+    if options.verification:
+        g, e = first.axes
+        verif, skipped = verification_views(first.pose2, g, e, options.reach, first.view2.outline.points,
+                                            sensor.camera, sensor.baseline_m)
+        notes.extend(f"verification view left out: {s}" for s in skipped)
+        for v in verif:
+            _measure(sensor, v, m, steps)
     m.update()
     return tuple(verif)
 
@@ -220,7 +224,7 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
         steps.append(Decision("done" if m.verdict.verified else "stop", None,
                               "verification views off: " + m.verdict.reason))
         return (), ()
-    g, e = _axes(first)
+    g, e = first.axes
     cam, B = sensor.camera, sensor.baseline_m
     measured = m.points
     paper, note = paper_cure_views(first.rec, first.pose2, options.reach, measured, cam, B) \
@@ -258,11 +262,7 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
            for u in verdict.unconfirmed if not u.covered])
     outcome = outcome_class(hidden(gt_first), hidden(gt_final), verdict.verified,
                             bool(cures) or not verdict.verified)
-    reach_vis = None
-    if options.ground_truth_reach:
-        from platebench.scenes.render.ground_truth import combined_visibility  # noqa: PLC0415
-        masks = sensor.boundary_visible_from(reach_poses)
-        reach_vis = gt_visibility_dict({c: combined_visibility(P, masks[c]) for c in ("left", "right")})
+    reach_vis = gt_visibility_dict(sensor.boundary_visible_from(reach_poses)) if options.ground_truth_reach else None
     accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None
     merged = merged_accuracy(sensor.plate, verdict, m.model,
                              None if rec is None else np.vstack([rec.surface_vertices, rec.points]))

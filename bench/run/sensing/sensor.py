@@ -19,7 +19,7 @@ from platebench.reconstruction.paper.outline_stereo import match_outlines
 from platebench.reconstruction.paper.plate_region import ReconstructionError, plate_mask
 from platebench.reconstruction.strategy.multiview import ViewOutline
 from platebench.reconstruction.strategy.poses import SensorPose
-from platebench.scenes.render.ground_truth import GroundTruthCaster
+from platebench.scenes.render.ground_truth import GroundTruthCaster, combined_visibility
 from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
 
 PASSIVE = ("left_passive", "right_passive")
@@ -97,12 +97,15 @@ class SimulatedSensor:
                                f"passive stereo failed: {err}")
         return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility)
 
-    def boundary_visible_from(self, poses) -> dict[str, list[np.ndarray]]:
-        """camera -> per pose, (N,) ground truth's visibility of the true boundary (scoring only)."""
+    def boundary_visible_from(self, poses) -> dict:
+        """camera -> ``BoundaryVisibility`` of the true boundary from any of ``poses`` (that camera of
+        at least one pose sees the point; ground truth, scoring only). Updates the renderer's scene
+        parameters pose by pose; renders nothing."""
         masks = {"left": [], "right": []}
         for p in poses:
             self.renderer.set_scene(self.scene_at(p))
             caster = GroundTruthCaster(self.renderer)
             for c in ("left", "right"):
                 masks[c].append(np.asarray(caster.boundary_visibility(c).visible, bool))
-        return masks
+        P = np.asarray(self.plate.boundary, float)
+        return {c: combined_visibility(P, masks[c]) for c in ("left", "right")}
