@@ -336,3 +336,25 @@ def _bent_cfg(cfg, deg, direction, axis_deg):
     from platebench.plates import CylindricalBend
     return replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(math.radians(deg), direction,
                                                                               math.radians(axis_deg))))
+
+
+def test_merged_boundary_coverage_is_a_fraction_of_the_true_boundarys_length():
+    """The flat plate's boundary has a few vertices per edge (up to 30 mm apart): a merged boundary
+    along exactly the half x < 0 (one short edge and half of each long edge) covers half the length,
+    plus the 2 mm of tolerance past each cut, whatever the vertices' spacing."""
+    from types import SimpleNamespace
+
+    from trimesh.path.traversal import resample_path
+
+    from platebench.bench.config import SampleConfig
+    from platebench.bench.run.sensing.scoring import merged_accuracy
+    from platebench.plates import build_plate
+
+    plate = build_plate(SampleConfig().plate)
+    B = np.asarray(plate.boundary, float)
+    dense = resample_path(np.vstack([B, B[:1]]), step=2e-4)[:-1]
+    half = dense[dense[:, 0] < 0]
+    m = merged_accuracy(plate, SimpleNamespace(merged=half), SimpleNamespace(samples=np.zeros((0, 3))))
+    perimeter = float(np.linalg.norm(np.roll(B, -1, axis=0) - B, axis=1).sum())
+    assert m["boundary_covered_frac"] == pytest.approx(0.5 + 2 * 2e-3 / perimeter, abs=2e-3)
+    assert m["boundary_est_to_gt_mean_mm"] < 1e-3  # the merged points lie on the true boundary

@@ -54,7 +54,8 @@ CANDIDATE_TURNS_DEG = tuple([("g", a) for a in (-15, 15, -45, 45, -75, 75)] +
 FRONT_MARGIN_RAD = float(np.radians(15.0))
 LOOK_AHEAD_M = (3e-3, 8e-3)
 SAME_VIEW_RAD = float(np.radians(8.0))  # a candidate this close in direction to a done pose adds nothing
-MAX_VIEWS = 18  # measuring poses at most: stage 2, the 12 verification views, 5 cures
+MAX_CURE_VIEWS = 5  # cure poses the view budget leaves room for
+MAX_VIEWS = 1 + len(VERIFY_TURNS_DEG) + MAX_CURE_VIEWS  # measuring poses at most: stage 2, verification, cures
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from trimesh.path.traversal import resample_path
 
 from platebench.bench.run.score import score_in_memory
 from platebench.evaluation.boundary_metrics import points_to_polyline_distance
@@ -15,6 +16,7 @@ from platebench.reconstruction.strategy.surface_model import SurfaceModel
 from platebench.scenes.render.ground_truth import combined_visibility
 
 TRIANGULATED_PX = 3.0  # a true boundary point lies on a pose's measured outline within this (left image)
+TRUE_BOUNDARY_STEP_M = 0.5e-3  # the true boundary is sampled this finely (by arc length) for the merged scores
 
 
 def stage3_accuracy(sample, rec) -> dict:
@@ -30,16 +32,19 @@ def stage3_accuracy(sample, rec) -> dict:
 def merged_accuracy(plate, verdict: BoundaryVerdict, model: SurfaceModel, measured_surface=None) -> dict:
     """The merged multi-view result against ground truth (millimetres): the merged boundary's mean
     (symmetric) distance to the true boundary, its one-way distance, the fraction of the true
-    boundary within 2 mm of it; the measured surface (``measured_surface``, (S,3): the stage-3
-    interpolated surface and points, with the merged boundary) RMS distance to the true surface and
-    its coverage (true surface within 2 mm of it); and the surface model's own RMS (the poses'
-    outline membranes, which the planner uses for normals and ray casting: a coarse model, not a
-    measurement)."""
+    boundary's length within 2 mm of it (the true side sampled uniformly by arc length every
+    ``TRUE_BOUNDARY_STEP_M``: the plate's boundary vertices are dense on bends and up to 30 mm
+    apart on flat stretches, so a mean over vertices would weigh the bends only); the measured
+    surface (``measured_surface``, (S,3): the stage-3 interpolated surface and points, with the
+    merged boundary) RMS distance to the true surface and its coverage (true surface within 2 mm of
+    it); and the surface model's own RMS (the poses' outline membranes, which the planner uses for
+    normals and ray casting: a coarse model, not a measurement)."""
     out = {"boundary_points": int(len(verdict.merged))}
     B = np.asarray(plate.boundary, float)
     if len(verdict.merged):
         est_gt = points_to_polyline_distance(verdict.merged, B)
-        gt_est = cKDTree(verdict.merged).query(B)[0]
+        dense = resample_path(np.vstack([B, B[:1]]), step=TRUE_BOUNDARY_STEP_M)[:-1]  # closed: drop the repeat
+        gt_est = cKDTree(verdict.merged).query(dense)[0]
         out.update(boundary_mean_mm=float(0.5 * (est_gt.mean() + gt_est.mean()) * 1e3),
                    boundary_est_to_gt_mean_mm=float(est_gt.mean() * 1e3),
                    boundary_covered_frac=float(np.mean(gt_est <= 2e-3)))
