@@ -44,7 +44,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from platebench.tolerances import ceil_count
 
@@ -172,6 +171,8 @@ class _SegmentSet:
     """
 
     def __init__(self, A: np.ndarray, B: np.ndarray):
+        from scipy.spatial import cKDTree  # noqa: PLC0415  (scipy.spatial takes a while to import)
+
         L = np.linalg.norm(B - A, axis=1)
         h = max(float(np.median(L)), float(L.sum()) / 1_000_000)
         self.A0, self.B0 = A, B

@@ -34,9 +34,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from platebench.errors import UserValueError
 from platebench.evaluation.disparity_metrics import (
@@ -57,6 +57,9 @@ from platebench.evaluation.stereo_truth import (
 )
 from platebench.evaluation.surface_metrics import SurfaceScore, sample_mesh_surface, score_surface
 from platebench.scenes.rig import StereoRig
+
+if TYPE_CHECKING:
+    import trimesh  # annotations only: importing trimesh takes a second
 
 __all__ = ["FieldScoreError", "KINDS", "FieldTruth", "AbsErrors", "DepthScore", "DisparityScore",
            "PointCloudScore", "MeshScore", "score_depth", "score_disparity", "score_point_cloud", "score_mesh",

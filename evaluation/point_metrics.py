@@ -24,14 +24,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from platebench.tolerances import is_rotation
 
 from .stats import ErrorStats, check_array
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = [
     "PointScore",
@@ -154,6 +156,8 @@ def pruned_min_distance(
     optional cheap lower bound of ``exact(P, J)`` (e.g. the distance to the
     primitive's bounding box) that skips more exact evaluations.
     """
+    from scipy.spatial import cKDTree  # noqa: PLC0415  (scipy.spatial takes a while to import)
+
     P = np.asarray(points, dtype=np.float64)
     n, m = len(P), len(centers)
     r = np.broadcast_to(np.asarray(radii, dtype=np.float64), (m,))

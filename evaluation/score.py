@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from platebench.errors import UserValueError
 from platebench.evaluation.boundary_metrics import (
@@ -44,6 +44,9 @@ from platebench.evaluation.truth import (
 )
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
+
+if TYPE_CHECKING:
+    import trimesh  # annotations only: importing trimesh takes a second
 
 __all__ = ["ScoreError", "SampleTruth", "ReconstructionData", "PointErrors", "Matching", "FalseBoundaryVerdict",
            "PaperBound", "Goals", "Score", "score_reconstruction", "format_table",

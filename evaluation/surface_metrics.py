@@ -41,7 +41,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .point_metrics import closest_point_on_mesh
 from .stats import ErrorStats, check_array
@@ -178,6 +177,8 @@ def score_surface(
     use = np.ones(len(P), dtype=bool) if max_distance_m is None else dist <= max_distance_m
     n_use = int(np.count_nonzero(use))
     if n_use:
+        from scipy.spatial import cKDTree  # noqa: PLC0415  (scipy.spatial takes a while to import)
+
         d_s, _ = cKDTree(foot[use]).query(samples, k=1, distance_upper_bound=radius * (1 + 1e-12), workers=-1)
         covered = int(np.count_nonzero(d_s <= radius))
     else:

@@ -9,11 +9,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from platebench.scenes.camera import Camera
+
+if TYPE_CHECKING:
+    import trimesh  # annotations only: importing trimesh takes a second
 
 
 def true_feature_points(mesh: trimesh.Trimesh, projector: Camera, feature_centers: np.ndarray) -> np.ndarray:

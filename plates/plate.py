@@ -16,13 +16,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from . import deformations
 from .meshing import mesh_layout
 from .spec import PlateSpec
+
+if TYPE_CHECKING:
+    import trimesh  # imported where a mesh is made or written: a plate's spec (a config) needs none
 
 __all__ = ["Plate", "build_plate"]
 
@@ -99,6 +102,8 @@ class Plate:
         sheet (thickness 0), where they give exact smooth shading. With thickness
         the walls share the top/bottom vertices, so per-vertex normals would be wrong there.
         """
+        import trimesh  # noqa: PLC0415
+
         if vertex_normals is None:
             vertex_normals = self.spec.thickness_m == 0
         with open(path, "wb") as f:
@@ -123,6 +128,8 @@ def _boundary_loop(faces: np.ndarray, uv: np.ndarray) -> np.ndarray:
 
 
 def _assemble(spec: PlateSpec, uv: np.ndarray, faces: np.ndarray) -> Plate:
+    import trimesh  # noqa: PLC0415
+
     r, r_u, r_v = deformations.surface_derivatives(spec, uv)
     normals = np.cross(r_u, r_v)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)

@@ -6,20 +6,16 @@ from pathlib import Path
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
 from platebench.bench.io.atomic import check_target, staged_output, write_json
-from platebench.bench.progress import bar, step_callback
-from platebench.bench.run.calibration import (
-    DEFAULT_TARGET_Z_M,
-    compare_reconstruction,
-    run_calibration,
-)
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
-from platebench.scenes.render.board_renderer import BoardSpec, calibration_poses
+
+# the calibration's modules (renderer, OpenCV, the pipeline) are imported in run(), once the flags are checked
+HELP = "calibrate cameras (ChArUco) and projector rays (paper IV-A) from renders"
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("calibrate",
-                       help="calibrate cameras (ChArUco) and projector rays (paper IV-A) from renders",
+                       help=HELP,
                        description="Render a ChArUco board in 20 poses for both cameras and a white target plane "
                                    "at known heights under the projector; calibrate the cameras (OpenCV, distortion "
                                    "fixed to zero and free), the stereo pair and each projected square's ray (the "
@@ -40,6 +36,14 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     cfg = config_from_args(args)
     check_target(args.out, args.overwrite, "calibration")
+    from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
+    from platebench.bench.run.calibration import (  # noqa: PLC0415
+        DEFAULT_TARGET_Z_M,
+        compare_reconstruction,
+        run_calibration,
+    )
+    from platebench.scenes.render.board_renderer import BoardSpec, calibration_poses  # noqa: PLC0415
+
     if args.target_z_mm is None:
         target_z = DEFAULT_TARGET_Z_M
     else:

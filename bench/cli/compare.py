@@ -31,17 +31,26 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from platebench.bench.io.atomic import staged_output, write_bytes, write_json
-from platebench.bench.report.plots import compare_error_figure
-from platebench.bench.run.compare import (
-    ALL_METHODS,
-    METHODS,
-    Comparison,
-    compare_sample,
-    comparison_json,
-)
 from platebench.errors import UserValueError
+
+if TYPE_CHECKING:
+    from platebench.bench.run.compare import Comparison
+
+HELP = "score peer methods (Gray code, phase shifting, SGBM) and plug-ins side by side"
+# bench.run.compare (the renderer, every peer method) and bench.report.plots (pandas, Matplotlib) are
+# imported where they are used; these names of bench.run.compare stay reachable here (see __getattr__)
+_RUN_COMPARE_NAMES = ("ALL_METHODS", "METHODS", "Comparison", "compare_sample", "comparison_json")
+
+
+def __getattr__(name: str):
+    """``compare_sample`` and the other names above, imported from ``bench.run.compare`` on first use."""
+    if name in _RUN_COMPARE_NAMES:
+        from platebench.bench.run import compare  # noqa: PLC0415
+        return getattr(compare, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------- reporting
@@ -85,6 +94,8 @@ def _num(x) -> str:
 # ----------------------------------------------------------------------------- CLI
 def _method_list(text: str) -> tuple:
     """Names as given; unknown ones are refused by ``compare_sample`` (plug-ins resolve there)."""
+    from platebench.bench.run.compare import ALL_METHODS  # noqa: PLC0415
+
     names = tuple(m.strip() for m in text.split(",") if m.strip())
     if not names:
         raise argparse.ArgumentTypeError(f"--methods {text!r} names no method: choose from {', '.join(ALL_METHODS)}, "
@@ -93,7 +104,9 @@ def _method_list(text: str) -> tuple:
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("compare", help="score peer methods (Gray code, phase shifting, SGBM) and plug-ins side by side",
+    from platebench.bench.run.compare import ALL_METHODS, METHODS  # noqa: PLC0415
+
+    p = sub.add_parser("compare", help=HELP,
                        description="Re-render a sample's scene under each peer method's projector sequence, "
                                    "reconstruct, and score against the sample's exact ground truth (depth error "
                                    "in mm, coverage of the plate, Middlebury/ETH3D disparity metrics). "
@@ -113,6 +126,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from platebench.bench.report.plots import compare_error_figure  # noqa: PLC0415
+    from platebench.bench.run.compare import compare_sample, comparison_json  # noqa: PLC0415
+
     if not Path(args.sample).is_dir():
         raise FileNotFoundError(f"{args.sample}: sample directory is missing")
     if (args.min_depth_mm is None) != (args.max_depth_mm is None):

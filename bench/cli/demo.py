@@ -15,23 +15,17 @@ from pathlib import Path
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.atomic import staged_output, write_json
-from platebench.bench.io.recon_files import image_checksums, write_reconstruction
-from platebench.bench.io.sample_files import load_inputs, write_sample
-from platebench.bench.progress import bar, step_callback
-from platebench.bench.run.render import render_sample
-from platebench.bench.run.score import score_files
 from platebench.errors import PlateBenchError
-from platebench.evaluation.score import format_table
-from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct
 
+# the work's modules (renderer, pipeline, scores) are imported in _run(), once --out is checked
+HELP = "the main job: the paper's reference experiment end to end, a bend sweep, a false-boundary study and the report"
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"  # installed as platebench/examples (package data)
 DEMO_SPEC = EXAMPLES / "demo_sweep.toml"
 REALISM_SPEC = EXAMPLES / "realism_sweep.toml"
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("demo", help="the main job: the paper's reference experiment end to end, a bend sweep, "
-                                    "a false-boundary study and the report",
+    p = sub.add_parser("demo", help=HELP,
                        description="Renders the reference experiment (116.5 x 73.5 mm plate bent 10 degrees, "
                                    "1280x960, f 2000 px, baseline 0.10 m, 0.40 m), reconstructs and scores it; "
                                    "runs the three sensing stages; a bend sweep; a small false-boundary study; "
@@ -58,6 +52,14 @@ class DemoFailed(PlateBenchError):
 
 def _run(args, out: Path, final: Path) -> int:
     """The demo into the staging directory ``out`` (paths are shown as they will be: under ``final``)."""
+    from platebench.bench.io.recon_files import image_checksums, write_reconstruction  # noqa: PLC0415
+    from platebench.bench.io.sample_files import load_inputs, write_sample  # noqa: PLC0415
+    from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
+    from platebench.bench.run.render import render_sample  # noqa: PLC0415
+    from platebench.bench.run.score import score_files  # noqa: PLC0415
+    from platebench.evaluation.score import format_table  # noqa: PLC0415
+    from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct  # noqa: PLC0415
+
     t0 = time.perf_counter()
 
     def shown(path) -> Path:

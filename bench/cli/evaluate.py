@@ -15,28 +15,18 @@ import math
 from pathlib import Path
 
 from platebench.bench.io.atomic import write_json
-from platebench.bench.io.field_truth import load_field_truth
-from platebench.bench.io.method_outputs import read_depth, read_disparity, read_mesh, read_points
-from platebench.bench.run.plugins import Depth, Disparity, Mesh, Points, score_document, score_output
-from platebench.bench.run.score import score_files
 from platebench.errors import UserValueError
-from platebench.evaluation.field_scores import (
-    COVERAGE_RADIUS_M,
-    OUTLIER_M,
-    DepthScore,
-    DisparityScore,
-    MeshScore,
-    PointCloudScore,
-    score_point_cloud,
-)
-from platebench.evaluation.score import format_table
 
+# the readers and scores (trimesh, SciPy, OpenCV, the pipeline's types) are imported where they are used
+HELP = "score a reconstruction or another program's disparity/depth/points/mesh against exact truth"
 KIND_FLAGS = ("disparity", "depth", "points", "mesh")
 
 
 def add_parser(sub) -> None:
+    from platebench.evaluation.field_scores import COVERAGE_RADIUS_M, OUTLIER_M  # noqa: PLC0415
+
     p = sub.add_parser(
-        "evaluate", help="score a reconstruction or another program's disparity/depth/points/mesh against exact truth",
+        "evaluate", help=HELP,
         description="Score a method's output against SAMPLE_DIR's exact ground truth and write a score JSON (units in "
                     "every key). Give RECON_DIR (from 'platebench reconstruct': point, boundary, surface and "
                     "false-boundary metrics, the paper's bound), or exactly one file of another program: --disparity "
@@ -88,6 +78,14 @@ def _kind(args) -> tuple[str | None, Path | None]:
 
 
 def _read(kind: str, path: Path, args):
+    from platebench.bench.io.method_outputs import (  # noqa: PLC0415
+        read_depth,
+        read_disparity,
+        read_mesh,
+        read_points,
+    )
+    from platebench.bench.run.plugins import Depth, Disparity, Mesh, Points  # noqa: PLC0415
+
     if kind == "disparity":
         return Disparity(read_disparity(path, args.disparity_scale))
     if kind == "depth":
@@ -103,6 +101,13 @@ def _f(x: float, fmt: str = ".4f") -> str:
 
 def format_field_table(score) -> str:
     """A readable summary of a field score (millimetres, pixels, percent)."""
+    from platebench.evaluation.field_scores import (  # noqa: PLC0415
+        DepthScore,
+        DisparityScore,
+        MeshScore,
+        PointCloudScore,
+    )
+
     lines = []
     if isinstance(score, DisparityScore):
         for reg in (score.middlebury.all, score.middlebury.nonocc):
@@ -158,12 +163,19 @@ def run(args) -> int:
             raise UserValueError(f"{path / 'recon.json'}: file is missing (RECON_DIR comes from 'platebench "
                                  "reconstruct'; score another program's output with --disparity, --depth, --points "
                                  "or --mesh F)")
+        from platebench.bench.run.score import score_files  # noqa: PLC0415
+        from platebench.evaluation.score import format_table  # noqa: PLC0415
+
         score = score_files(args.sample_dir, args.recon_dir)
         out = args.out or (args.recon_dir / "score.json")
         write_json(out, score.to_dict())
         print(format_table(score))
         print(f"{'written':16s} {out}")
         return 0
+    from platebench.bench.io.field_truth import load_field_truth  # noqa: PLC0415
+    from platebench.bench.run.plugins import score_document, score_output  # noqa: PLC0415
+    from platebench.evaluation.field_scores import COVERAGE_RADIUS_M, OUTLIER_M, score_point_cloud  # noqa: PLC0415
+
     truth = load_field_truth(args.sample_dir)
     output = _read(kind, path, args)
     what = f"{path}"

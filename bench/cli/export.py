@@ -9,9 +9,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX
-from platebench.bench.io.export import FORMATS, export_dataset
 from platebench.errors import UserValueError
+
+# bench.io.export and bench.io.dataset_reader (trimesh, OpenCV, SciPy) are imported where they are used:
+# by add_parser (the formats, the defaults) only when 'export' is the command (see main.build_parser)
+HELP = "export a dataset to the Middlebury or KITTI layout (images, true disparities, masks, calib)"
 
 
 def _shift(text: str):
@@ -27,8 +29,11 @@ def _shift(text: str):
 
 
 def add_parser(sub) -> None:
+    from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX  # noqa: PLC0415
+    from platebench.bench.io.export import FORMATS  # noqa: PLC0415
+
     p = sub.add_parser(
-        "export", help="export a dataset to the Middlebury or KITTI layout (images, true disparities, masks, calib)",
+        "export", help=HELP,
         description="Write every sample under DATASET (a sample directory, a sweep dataset or a folder of samples) "
                     "in a layout stereo code reads. middlebury: OUT/<id>/im0.png, im1.png, disp0GT.pfm, "
                     "disp1GT.pfm, mask0nocc.png (255 seen by both cameras, 128 occluded, 0 unknown), calib.txt "
@@ -51,6 +56,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from platebench.bench.io.export import export_dataset  # noqa: PLC0415
+
     shift = _shift(args.shift)
     summary = export_dataset(args.dataset, args.out, args.fmt, images=args.images, shift=shift,
                              overwrite=args.overwrite, progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))

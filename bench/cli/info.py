@@ -7,13 +7,15 @@ import sys
 
 from platebench.errors import PlateBenchError
 
+HELP = "show the renderer set-up (libLLVM, Mitsuba variant) and versions vs the lock"
+
 
 class LockMismatch(PlateBenchError):
     """Installed packages differ from the lock file (``info --check-lock``)."""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("info", help="show the renderer set-up (libLLVM, Mitsuba variant) and versions vs the lock",
+    p = sub.add_parser("info", help=HELP,
                        description="Print the libLLVM drjit will use, its version, the Mitsuba variant platebench "
                                    "picks, package versions, and every package of requirements.lock against the "
                                    "installed version (JSON on stdout; differences flagged on stderr).")

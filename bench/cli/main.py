@@ -18,13 +18,20 @@ from platebench.bench.io.atomic import Terminated, install_sigterm_handler
 from platebench.errors import PlateBenchError
 from platebench.version import __version__
 
-# name -> module exposing add_parser(subparsers) and run(args) -> int
+# name -> module exposing HELP (its line in 'platebench --help'), add_parser(subparsers) and run(args) -> int.
+# A command module imports only what its parser needs at the top; the work's modules (renderer, pipeline,
+# trimesh, SciPy, pandas, ...) are imported where they are used, so --help and a bad flag or file answer
+# in a fraction of a second.
 COMMANDS = {name: f"platebench.bench.cli.{name}" for name in (
     "render", "reconstruct", "evaluate", "compare", "sense", "study", "sweep", "calibrate", "report", "demo",
     "perf", "info", "export")}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser. With ``argv``, only the commands named in it get their whole sub-parser (their
+    ``add_parser``, which may import what the command's defaults come from); the others get their name
+    and ``HELP`` only, which is all that 'platebench --help' and the 'invalid choice' error show: argparse
+    hands arguments to a sub-parser only when a token of ``argv`` is exactly its name."""
     parser = argparse.ArgumentParser(
         prog="platebench",
         description="Test bench for passive + active stereo measurement of deformed plates "
@@ -35,8 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
                "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     parser.add_argument("--version", action="version", version=f"platebench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for modname in COMMANDS.values():
-        importlib.import_module(modname).add_parser(sub)
+    for name, modname in COMMANDS.items():
+        module = importlib.import_module(modname)
+        if argv is None or name in argv:
+            module.add_parser(sub)
+        else:
+            sub.add_parser(name, help=module.HELP)
     return parser
 
 
@@ -48,7 +59,8 @@ def _one_line(e: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     install_sigterm_handler()  # SIGTERM unwinds like Ctrl-C: staged outputs removed, manifests closed
     try:

@@ -8,12 +8,13 @@ from platebench.bench.io.atomic import write_json
 from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
+HELP = "benchmarks: render and reconstruct timings against same-run baselines"
 TARGETS = ("render", "reconstruct", "sweep")
 EXTRA = ("chaos", "bad-input", "variants")  # run only when named
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("perf", help="benchmarks: render and reconstruct timings against same-run baselines",
+    p = sub.add_parser("perf", help=HELP,
                        description="render: a whole sample (4 images + ground truth) vs raw mitsuba.render of the "
                                    "same images, and kernel reuse on a second sample. reconstruct: the paper's "
                                    "pipeline vs OpenCV StereoSGBM on the same passive pair. sweep: samples per "

@@ -6,20 +6,14 @@ from pathlib import Path
 import numpy as np
 
 from platebench.bench.io.atomic import staged_output
-from platebench.bench.io.recon_files import image_checksums, write_reconstruction
-from platebench.bench.io.sample_files import load_inputs
 from platebench.errors import UserValueError
-from platebench.reconstruction.paper.pipeline import (
-    PipelineOptions,
-    projector_feature_rays,
-    reconstruct,
-)
-from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.scenes.naming import IMAGE_NAMES
+
+HELP = "run the paper's passive + active stereo pipeline on a sample"
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("reconstruct", help="run the paper's passive + active stereo pipeline on a sample",
+    p = sub.add_parser("reconstruct", help=HELP,
                        description="Reads only SAMPLE_DIR/images, calib.json and pattern.json (never ground "
                                    "truth) and writes points.ply/csv, boundary.npy, surface.ply and recon.json "
                                    "to --out. Prints a summary.")
@@ -44,7 +38,19 @@ def run(args) -> int:
 
 
 def _reconstruct(args, stage: Path):
+    # imported here, not at the top: a damaged sample is refused before the pipeline (SciPy,
+    # Matplotlib) and trimesh are loaded, and --help answers at once
+    from platebench.bench.io.sample_files import load_inputs  # noqa: PLC0415
+
     inputs = load_inputs(args.sample_dir)
+    from platebench.bench.io.recon_files import image_checksums, write_reconstruction  # noqa: PLC0415
+    from platebench.reconstruction.paper.pipeline import (  # noqa: PLC0415
+        PipelineOptions,
+        projector_feature_rays,
+        reconstruct,
+    )
+    from platebench.reconstruction.paper.plate_region import ReconstructionError  # noqa: PLC0415
+
     rig = inputs.calibration.rig
     rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
     if args.calibration is not None:

@@ -6,9 +6,8 @@ from pathlib import Path
 
 from platebench.bench.config import load_config, with_camera_preset, with_overrides
 from platebench.bench.io.atomic import staged_output
-from platebench.bench.io.sample_files import write_sample
-from platebench.bench.progress import bar, step_callback
-from platebench.bench.run.render import render_sample
+
+HELP = "render one sample of a bent plate with exact ground truth"
 
 
 def add_sample_flags(p: argparse.ArgumentParser) -> None:
@@ -46,7 +45,7 @@ def config_from_args(args):
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("render", help="render one sample of a bent plate with exact ground truth",
+    p = sub.add_parser("render", help=HELP,
                        description="Render the left/right images under passive and active (projected squares) "
                                    "lighting, cast ground truth at pixel centres, and write a dataset sample "
                                    "(layout v1, see README). Default: the paper's reference experiment "
@@ -61,11 +60,17 @@ def run(args) -> int:
     cfg = config_from_args(args)
     # staged: --out checked (exists? locked by another writer? writable?) before the render; replaced
     # only with --overwrite, and only once the new sample is complete
-    with staged_output(args.out, overwrite=args.overwrite, what="sample") as stage, bar(7, "render") as pbar:
-        sample, _ = render_sample(cfg, progress=step_callback(pbar))
-        pbar.set_postfix_str("write")
-        write_sample(stage, sample, into=True)
-        pbar.update(pbar.total - pbar.n)
+    with staged_output(args.out, overwrite=args.overwrite, what="sample") as stage:
+        # imported once the configuration and --out are checked: a bad one is refused at once
+        from platebench.bench.io.sample_files import write_sample  # noqa: PLC0415
+        from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
+        from platebench.bench.run.render import render_sample  # noqa: PLC0415
+
+        with bar(7, "render") as pbar:
+            sample, _ = render_sample(cfg, progress=step_callback(pbar))
+            pbar.set_postfix_str("write")
+            write_sample(stage, sample, into=True)
+            pbar.update(pbar.total - pbar.n)
     t = sample.timings_s
     vis = sample.visibility
     print(f"sample      {args.out}")

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+HELP = "HTML report (headline, tables, plots, thumbnails) of a dataset, study, sensing run, reconstruction or sample"
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
-        "report", help="HTML report (headline, tables, plots, thumbnails) of a dataset, study, sensing run, "
-                       "reconstruction or sample",
+        "report", help=HELP,
         description="Read PATH (a sweep dataset from 'platebench sweep', a study from 'platebench study "
                     "false-boundary', a sensing run from 'platebench sense', a reconstruction from 'platebench "
                     "reconstruct' with the score.json of 'platebench evaluate', a sample from 'platebench render', "

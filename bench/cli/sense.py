@@ -2,26 +2,24 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
 from platebench.bench.io.atomic import staged_output
-from platebench.bench.progress import bar, step_callback
-from platebench.bench.run.sensing import (
-    OUTCOME_TEXT,
-    ActiveRecord,
-    SensingOptions,
-    SensingResult,
-    StageRecord,
-    ViewRecord,
-    run_sensing,
-)
 from platebench.errors import UserValueError
-from platebench.reconstruction.strategy.planner import Decision
+
+if TYPE_CHECKING:
+    from platebench.bench.run.sensing import SensingResult
+
+# bench.run.sensing (renderer, pipeline, trimesh, SciPy) is imported where it is used: by add_parser
+# (the defaults) only when 'sense' is the command (see main.build_parser)
+HELP = "run the sensing loop (three stages, verification views, cures) with a simulated robot"
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("sense", help="run the sensing loop (three stages, verification views, cures) "
-                                     "with a simulated robot",
+    from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
+
+    p = sub.add_parser("sense", help=HELP,
                        description="Stage 1: far pose, rough boundary. Stage 2: centre line through the boundary "
                                    "centre perpendicular to the boundary plane, precise boundary. Stage 3: projector "
                                    "on the centre line, active stereo, the paper's false-boundary test. Then "
@@ -44,6 +42,9 @@ def _pct(gv: dict) -> str:
 
 def step_lines(s: SensingResult) -> list[str]:
     """One line per step of the loop, from the typed records."""
+    from platebench.bench.run.sensing import ActiveRecord, StageRecord, ViewRecord  # noqa: PLC0415
+    from platebench.reconstruction.strategy.planner import Decision  # noqa: PLC0415
+
     out = []
     for st in s.steps:
         if isinstance(st, StageRecord):
@@ -72,6 +73,8 @@ def step_lines(s: SensingResult) -> list[str]:
 
 def summary_lines(s: SensingResult) -> list[str]:
     """The verdict, the detectors, the outcome, the counts and the time."""
+    from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
+
     f = s.final
     lines = [f"verdict: boundary_verified = {str(f.boundary_verified).lower()}: {f.verdict_reason}"]
     for u in f.unverified_parts[:6]:
@@ -96,6 +99,9 @@ def summary_lines(s: SensingResult) -> list[str]:
 
 
 def run(args) -> int:
+    from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
+    from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
+
     cfg = config_from_args(args)
     if not (10 <= args.workspace_mm <= 2000):
         raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")

@@ -6,18 +6,20 @@ from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams, parse_grid
 from platebench.bench.config.ranges import parse_range_text
-from platebench.bench.progress import bar
-from platebench.bench.run.study import DEFAULT_BENDS_DEG, study_cases, write_study
 from platebench.errors import UserValueError
-from platebench.reconstruction.strategy.detectors import DETECTORS
 from platebench.scenes.scene_spec import RenderSettings
 
+# bench.run.study (the sensing loop, the renderer) is imported where it is used: by add_parser (the
+# default bends) only when 'study' is the command (see main.build_parser)
+HELP = "studies; 'study false-boundary' runs the sensing loop on plates of every family"
 DEFAULT_GRID = "6x12@12"
 MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("study", help="studies; 'study false-boundary' runs the sensing loop on plates of every family",
+    from platebench.bench.run.study import DEFAULT_BENDS_DEG  # noqa: PLC0415
+
+    p = sub.add_parser("study", help=HELP,
                        description="false-boundary: the sensing loop (stages 1-3, verification views, cures) on "
                                    "cylinders convex and concave about axes 0/30/60/90 degrees at the --bend angles, "
                                    "folds, twists, a dome and a bowl, dents, a second aspect ratio and a second "
@@ -44,6 +46,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.study import study_cases, write_study  # noqa: PLC0415
+
     bends = parse_range_text(args.bend, "--bend", 0.0, 350.0, max_count=MAX_BENDS)
     l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
         if args.l_bends.strip() else []
@@ -88,6 +93,8 @@ def _yn(v):
 
 def table_lines(doc: dict) -> list[str]:
     """The per-plate table, outcome counts, detector scores and targets as text lines."""
+    from platebench.reconstruction.strategy.detectors import DETECTORS  # noqa: PLC0415
+
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
              "occluding_contour": "occ", "end_tangents": "end"}
     out = [f"{'plate':38s} {'outcome':12s} {'cur':>3s} {'vws':>3s} " + " ".join(f"{short[d]:>3s}" for d in DETECTORS)

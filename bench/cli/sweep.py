@@ -11,10 +11,12 @@ from pathlib import Path
 
 from platebench.errors import UserValueError
 
+HELP = "run a sweep spec: many samples rendered, reconstructed and scored into a dataset"
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
-        "sweep", help="run a sweep spec: many samples rendered, reconstructed and scored into a dataset",
+        "sweep", help=HELP,
         description="Expand SPEC.toml (grids or seeded random draws over plate family, bend, size, material, "
                     "distance and pose, pattern, noise, resolution, spp, seed; see bench/sweep_spec.py) into "
                     "samples, validate all of them, then render, reconstruct and score each one. DATASET gets "

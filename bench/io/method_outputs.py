@@ -20,14 +20,17 @@ unreadable, wrong shape. Writers are atomic (``bench.io.atomic``).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-import trimesh
 
 from platebench.bench.io.atomic import write_bytes
 from platebench.bench.io.images import DatasetError, read_pfm, write_exr, write_pfm
 from platebench.bench.io.points import read_points_csv
+
+if TYPE_CHECKING:
+    import trimesh  # imported where a PLY is read or written: importing it takes a second
 
 __all__ = ["READ_FORMATS", "OUTPUT_FILES", "read_disparity", "read_depth", "read_points", "read_mesh",
            "write_disparity", "write_depth", "write_points", "write_mesh"]
@@ -131,6 +134,8 @@ def read_points(path: Path) -> np.ndarray:
     if ext == ".npy":
         P = _npy(path)
     else:
+        import trimesh  # noqa: PLC0415
+
         try:
             geom = trimesh.load(path, process=False)
         except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a bad file)
@@ -144,6 +149,8 @@ def read_points(path: Path) -> np.ndarray:
 
 def read_mesh(path: Path) -> trimesh.Trimesh:
     """A triangle mesh (world frame, metres) from PLY/OBJ/STL; refused without faces."""
+    import trimesh  # noqa: PLC0415
+
     path = Path(path)
     _check(path, "mesh")
     try:
@@ -171,6 +178,8 @@ def write_depth(path: Path, depth: np.ndarray) -> None:
 
 def write_points(path: Path, points: np.ndarray) -> None:
     """Binary PLY of the finite points (world, metres)."""
+    import trimesh  # noqa: PLC0415
+
     P = np.asarray(points, np.float64).reshape(-1, 3)
     P = P[np.all(np.isfinite(P), axis=1)]
     write_bytes(Path(path), trimesh.PointCloud(P).export(file_type="ply", encoding="binary") if len(P) else

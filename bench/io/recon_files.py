@@ -15,9 +15,9 @@ import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from platebench.bench.io.atomic import (
     staged_directory,
@@ -26,7 +26,11 @@ from platebench.bench.io.atomic import (
     write_text,
 )
 from platebench.bench.io.images import DatasetError, read_npy
-from platebench.reconstruction.paper.pipeline import Reconstruction
+
+if TYPE_CHECKING:  # trimesh is imported where a mesh is written or read; the pipeline is not needed here
+    import trimesh
+
+    from platebench.reconstruction.paper.pipeline import Reconstruction
 
 CSV_COLUMNS = ("pattern_row", "pattern_col", "feature_id", "u_left", "v_left", "u_right", "v_right",
                "x_m", "y_m", "z_m")
@@ -72,6 +76,8 @@ def write_reconstruction(out: Path, r: Reconstruction, sample_dir: Path, checksu
                          overwrite: bool = False, into: bool = False) -> Path:
     """Write a reconstruction directory atomically. ``into``: ``out`` is an empty directory of an output
     that is already staged (``bench.io.atomic.staged_output``): the files are written straight into it."""
+    import trimesh  # noqa: PLC0415
+
     with (contextlib.nullcontext(Path(out)) if into else staged_directory(Path(out), overwrite=overwrite)) as d:
         cloud = trimesh.PointCloud(r.points) if len(r.points) else None
         if cloud is not None:
@@ -131,6 +137,8 @@ def load_reconstruction(recon_dir: Path) -> ReconFiles:
     spath = d / "surface.ply"
     surface = None
     if spath.is_file():
+        import trimesh  # noqa: PLC0415
+
         try:
             surface = trimesh.load(spath, process=False, force="mesh")
         except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a damaged file)

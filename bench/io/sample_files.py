@@ -24,9 +24,9 @@ import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from platebench.bench.io.atomic import (
     staged_directory,
@@ -51,6 +51,9 @@ from platebench.scenes.naming import CAMERAS, IMAGE_NAMES
 from platebench.scenes.pattern import Feature, Pattern
 from platebench.scenes.projector import Projector
 from platebench.scenes.rig import StereoRig
+
+if TYPE_CHECKING:
+    import trimesh  # imported by read_mesh: a sample's images, calibration and pattern need none
 
 LAYOUT_VERSION = 1
 
@@ -235,6 +238,8 @@ def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:
 
 def read_mesh(path: Path) -> trimesh.Trimesh:
     """A triangle mesh (PLY) with finite vertices; one-line DatasetError naming the file otherwise."""
+    import trimesh  # noqa: PLC0415
+
     path = Path(path)
     if not path.is_file():
         raise DatasetError(f"{path}: file is missing")

@@ -36,10 +36,9 @@ import time
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
-import trimesh
 
 from platebench.bench.io.atomic import staged_directory, write_json
 from platebench.bench.io.field_truth import load_field_truth
@@ -61,6 +60,9 @@ from platebench.evaluation.field_scores import (
 )
 from platebench.evaluation.metrics_row import MetricsRow
 from platebench.scenes.pattern import Pattern
+
+if TYPE_CHECKING:
+    import trimesh  # annotations only: importing trimesh takes a second
 
 __all__ = ["ENTRY_POINT_GROUP", "MethodInputs", "Disparity", "Depth", "Points", "Mesh", "OUTPUT_KINDS",
            "PluginError", "method_inputs", "resolve_plugin", "plugin_names", "score_output", "run_plugin",

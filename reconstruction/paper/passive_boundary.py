@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from platebench.reconstruction.paper.boundary_types import BoundaryStereo
 from platebench.reconstruction.paper.outline_stereo import match_outlines
@@ -103,6 +102,8 @@ def outline_edges(image: np.ndarray, region: PlateRegion) -> ImageOutline:
 
 def _smooth(edge):
     """Quadratic Savitzky-Golay smoothing of an edge's sub-pixel positions (Monte Carlo/pixel noise)."""
+    from scipy.signal import savgol_filter  # noqa: PLC0415  (scipy.signal takes a second to import)
+
     a, b = edge
     win = min(SMOOTH_PX, a.size - (1 - a.size % 2))
     if win < 5 or np.any(np.diff(a) != 1):

@@ -28,13 +28,17 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-from matplotlib.path import Path
-from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
 from platebench.tolerances import ceil_count, is_rotation
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+# scipy.sparse and matplotlib.path are imported where they are used (they take a while to import, and
+# the modules that import this one for points_in_polygon or the types need neither)
 
 __all__ = ["SurfaceGrid", "interpolate_surface", "surface_grid_to_mesh", "points_in_polygon"]
 
@@ -61,6 +65,8 @@ class SurfaceGrid:
 
 def points_in_polygon(points_xy, polygon, tol: float = 0.0) -> np.ndarray:
     """(M,) bool: points inside the closed polygon (K, 2), or within ``tol`` of its edges."""
+    from matplotlib.path import Path  # noqa: PLC0415
+
     points_xy = np.asarray(points_xy, dtype=np.float64)
     polygon = np.asarray(polygon, dtype=np.float64)
     inside = Path(polygon).contains_points(points_xy)
@@ -93,6 +99,8 @@ def _tau(smoothness) -> float:
 
 def _diff_matrices(n: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """1D first ((n-1) x n) and second ((n-2) x n) difference matrices."""
+    import scipy.sparse as sp  # noqa: PLC0415
+
     first = sp.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
     second = sp.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(max(n - 2, 0), n))
     return first.tocsr(), second.tocsr()
@@ -100,6 +108,8 @@ def _diff_matrices(n: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
 
 def _smoothness_matrix(nx: int, ny: int, tau: float) -> sp.csr_matrix:
     """Hessian H of the smoothness energy z^T H z over an (ny, nx) row-major grid."""
+    import scipy.sparse as sp  # noqa: PLC0415
+
     fx, sx = _diff_matrices(nx)
     fy, sy = _diff_matrices(ny)
     ix, iy = sp.identity(nx, format="csr"), sp.identity(ny, format="csr")
@@ -115,6 +125,8 @@ def _smoothness_matrix(nx: int, ny: int, tau: float) -> sp.csr_matrix:
 
 def _bilinear_matrix(points_xy, x0, y0, step, nx, ny) -> sp.csr_matrix:
     """(M, nx*ny) rows of bilinear interpolation weights of each point's cell corners."""
+    import scipy.sparse as sp  # noqa: PLC0415
+
     fx, fy = (points_xy[:, 0] - x0) / step, (points_xy[:, 1] - y0) / step
     j = np.clip(np.floor(fx).astype(int), 0, nx - 2)
     i = np.clip(np.floor(fy).astype(int), 0, ny - 2)
@@ -152,6 +164,9 @@ def interpolate_surface(points_xy, heights, domain_polygon, grid_step: float, sm
     Raises:
         ValueError: malformed inputs, or samples that do not determine the surface.
     """
+    import scipy.sparse as sp  # noqa: PLC0415
+    from scipy.sparse.linalg import MatrixRankWarning, spsolve  # noqa: PLC0415
+
     pts = np.asarray(points_xy, dtype=np.float64)
     h = np.asarray(heights, dtype=np.float64)
     poly = np.asarray(domain_polygon, dtype=np.float64)
