@@ -37,10 +37,12 @@ World frame, metres, radians.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+from platebench.scenes.camera import Camera
 
 MATCHED_SOURCES = ("row", "side")  # BoundaryStereo sources whose disparity was measured on the row
 CONFIRM_TOL_M = 1.0e-3  # two poses' points of a true edge agree within this (row-matched: ~0.3 mm each)
@@ -66,7 +68,9 @@ class ViewOutline:
 
     ``points``: (N,3); ``matched``: (N,) True where the disparity was measured on the row;
     ``camera_center``: (3,) the pose's mid-baseline point; ``image_points``: (N,2) left-image
-    pixels; ``method``: the boundary stereo method (``BoundaryStereo.method``)."""
+    pixels; ``method``: the boundary stereo method (``BoundaryStereo.method``); ``left``: the pose's
+    left camera (projects world points into the image of ``image_points``; None when unknown, and
+    then no other pose's point can be refuted by this one, ``refutation``)."""
 
     name: str
     points: np.ndarray
@@ -74,12 +78,15 @@ class ViewOutline:
     camera_center: np.ndarray
     image_points: np.ndarray
     method: str
+    left: Camera | None = None
 
     @classmethod
-    def from_stereo(cls, name: str, stereo, camera_center) -> "ViewOutline":
-        """From a ``BoundaryStereo`` measured at a pose whose mid-baseline point is ``camera_center``."""
+    def from_stereo(cls, name: str, stereo, camera_center, left: Camera | None = None) -> "ViewOutline":
+        """From a ``BoundaryStereo`` measured at a pose whose mid-baseline point is ``camera_center``
+        and whose left camera is ``left``."""
         return cls(name, np.asarray(stereo.points, float), np.isin(stereo.source, MATCHED_SOURCES),
-                   np.asarray(camera_center, float), np.asarray(stereo.image_points_left, float), stereo.method)
+                   np.asarray(camera_center, float), np.asarray(stereo.image_points_left, float), stereo.method,
+                   left)
 
     @property
     def arc_m(self) -> np.ndarray:
@@ -253,7 +260,8 @@ class BoundaryVerdict:
     merged: np.ndarray  # (M,3) merged boundary points, one per MERGE_SPACING_M
     components: int
     reason: str
-    confirmed: tuple[np.ndarray, ...] = ()  # per pose, (N,) the confirmed outline points
+    confirmed: tuple[np.ndarray, ...] = ()  # per pose, (N,) the confirmed outline points (refuted ones removed)
+    refuted: tuple[np.ndarray, ...] = ()  # per pose, (N,) the points confirmed by a pair but refuted (``refutation``)
 
     @property
     def confirmed_length_m(self) -> float:
@@ -265,6 +273,7 @@ class BoundaryVerdict:
                            for p in self.pieces],
                 "gaps": [g.to_dict() for g in self.gaps],
                 "unconfirmed_outline": [u.to_dict() for u in self.unconfirmed],
+                "refuted_points": int(sum(int(np.count_nonzero(r)) for r in self.refuted)),
                 "merged_points": int(len(self.merged))}
 
 
@@ -359,15 +368,24 @@ def facing_masks(views: list[ViewOutline], model) -> list[np.ndarray]:
     return out
 
 
-def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | None = None) -> BoundaryVerdict:
+def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | None = None,
+           refuted: list[np.ndarray] | None = None) -> BoundaryVerdict:
     """Confirm, cut into pieces, link the pieces' ends and decide (see module doc).
 
+    ``refuted``: per pose, (N,) points to count as unconfirmed although a pair confirmed them
+    (``refutation.refute``); recorded in ``BoundaryVerdict.refuted``.
     ``model`` (a ``surface_model.SurfaceModel``) is accepted for the facing shortcut of ``confirm``
     but not used: the outline membranes cut chords under a bend, so their normals near an
     occluding contour are wrong, and the shortcut confirmed contours of a 300-degree curl as edges
     (a silent wrong verdict). Every confirmation needs the turn about the edge's own direction."""
     if confirmed is None:
         confirmed = confirm(views)
+    if refuted is not None:
+        confirmed = [c & ~r for c, r in zip(confirmed, refuted)]
+    return replace(_decide(views, confirmed), refuted=tuple(refuted) if refuted is not None else ())
+
+
+def _decide(views: list[ViewOutline], confirmed: list[np.ndarray]) -> BoundaryVerdict:
     ps = pieces(views, confirmed)
     if not ps:
         return BoundaryVerdict(False, (), (), _unconfirmed(views, confirmed, []), np.zeros((0, 3)), 0,

@@ -55,7 +55,7 @@ from platebench.reconstruction.strategy.detectors import (
     paper_tests,
     viewpoint_consistency,
 )
-from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline, verify
+from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline, confirm, verify
 from platebench.reconstruction.strategy.planner import (
     Decision,
     PlannedView,
@@ -74,6 +74,7 @@ from platebench.reconstruction.strategy.poses import (
     stage2_pose,
     validate_pose,
 )
+from platebench.reconstruction.strategy.refutation import refute
 from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
 
 
@@ -175,9 +176,11 @@ class Measurements:
             self.membranes.append(view_membrane(view.outline))
 
     def update(self) -> BoundaryVerdict:
-        """Rebuild the surface model and the verdict from every pose measured so far."""
+        """Rebuild the surface model and the verdict from every pose measured so far (confirmations
+        that other poses see as the inside of the plate refuted first, ``refutation``)."""
         self.model = SurfaceModel.build(self.membranes)
-        self.verdict = verify(self.outlines, self.model)
+        confirmed = confirm(self.outlines)
+        self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.membranes))
         return self.verdict
 
 

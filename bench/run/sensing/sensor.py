@@ -54,7 +54,7 @@ def measure_outline(name: str, scene: SceneSpec, digital: dict) -> ViewOutline:
     """The plate's outline in the world frame from a passive pair (general outline stereo)."""
     m = {c: plate_mask(digital[f"{c}_passive"], f"{c}_passive") for c in ("left", "right")}
     st = match_outlines(digital["left_passive"], digital["right_passive"], m["left"], m["right"], scene.rig)
-    return ViewOutline.from_stereo(name, st, scene.rig.center)
+    return ViewOutline.from_stereo(name, st, scene.rig.center, scene.rig.left)
 
 
 class SimulatedSensor:

@@ -1,0 +1,86 @@
+"""Refutation (``reconstruction.strategy.refutation``): analytic cases on a flat 100 x 60 mm plate in
+z = 0, seen by real pinhole cameras. A confirmed stretch lying on the plate's inside (as where two
+poses' occluding contours cross) is refuted by the poses that see that part of the plate; the true
+edges are not; nor is a point in front of or behind the measured surface."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from platebench.reconstruction.strategy.multiview import ViewOutline, verify
+from platebench.reconstruction.strategy.refutation import (
+    REFUTE_DEPTH_M,
+    REFUTE_MARGIN_PX,
+    membrane_mesh,
+    refute,
+    seen_inside,
+)
+from platebench.reconstruction.strategy.surface_model import view_membrane
+from platebench.scenes.camera import Camera
+
+
+def _rectangle(L=0.1, W=0.06, step=1e-3, center=(0.0, 0.0)):
+    """A closed L x W rectangle in z = 0 (metres), one point per ``step``."""
+    x0, y0 = center[0] - L / 2, center[1] - W / 2
+    c = [(x0, y0), (x0 + L, y0), (x0 + L, y0 + W), (x0, y0 + W)]
+    P = []
+    for a, b in zip(c, c[1:] + c[:1]):
+        k = int(round(math.dist(a, b) / step))
+        P.append(np.linspace(a, b, k, endpoint=False))
+    P = np.vstack(P)
+    return np.c_[P, np.zeros(len(P))]
+
+
+def _view(name, P, eye):
+    cam = Camera.look_at(eye, (0.0, 0.0, 0.0), 1000, 640, 480)
+    return ViewOutline(name, P, np.ones(len(P), bool), np.asarray(eye, float), cam.project(P), "synthetic", cam)
+
+
+def _eyes(tilt_deg=35.0, distance=0.4):
+    s, c = math.sin(math.radians(tilt_deg)), math.cos(math.radians(tilt_deg))
+    return [(0.0, 0.0, distance), (distance * s, 0.0, distance * c), (0.0, distance * s, distance * c)]
+
+
+@pytest.mark.parametrize("tilt_deg, distance, inset", [(35.0, 0.4, 0.02), (34.0, 0.405, 0.015), (36.0, 0.395, 0.025)])
+def test_a_stretch_on_the_plates_inside_is_refuted_and_the_true_edges_are_not(tilt_deg, distance, inset):
+    views = [_view(f"pose {k}", _rectangle(), e) for k, e in enumerate(_eyes(tilt_deg, distance))]
+    # a fourth pose's outline running `inset` inside the plate all round (contours crossing on the surface)
+    views.append(_view("crossing", _rectangle(L=0.1 - 2 * inset, W=0.06 - 2 * inset), (-0.2, -0.1, 0.35)))
+    membranes = [view_membrane(v) for v in views]
+    confirmed = [np.ones(len(v.points), bool) for v in views]
+    r = refute(views, confirmed, membranes)
+    assert r[3].all()  # seen inside by all three poses that see the whole plate
+    assert not any(x.any() for x in r[:3])  # every true edge point lies on the others' outlines
+    # without the refutation the stray stretch is a second closed loop: not verified, and rightly so
+    # (a plate has one boundary); with it, the rectangle is verified and the stretch listed as refuted
+    assert not verify(views, confirmed=confirmed).verified
+    v = verify(views, confirmed=confirmed, refuted=r)
+    assert v.verified, v.reason
+    assert v.to_dict()["refuted_points"] == len(views[3].points)
+
+
+def test_a_point_off_the_measured_surface_or_near_the_outline_is_not_seen_inside():
+    v = _view("top", _rectangle(), (0.0, 0.0, 0.4))
+    mesh = membrane_mesh(view_membrane(v))
+    on = np.array([[0.0, 0.0, 0.0], [0.03, 0.01, 0.0]])
+    assert seen_inside(on, v, mesh).all()
+    # in front of the surface (a concave plate's near edge seen against its far side), or behind it
+    # (an edge the plate hides): the surface along the ray is farther than REFUTE_DEPTH_M away
+    for dz in (2 * REFUTE_DEPTH_M, -2 * REFUTE_DEPTH_M):
+        assert not seen_inside(on + [0.0, 0.0, dz], v, mesh).any()
+    assert seen_inside(on + [0.0, 0.0, 0.5 * REFUTE_DEPTH_M], v, mesh).all()
+    # within the pixel margin of the outline: could be the outline itself
+    px_m = 0.4 / 1000  # metres per pixel at 0.4 m, f = 1000 px
+    near_edge = np.array([[0.05 - 0.5 * REFUTE_MARGIN_PX * px_m, 0.0, 0.0]])
+    assert not seen_inside(near_edge, v, mesh).any()
+    # a pose without a camera refutes nothing
+    blind = ViewOutline("blind", v.points, v.matched, v.camera_center, v.image_points, "synthetic")
+    assert not seen_inside(on, blind, mesh).any()
+
+
+def test_refute_needs_one_membrane_per_view():
+    v = _view("top", _rectangle(), (0.0, 0.0, 0.4))
+    with pytest.raises(ValueError, match="1 membranes for 2 views"):
+        refute([v, v], [np.ones(len(v.points), bool)] * 2, [view_membrane(v)])
