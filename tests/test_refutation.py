@@ -48,9 +48,9 @@ def test_a_stretch_on_the_plates_inside_is_refuted_and_the_true_edges_are_not(ti
     views = [_view(f"pose {k}", _rectangle(), e) for k, e in enumerate(_eyes(tilt_deg, distance))]
     # a fourth pose's outline running `inset` inside the plate all round (contours crossing on the surface)
     views.append(_view("crossing", _rectangle(L=0.1 - 2 * inset, W=0.06 - 2 * inset), (-0.2, -0.1, 0.35)))
-    membranes = [view_membrane(v) for v in views]
+    meshes = [membrane_mesh(view_membrane(v)) for v in views]
     confirmed = [np.ones(len(v.points), bool) for v in views]
-    r = refute(views, confirmed, membranes)
+    r = refute(views, confirmed, meshes)
     assert r[3].all()  # seen inside by all three poses that see the whole plate
     assert not any(x.any() for x in r[:3])  # every true edge point lies on the others' outlines
     # without the refutation the stray stretch is a second closed loop: not verified, and rightly so
@@ -82,5 +82,5 @@ def test_a_point_off_the_measured_surface_or_near_the_outline_is_not_seen_inside
 
 def test_refute_needs_one_membrane_per_view():
     v = _view("top", _rectangle(), (0.0, 0.0, 0.4))
-    with pytest.raises(ValueError, match="1 membranes for 2 views"):
-        refute([v, v], [np.ones(len(v.points), bool)] * 2, [view_membrane(v)])
+    with pytest.raises(ValueError, match="1 membrane meshes for 2 views"):
+        refute([v, v], [np.ones(len(v.points), bool)] * 2, [membrane_mesh(view_membrane(v))])

@@ -18,12 +18,13 @@ pose ``m`` when
   triangulated in its image) crosses m's viewing ray within ``REFUTE_DEPTH_M`` of the point.
 
 The membranes cut chords under a bend, so the depth test is loose; ``REFUTE_POSES`` poses must
-agree. Measured on the final poses of the 57 distinct plates of the false-boundary study
-(``platebench study false-boundary``, 640 x 480): of the confirmed points within 1.5 mm of the
-true boundary 0.23 % were refuted, of those more than 4 mm off it 71 %; by pieces, 8 of 7327
-pieces on the true boundary and 37 of the 44 stray pieces (median distance over 4 mm) had at
-least half their points refuted. The thresholds were chosen on that measurement (margin 4 px and
-depth 8 mm; 2 mm of depth refuted 7 % of the stray points, 15 mm 4 % of the true ones). A refuted point counts as unconfirmed
+agree. Measured with this code on the final poses of the 57 distinct plates of the
+false-boundary study (``platebench study false-boundary``, 640 x 480, at the commit that added
+it): of the confirmed points within 1.5 mm of the true boundary 0.18 % are refuted, of those more
+than 4 mm off it 70 %; by pieces, 10 of 7315 pieces on the true boundary and 32 of the 42 stray
+pieces (median distance over 4 mm) have at least half their points refuted. The thresholds were
+chosen on a prototype of the same rule (depth 2 mm caught 7 % of the stray points; 15 mm refuted
+4 % of the true ones). A refuted point counts as unconfirmed
 (``BoundaryVerdict.refuted`` lists them). Refuting only removes evidence: it can break a loop, and
 it removes a loose end only where the end's piece lies on the inside of the plate.
 
@@ -85,13 +86,14 @@ def seen_inside(points: np.ndarray, view: ViewOutline, mesh) -> np.ndarray:
     return out
 
 
-def refute(views: list[ViewOutline], confirmed: list[np.ndarray], membranes: list[Membrane],
+def refute(views: list[ViewOutline], confirmed: list[np.ndarray], meshes: list,
            poses_needed: int = REFUTE_POSES) -> list[np.ndarray]:
     """Per pose, (N,) bool: the confirmed points that at least ``poses_needed`` other poses see as
-    the inside of the plate (module doc). ``membranes``: one per view, in the same order."""
-    if len(membranes) != len(views):
-        raise ValueError(f"refute: {len(membranes)} membranes for {len(views)} views; one per view is needed")
-    meshes = [membrane_mesh(m) for m in membranes]
+    the inside of the plate (module doc). ``meshes``: each view's membrane as ``membrane_mesh``
+    made it, in the same order (built once per pose by the caller: trimesh keeps its ray-casting
+    structure with the mesh)."""
+    if len(meshes) != len(views):
+        raise ValueError(f"refute: {len(meshes)} membrane meshes for {len(views)} views; one per view is needed")
     out = []
     for k, (v, c) in enumerate(zip(views, confirmed)):
         idx = np.nonzero(c)[0]

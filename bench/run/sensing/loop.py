@@ -74,7 +74,7 @@ from platebench.reconstruction.strategy.poses import (
     stage2_pose,
     validate_pose,
 )
-from platebench.reconstruction.strategy.refutation import refute
+from platebench.reconstruction.strategy.refutation import membrane_mesh, refute
 from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
 
 
@@ -154,6 +154,7 @@ class Measurements:
         self.views: list[PassiveView] = [v]
         self.membranes = [view_membrane(v.outline, None if rec is None else rec.uv_left,
                                         None if rec is None else rec.points)]
+        self.meshes = [membrane_mesh(self.membranes[0])]  # for refutation, one per pose, built once
         self.model: SurfaceModel | None = None
         self.verdict: BoundaryVerdict | None = None
 
@@ -174,13 +175,14 @@ class Measurements:
         if view.outline is not None:
             self.views.append(view)
             self.membranes.append(view_membrane(view.outline))
+            self.meshes.append(membrane_mesh(self.membranes[-1]))
 
     def update(self) -> BoundaryVerdict:
         """Rebuild the surface model and the verdict from every pose measured so far (confirmations
         that other poses see as the inside of the plate refuted first, ``refutation``)."""
         self.model = SurfaceModel.build(self.membranes)
         confirmed = confirm(self.outlines)
-        self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.membranes))
+        self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
         return self.verdict
 
 
