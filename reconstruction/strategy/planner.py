@@ -12,15 +12,34 @@ hidden got a cure, a false alarm; with them, none). Their baselines lie
 at 45 degrees between ``g`` and ``e``, so that edges along either cross the image rows and are
 matched on the rows, not interpolated.
 
-Cures. Candidates are the paper's cure 1 and cure 2 (from the stage-3 reconstruction's most bending
-curve, when it has one) and further turns of the stage-2 pose (about ``g``, ``e`` and the two
-diagonals, up to the reach), each checked against the reconstructed surface model: for every gap
-of the verdict, is the stretch just beyond it (3 and 8 mm along the gap's direction) seen by both
-cameras of the candidate from the outer side of the surface measured there (at least
-``FRONT_MARGIN_RAD``), not blocked by the measured plate (ray casting), and from a direction turned
-far enough from the pose that saw the gap's end to confirm or refute it? The candidate that sees
-past most gaps wins (the paper's cures first on a tie); its baseline is set across the gaps'
-direction. No candidate seeing past any gap: stop, naming the gaps.
+Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
+already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the
+end), but no pair of poses turned far enough about that stretch's own direction. So the first
+candidates are aimed at it (``targeted_views``): the pose that measured most of the stretch,
+turned by 35 and 50 degrees either way about the stretch's direction, the turn that slides an
+occluding contour and leaves an edge in place. Then the paper's cure 1 and cure 2 (from the
+stage-3 reconstruction's most bending curve, when it has one) and further turns of the stage-2
+pose (about ``g``, ``e`` and the two diagonals, up to the reach). Each candidate is checked against
+the reconstructed surface model (``_Targets.check``), before anything is rendered:
+
+* which gaps' stretches it would *confirm*: at least half of the measured points beyond the gap
+  are seen by both of its cameras from the outer side of the measured surface (at least
+  ``FRONT_MARGIN_RAD``), are not blocked by the measured plate (ray casting), and lie on rays
+  turned from the measuring pose's by the confirmation thresholds of ``multiview.confirm`` plus
+  ``PREDICT_MARGIN_RAD``;
+* which gaps it *sees past*: the points 3 and 8 mm beyond the end, seen and not blocked the same
+  way, from a direction turned ``CONFIRM_ANGLE_RAD`` from the pose that saw the end.
+
+The candidate predicted to confirm most stretches wins, then the one reaching most gaps; on a tie
+the earlier one (aimed views, then the paper's cures). Its baseline is set across the gaps'
+direction (their edges cross the image rows and are matched on them). No candidate confirming or
+seeing past any gap: stop, naming the gaps. Measured on the 61-plate study (``platebench study
+false-boundary``), together with ``multiview``'s same-side rule: 3 plates the earlier planner left
+unconfirmed are cured (cylinders 180 down axis 30, 240 down axis 60, 240 up axis 30), 3 it cured
+end unconfirmed (cylinder 240 up axis 0, fold 120 down, cylinder 240 down axis 0 aspect 3: the
+same-side rule leaves more gaps than the view budget closes), silent 0. A budget of 8 cure views
+instead of 5 cured no more plates and gave 2 silent verdicts on 300-degree curls (corners seen
+by one camera of every pose from behind the sheet only).
 
 World frame, metres, radians. Nothing here renders or reads ground truth.
 """
@@ -32,7 +51,15 @@ import numpy as np
 
 from platebench.reconstruction.strategy.bending import measured_bending_curves, tangent_intersection_distance
 from platebench.reconstruction.strategy.cures import cure_move_back, cure_orient
-from platebench.reconstruction.strategy.multiview import CONFIRM_ANGLE_RAD, BoundaryVerdict, Gap, ViewOutline
+from platebench.reconstruction.strategy.multiview import (
+    CONFIRM_ANGLE_RAD,
+    CONFIRM_SLIDE_ANGLE_RAD,
+    BoundaryVerdict,
+    Gap,
+    ViewOutline,
+    outline_directions,
+    rotation_about,
+)
 from platebench.reconstruction.strategy.poses import (
     Reach,
     SensorPose,
@@ -53,8 +80,17 @@ CANDIDATE_TURNS_DEG = tuple([("g", a) for a in (-15, 15, -45, 45, -75, 75)] +
                             [(d, a) for a in (-45, 45, -60, 60, -75, 75) for d in ("g+e", "g-e")])
 FRONT_MARGIN_RAD = float(np.radians(15.0))
 LOOK_AHEAD_M = (3e-3, 8e-3)
+BEYOND_MIN_M = 1.5e-3  # the stretch beyond a gap: measured outline points from this far on along it ...
+BEYOND_M = 15e-3  # ... to this far from the gap's end
+BEYOND_MAX_POINTS = 24  # ... of which this many, evenly spread (ray casting cost)
+BEYOND_MIN_POINTS = 3  # fewer measured points beyond a gap: nothing there to confirm
+BEYOND_CONFIRM_FRACTION = 0.5  # a candidate confirms a gap's stretch when predicted to confirm this much of it
+PREDICT_MARGIN_RAD = float(np.radians(5.0))  # predicted confirmations need the thresholds plus this
+TARGETED_TURNS_DEG = (35.0, 50.0)  # turns about the measured edge beyond a gap (targeted_views) ...
+TARGETED_BASES = 2  # ... of the poses that measured most of it, ...
+TARGETED_GAPS = 4  # ... for this many gaps at most (those with most measured beyond them; ray casting cost)
 SAME_VIEW_RAD = float(np.radians(8.0))  # a candidate this close in direction to a done pose adds nothing
-MAX_CURE_VIEWS = 5  # cure poses the view budget leaves room for
+MAX_CURE_VIEWS = 5  # cure poses the view budget leaves room for (8: module doc)
 MAX_VIEWS = 1 + len(VERIFY_TURNS_DEG) + MAX_CURE_VIEWS  # measuring poses at most: stage 2, verification, cures
 
 
@@ -132,58 +168,220 @@ def _close(a: SensorPose, b: SensorPose) -> bool:
         abs(a.distance_m - b.distance_m) < 0.05 * max(a.distance_m, b.distance_m)
 
 
-def _sees_past(view: PlannedView, gap, seen_from: np.ndarray, normal: np.ndarray, model: SurfaceModel,
-               baseline_m: float) -> bool:
-    pose = view.pose
-    a = gap.position_m
-    cams = np.array([pose.center - pose.baseline_dir * baseline_m / 2, pose.center + pose.baseline_dir * baseline_m / 2])
-    ra, rb = a - seen_from, a - pose.center
-    if np.arccos(np.clip(ra @ rb / (np.linalg.norm(ra) * np.linalg.norm(rb)), -1, 1)) < CONFIRM_ANGLE_RAD:
-        return False
-    targets = np.array([a + gap.direction * d for d in LOOK_AHEAD_M])
-    for c in cams:
-        to_c = c - targets
-        front = to_c @ normal / np.linalg.norm(to_c, axis=1)
-        if np.any(front < np.sin(FRONT_MARGIN_RAD)):
-            return False
-        if model.blocked(np.repeat(c[None], len(targets), 0), targets).any():
-            return False
-    return True
+@dataclass(frozen=True)
+class Beyond:
+    """The boundary just beyond a gap as the poses measured so far saw it: their row-matched outline
+    points from ``BEYOND_MIN_M`` to ``BEYOND_M`` on along the gap's direction that no pair confirmed.
+    ``points`` (K,3), ``tangents`` (K,3) the outline's local direction there, ``centers`` (K,3) the
+    mid-baseline point of the pose that measured each, ``views`` (K,) its index in ``done``."""
+
+    points: np.ndarray
+    tangents: np.ndarray
+    centers: np.ndarray
+    views: np.ndarray
 
 
-def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[SensorPose],
-           candidates: list[PlannedView], model: SurfaceModel, baseline_m: float,
-           max_views: int = MAX_VIEWS) -> Decision:
-    """The next step of the loop (module doc). ``done``/``done_poses``: the poses measured so far."""
-    if verdict.verified:
-        return Decision("done", None, "boundary verified: " + verdict.reason)
+def beyond_gap(gap: Gap, done: list[ViewOutline], confirmed=()) -> Beyond:
+    """The stretch beyond ``gap`` as measured so far (``Beyond``); ``confirmed``: per pose, the
+    points already confirmed (left out)."""
+    P, T, C, V = [], [], [], []
+    for k, v in enumerate(done):
+        rel = v.points - gap.position_m
+        ahead = rel @ gap.direction
+        m = v.matched & (ahead >= BEYOND_MIN_M) & (np.linalg.norm(rel, axis=1) <= BEYOND_M)
+        if k < len(confirmed) and len(confirmed[k]) == len(m):
+            m &= ~np.asarray(confirmed[k], bool)
+        if m.any():
+            P.append(v.points[m])
+            T.append(outline_directions(v.points)[m])
+            C.append(np.repeat(v.camera_center[None], int(m.sum()), 0))
+            V.append(np.full(int(m.sum()), k))
+    if not P:
+        z = np.zeros((0, 3))
+        return Beyond(z, z, z, np.zeros(0, int))
+    P, T, C, V = np.vstack(P), np.vstack(T), np.vstack(C), np.concatenate(V)
+    keep = np.unique(np.linspace(0, len(P) - 1, min(len(P), BEYOND_MAX_POINTS)).round().astype(int))
+    return Beyond(P[keep], T[keep], C[keep], V[keep])
+
+
+def _cameras(pose: SensorPose, baseline_m: float) -> np.ndarray:
+    return np.array([pose.center - pose.baseline_dir * baseline_m / 2, pose.center + pose.baseline_dir * baseline_m / 2])
+
+
+def _seen_by(pose: SensorPose, points: np.ndarray, normals: np.ndarray, model: SurfaceModel,
+             baseline_m: float) -> np.ndarray:
+    """(K,) both cameras of ``pose`` see each point from the outer side of the surface measured there
+    (at least ``FRONT_MARGIN_RAD``) and no measured surface blocks the way."""
+    ok = np.ones(len(points), bool)
+    for c in _cameras(pose, baseline_m):
+        to_c = c - points
+        ok &= np.einsum("ij,ij->i", to_c, normals) / np.linalg.norm(to_c, axis=1) >= np.sin(FRONT_MARGIN_RAD)
+        if ok.any():
+            idx = np.nonzero(ok)[0]
+            ok[idx[model.blocked(np.repeat(c[None], len(idx), 0), points[idx])]] = False
+    return ok
+
+
+def _ray_angle(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K,) angle (rad) between the rays from ``a`` and from ``b`` ((3,) or (K,3)) to each point."""
+    ra, rb = points - a, points - b
+    cos = np.einsum("ij,ij->i", ra, rb) / (np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1))
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def _turned_enough(beyond: Beyond, center: np.ndarray) -> np.ndarray:
+    """(K,) a pose at ``center`` is turned from each point's measuring pose by ``CONFIRM_ANGLE_RAD``
+    and about the outline's own direction by ``CONFIRM_SLIDE_ANGLE_RAD``, each with
+    ``PREDICT_MARGIN_RAD`` to spare (``multiview.confirm``'s rule, before rendering)."""
+    P = beyond.points
+    return (_ray_angle(P, beyond.centers, center) >= CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD) & \
+        (rotation_about(beyond.tangents, P - beyond.centers, P - center) >= CONFIRM_SLIDE_ANGLE_RAD + PREDICT_MARGIN_RAD)
+
+
+def predicted_confirmed(pose: SensorPose, beyond: Beyond, normals: np.ndarray, model: SurfaceModel,
+                        baseline_m: float) -> np.ndarray:
+    """(K,) the points of ``beyond`` that ``pose`` is predicted to confirm: turned enough from the
+    pose that measured each (``_turned_enough``) and seeing it (``_seen_by``; ``normals`` (K,3):
+    the measured surface's normal there, toward the measuring side)."""
+    ok = _turned_enough(beyond, pose.center) if len(beyond.points) else np.zeros(0, bool)
+    if ok.any():
+        idx = np.nonzero(ok)[0]
+        ok[idx] = _seen_by(pose, beyond.points[idx], normals[idx], model, baseline_m)
+    return ok
+
+
+@dataclass(frozen=True)
+class _Targets:
+    """What a candidate is checked against, for all gaps at once (one ray cast per camera): the
+    gaps' ends and where they were seen from, the points ``LOOK_AHEAD_M`` past them, and the
+    measured stretches beyond them (``Beyond``, concatenated), each with the measured surface's
+    normal."""
+
+    ends: np.ndarray  # (G,3)
+    seen_from: np.ndarray  # (G,3)
+    look: np.ndarray  # (G*A,3), A = len(LOOK_AHEAD_M)
+    look_normals: np.ndarray  # (G*A,3)
+    beyond: Beyond  # (K points) all gaps' stretches
+    beyond_normals: np.ndarray  # (K,3)
+    beyond_gap: np.ndarray  # (K,) the gap of each
+    beyond_count: np.ndarray  # (G,) points beyond each gap
+
+    def check(self, pose: SensorPose, model: SurfaceModel, baseline_m: float) -> tuple[list[int], list[int]]:
+        """(the gaps ``pose`` sees past: turned ``CONFIRM_ANGLE_RAD`` from the pose that saw the end,
+        both cameras see the look-ahead points; the gaps whose measured stretch ``pose`` is
+        predicted to confirm: ``BEYOND_CONFIRM_FRACTION`` of it, at least ``BEYOND_MIN_POINTS``)."""
+        G, A = len(self.ends), len(LOOK_AHEAD_M)
+        gap_ok = _ray_angle(self.ends, self.seen_from, pose.center) >= CONFIRM_ANGLE_RAD
+        look_idx = np.nonzero(np.repeat(gap_ok, A))[0]
+        turned = _turned_enough(self.beyond, pose.center) if len(self.beyond.points) else np.zeros(0, bool)
+        b_idx = np.nonzero(turned)[0]
+        pts = np.vstack([self.look[look_idx], self.beyond.points[b_idx]])
+        nrm = np.vstack([self.look_normals[look_idx], self.beyond_normals[b_idx]])
+        vis = _seen_by(pose, pts, nrm, model, baseline_m) if len(pts) else np.zeros(0, bool)
+        look_vis = np.zeros(G * A, bool)
+        look_vis[look_idx] = vis[:len(look_idx)]
+        seen = np.nonzero(gap_ok & look_vis.reshape(G, A).all(axis=1))[0]
+        conf_n = np.bincount(self.beyond_gap[b_idx[vis[len(look_idx):]]], minlength=G)
+        conf = np.nonzero((self.beyond_count >= BEYOND_MIN_POINTS) &
+                          (conf_n >= BEYOND_CONFIRM_FRACTION * np.maximum(self.beyond_count, 1)))[0]
+        return seen.tolist(), conf.tolist()
+
+
+def _targets(gaps: list[Gap], beyonds: list[Beyond], done: list[ViewOutline], model: SurfaceModel) -> _Targets:
+    """``_Targets`` of the gaps. Normals: the surface model's, turned toward the pose that saw the
+    gap's end; past the end (off the measured surface) and where the model has none, the normal at
+    the end, or the direction to that pose."""
+    centers = {v.name: v.camera_center for v in done}
+    seen_from = np.array([centers.get(g.view, done[0].camera_center) for g in gaps])
+    ends = np.array([g.position_m for g in gaps])
+    G, A = len(gaps), len(LOOK_AHEAD_M)
+    counts = np.array([len(b.points) for b in beyonds])
+    bgap = np.repeat(np.arange(G), counts)
+    look = np.array([g.position_m + g.direction * d for g in gaps for d in LOOK_AHEAD_M])
+    allb = Beyond(*(np.concatenate([getattr(b, f) for b in beyonds])
+                    for f in ("points", "tangents", "centers", "views")))
+    n = model.normals_near(np.vstack([ends, allb.points]), np.vstack([seen_from, seen_from[bgap]]))
+    bad = ~np.all(np.isfinite(n), axis=1)
+    to_pose = (seen_from - ends) / np.linalg.norm(seen_from - ends, axis=1, keepdims=True)
+    gap_n = np.where(bad[:G, None], to_pose, n[:G])
+    b_n = np.where(bad[G:, None], gap_n[bgap], n[G:])
+    return _Targets(ends, seen_from, look, np.repeat(gap_n, A, 0), allb, b_n, bgap, counts)
+
+
+def open_ends(verdict: BoundaryVerdict) -> list[Gap]:
+    """The verdict's gaps; with none (separate groups with no loose end), the ends of the
+    unconfirmed outline runs no other pose covers, each looking along the run."""
     gaps = list(verdict.gaps)
-    if not gaps:  # separate groups with no loose end: look past the ends of the unconfirmed outline runs
+    if not gaps:
         for u in verdict.unconfirmed:
             if not u.covered:
                 d = u.end_m - u.start_m
                 n = float(np.linalg.norm(d))
                 if n > 0:
                     gaps += [Gap(u.start_m, d / n, u.view), Gap(u.end_m, -d / n, u.view)]
+    return gaps
+
+
+def targeted_views(beyonds: list[Beyond], done_poses: list[SensorPose], reach: Reach, measured: np.ndarray,
+                   camera: Camera, baseline_m: float) -> list[PlannedView]:
+    """Per gap, the pose that measured most of the stretch beyond it, turned about that stretch's
+    own direction (through its target) by ``TARGETED_TURNS_DEG``: the turn that slides an
+    occluding contour and leaves an edge where it is, so the pair confirms the stretch or refutes
+    it. Baseline across the stretch (its edge crosses the image rows); unreachable ones left out."""
+    out = []
+    order = sorted(range(len(beyonds)), key=lambda i: -len(beyonds[i].points))[:TARGETED_GAPS]
+    for i in sorted(order):
+        b = beyonds[i]
+        if len(b.points) < BEYOND_MIN_POINTS:
+            continue
+        counts = np.bincount(b.views)
+        for k in np.argsort(-counts, kind="stable")[:TARGETED_BASES]:
+            if counts[k] < BEYOND_MIN_POINTS:
+                continue
+            T = b.tangents[b.views == k]
+            t = np.linalg.eigh(T.T @ T)[1][:, -1]
+            base = done_poses[k]
+            for deg in TARGETED_TURNS_DEG:
+                for sgn in (-1.0, 1.0):
+                    p = rotated_pose(base, t, sgn * np.radians(deg))
+                    p = replace(p, baseline_dir=perpendicular(np.cross(p.view_dir, t), p.view_dir),
+                                reason=f"pose {k} turned {sgn * deg:+.0f} deg about the edge it measured "
+                                       f"beyond gap {i + 1}")
+                    p = ensure_in_view(p, measured, camera, baseline_m)
+                    if reach.why_not(p, measured, baseline_m) is None:
+                        out.append(PlannedView(f"gap {i + 1} pose {k} turn {sgn * deg:+.0f}", p, "cure",
+                                               "multi-view", p.reason))
+    return out
+
+
+def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[SensorPose],
+           candidates: list[PlannedView], model: SurfaceModel, baseline_m: float,
+           max_views: int = MAX_VIEWS, reach: Reach | None = None, camera: Camera | None = None) -> Decision:
+    """The next step of the loop (module doc). ``done``/``done_poses``: the poses measured so far.
+    With ``reach`` and ``camera``, the poses turned about the edge beyond each gap
+    (``targeted_views``) are candidates too."""
+    if verdict.verified:
+        return Decision("done", None, "boundary verified: " + verdict.reason)
+    gaps = open_ends(verdict)
     if not gaps:
         return Decision("stop", None, f"not verified ({verdict.reason}) but no piece end to look past")
     if len(done) >= max_views:
         return Decision("stop", None, f"view budget spent ({len(done)} poses); {len(gaps)} gap(s) remain: "
                         + "; ".join(g.to_dict()["what"] for g in gaps[:3]), len(gaps))
-    centers = {v.name: v.camera_center for v in done}
-    normals = []
-    for g in gaps:
-        c = centers.get(g.view, done[0].camera_center)
-        n = model.normals_near(g.position_m[None], c)[0]
-        normals.append(n if np.all(np.isfinite(n)) else unit(c - g.position_m))
-    best, best_seen = None, []
+    beyonds = [beyond_gap(g, done, verdict.confirmed) for g in gaps]
+    targets = _targets(gaps, beyonds, done, model)
+    if reach is not None and camera is not None:
+        measured = np.vstack([v.points for v in done])
+        candidates = targeted_views(beyonds, done_poses, reach, measured, camera, baseline_m) + list(candidates)
+    best, best_score, best_seen, best_conf = None, (0, 0), [], []
     for cand in candidates:
         if any(_close(cand.pose, p) for p in done_poses):
             continue
-        seen = [i for i, g in enumerate(gaps)
-                if _sees_past(cand, g, centers.get(g.view, done[0].camera_center), normals[i], model, baseline_m)]
-        if len(seen) > len(best_seen):
-            best, best_seen = cand, seen
+        seen, conf = targets.check(cand.pose, model, baseline_m)
+        reached = sorted(set(seen) | set(conf))
+        score = (len(conf), len(reached))
+        if score > best_score:
+            best, best_score, best_seen, best_conf = cand, score, reached, conf
     if best is None:
         return Decision("stop", None, "no reachable pose is predicted to see past the unverified boundary ("
                         + "; ".join(g.to_dict()["what"] for g in gaps[:3])
@@ -196,7 +394,8 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
     if np.linalg.norm(across) > 1e-6 and best.method == "multi-view":
         pose = replace(pose, baseline_dir=perpendicular(across, v))
     view = replace(best, pose=pose, purpose="cure",
-                   reason=best.reason + f"; predicted to see past {len(best_seen)} of {len(gaps)} gap(s) "
+                   reason=best.reason + f"; predicted to see past {len(best_seen)} of {len(gaps)} gap(s), "
+                   f"to confirm the measured edge beyond {len(best_conf)} "
                    "(checked by casting rays against the reconstructed surface)")
     return Decision("view", view, view.reason, len(gaps), len(best_seen))
 

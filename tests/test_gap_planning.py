@@ -1,0 +1,147 @@
+"""Cures aimed at confirming the edge beyond a gap (``reconstruction.strategy.planner``), and the
+rule that a pair sees an edge from one side of the sheet (``multiview.confirm``). Analytic cases on
+a flat 100 x 60 mm plate in z = 0 seen by real pinhole cameras, parametrised over small
+perturbations of the turns and the distance."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from platebench.reconstruction.strategy.multiview import (
+    CONFIRM_ANGLE_RAD,
+    CONFIRM_SLIDE_ANGLE_RAD,
+    Gap,
+    ViewOutline,
+    confirm,
+    outline_sense,
+    rotation_about,
+)
+from platebench.reconstruction.strategy.planner import (
+    PREDICT_MARGIN_RAD,
+    TARGETED_TURNS_DEG,
+    Beyond,
+    beyond_gap,
+    predicted_confirmed,
+    targeted_views,
+)
+from platebench.reconstruction.strategy.poses import Reach, SensorPose, rotation_matrix
+from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
+from platebench.scenes.camera import Camera
+
+
+def _rectangle(L=0.1, W=0.06, step=1e-3):
+    c = [(-L / 2, -W / 2), (L / 2, -W / 2), (L / 2, W / 2), (-L / 2, W / 2)]
+    P = [np.linspace(a, b, int(round(math.dist(a, b) / step)), endpoint=False) for a, b in zip(c, c[1:] + c[:1])]
+    P = np.vstack(P)
+    return np.c_[P, np.zeros(len(P))]
+
+
+def _view(name, P, eye, up=(0.0, 1.0, 0.0)):
+    cam = Camera.look_at(eye, (0.0, 0.0, 0.0), 1000, 640, 480, up=up)
+    return ViewOutline(name, P, np.ones(len(P), bool), np.asarray(eye, float), cam.project(P), "synthetic", cam)
+
+
+def _eye(about_x_deg=0.0, about_y_deg=0.0, distance=0.4, below=False):
+    """A camera ``distance`` from the origin, straight above (or below), turned about x then y."""
+    e = np.array([0.0, 0.0, -distance if below else distance])
+    return rotation_matrix([0.0, 1.0, 0.0], math.radians(about_y_deg)) @ \
+        rotation_matrix([1.0, 0.0, 0.0], math.radians(about_x_deg)) @ e
+
+
+@pytest.mark.parametrize("tilt_deg, distance", [(30.0, 0.4), (29.0, 0.405), (31.0, 0.395)])
+def test_two_poses_on_opposite_sides_of_the_sheet_do_not_confirm_its_edge(tilt_deg, distance):
+    """Seen from behind, the image is a mirror image: walked counter-clockwise in each image, the
+    outline runs the other way round the plate. A real plate has a thickness, so its front and back
+    edges are different curves; a front view does not confirm a back view's edge."""
+    P = _rectangle()
+    top = _view("top", P, _eye(distance=distance))
+    front = _view("front", P, _eye(tilt_deg, distance=distance))
+    back = _view("back", P, _eye(tilt_deg, distance=distance, below=True))
+    assert outline_sense(top) == outline_sense(front) == -outline_sense(back)
+    assert confirm([top, front])[0].mean() > 0.4  # the edges along x (turned about them) confirm
+    assert not confirm([top, back])[0].any()
+    # the same pair confirms when the side is not checked: it is the rule that refuses, not the angles
+    assert confirm([top, back], same_side=False)[0].mean() > 0.4
+
+
+def _edge_beyond(distance=0.4):
+    """The plate's far edge y = 30 mm as the top pose measured it, beyond a gap at x = -20 mm."""
+    top = _view("top", _rectangle(), _eye(distance=distance))
+    gap = Gap(np.array([-0.02, 0.03, 0.0]), np.array([1.0, 0.0, 0.0]), "elsewhere")
+    return top, beyond_gap(gap, [top])
+
+
+def test_the_stretch_beyond_a_gap_is_the_measured_outline_just_past_its_end():
+    top, b = _edge_beyond()
+    assert len(b.points) >= 10
+    rel = b.points - np.array([-0.02, 0.03, 0.0])
+    assert np.all(rel[:, 0] > 1e-3) and np.all(np.linalg.norm(rel, axis=1) <= 15e-3 + 1e-12)
+    assert np.allclose(b.points[:, 1], 0.03) and np.all(b.views == 0)
+    assert np.allclose(np.abs(b.tangents[:, 0]), 1.0)
+    # points already confirmed are left out
+    none = beyond_gap(Gap(np.array([-0.02, 0.03, 0.0]), np.array([1.0, 0.0, 0.0]), "x"), [top],
+                      [np.ones(len(top.points), bool)])
+    assert len(none.points) == 0
+
+
+@pytest.mark.parametrize("about_x, about_y", [(45.0, 0.0), (0.0, 45.0), (35.0, 20.0), (12.0, 40.0), (-50.0, 5.0),
+                                              (60.0, -10.0), (20.0, 30.0), (0.0, 70.0)])
+@pytest.mark.parametrize("distance", [0.395, 0.405])
+def test_the_prediction_agrees_with_the_confirmation_it_predicts(about_x, about_y, distance):
+    """``predicted_confirmed`` (before rendering) against ``confirm`` on the outline the candidate
+    then measures: where the prediction says yes, the rendered pair confirms; where the turns are
+    short of the thresholds, neither does."""
+    top, b = _edge_beyond(distance)
+    model = SurfaceModel.build([view_membrane(top)])
+    eye = _eye(about_x, about_y, distance)
+    pose = SensorPose(eye, np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    pred = predicted_confirmed(pose, b, np.tile([0.0, 0.0, 1.0], (len(b.points), 1)), model, 0.1)
+    cand = _view("candidate", _rectangle(), eye)
+    conf = confirm([top, cand])[0]
+    idx = np.array([int(np.argmin(np.linalg.norm(top.points - p, axis=1))) for p in b.points])
+    assert np.all(conf[idx][pred]), "predicted but not confirmed"
+    if (about_x, about_y) == (45.0, 0.0):  # turned about the edge itself: all of it, both ways
+        assert pred.all() and conf[idx].all()
+    if (about_x, about_y) == (0.0, 45.0):  # turned across it: it would not slide, so nothing
+        assert not pred.any() and not conf[idx].any()
+    ra, rb = b.points - top.camera_center, b.points - eye
+    slide = rotation_about(b.tangents, ra, rb)
+    ang = np.arccos(np.clip(np.einsum("ij,ij->i", ra, rb) / np.linalg.norm(ra, axis=1) / np.linalg.norm(rb, axis=1),
+                            -1, 1))
+    need_slide, need_ang = CONFIRM_SLIDE_ANGLE_RAD + PREDICT_MARGIN_RAD, CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD
+    # a plate seen from above: nothing blocks and everything faces, so the turns alone decide
+    assert np.all(pred[(slide >= need_slide + 0.01) & (ang >= need_ang + 0.01)])
+    assert not pred[(slide < need_slide - 0.01) | (ang < need_ang - 0.01)].any()
+    short = (slide < CONFIRM_SLIDE_ANGLE_RAD - 0.01) | (ang < CONFIRM_ANGLE_RAD - 0.01)
+    assert not conf[idx][short].any()
+
+
+def test_a_pose_blocked_by_the_measured_surface_is_not_predicted_to_confirm():
+    """A candidate below the plate (the table side) is turned enough, but the plate is in the way
+    (and it faces the back): no confirmation predicted."""
+    top, b = _edge_beyond()
+    model = SurfaceModel.build([view_membrane(top)])
+    eye = _eye(45.0, 0.0, below=True)
+    pose = SensorPose(eye, np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    assert not predicted_confirmed(pose, b, np.tile([0.0, 0.0, 1.0], (len(b.points), 1)), model, 0.1).any()
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 1.0, -1.0])
+def test_targeted_views_turn_the_measuring_pose_about_the_edge_beyond_the_gap(tilt_deg):
+    top, b = _edge_beyond()
+    base = SensorPose(_eye(tilt_deg), np.zeros(3), np.array([0.0, 1.0, 0.0]))
+    cam = Camera.look_at((0.0, 0.0, 0.4), (0.0, 0.0, 0.0), 1000, 640, 480)
+    views = targeted_views([b], [base], Reach(), top.points, cam, 0.1)
+    assert len(views) == 2 * len(TARGETED_TURNS_DEG)
+    x = np.array([1.0, 0.0, 0.0])
+    turns = sorted(round(math.degrees(float(rotation_about(x[None], -base.view_dir[None],
+                                                            -v.pose.view_dir[None])[0]))) for v in views)
+    assert turns == sorted([round(t) for t in TARGETED_TURNS_DEG] * 2)
+    for v in views:
+        assert abs(v.pose.baseline_dir @ x) < 1e-9  # the edge crosses the image rows
+        assert v.purpose == "cure" and "gap 1" in v.name
+    # fewer than the minimum measured points beyond: nothing to aim at
+    few = Beyond(b.points[:2], b.tangents[:2], b.centers[:2], b.views[:2])
+    assert targeted_views([few], [base], Reach(), top.points, cam, 0.1) == []
