@@ -17,17 +17,19 @@ from platebench.reconstruction.strategy.multiview import (
     confirm,
     outline_sense,
     rotation_about,
+    verify,
 )
 from platebench.reconstruction.strategy.planner import (
     PREDICT_MARGIN_RAD,
     TARGETED_TURNS_DEG,
     Beyond,
     beyond_gap,
+    decide,
     predicted_confirmed,
     targeted_views,
 )
 from platebench.reconstruction.strategy.poses import Reach, SensorPose, rotation_matrix
-from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
+from platebench.reconstruction.strategy.surface_model import Membrane, SurfaceModel, view_membrane
 from platebench.scenes.camera import Camera
 
 
@@ -52,8 +54,8 @@ def _eye(about_x_deg=0.0, about_y_deg=0.0, distance=0.4, below=False):
 
 @pytest.mark.parametrize("tilt_deg, distance", [(30.0, 0.4), (29.0, 0.405), (31.0, 0.395)])
 def test_two_poses_on_opposite_sides_of_the_sheet_do_not_confirm_its_edge(tilt_deg, distance):
-    """Seen from behind, the image is a mirror image: walked counter-clockwise in each image, the
-    outline runs the other way round the plate. A real plate has a thickness, so its front and back
+    """Seen from behind, the image is a mirror image: walked with the same orientation in each
+    image, the outline runs the other way round the plate. A real plate has a thickness, so its front and back
     edges are different curves; a front view does not confirm a back view's edge."""
     P = _rectangle()
     top = _view("top", P, _eye(distance=distance))
@@ -118,20 +120,28 @@ def test_the_prediction_agrees_with_the_confirmation_it_predicts(about_x, about_
     assert not conf[idx][short].any()
 
 
-def test_a_pose_blocked_by_the_measured_surface_is_not_predicted_to_confirm():
-    """A candidate below the plate (the table side) is turned enough, but the plate is in the way
-    (and it faces the back): no confirmation predicted."""
+@pytest.mark.parametrize("height", [0.15, 0.2, 0.25])
+def test_a_pose_blocked_by_the_measured_surface_is_not_predicted_to_confirm(height):
+    """A candidate turned 45 degrees about the edge confirms it; with a measured sheet across its
+    line of sight (a square at ``height`` above the plate, on the way to the edge) it does not."""
     top, b = _edge_beyond()
-    model = SurfaceModel.build([view_membrane(top)])
-    eye = _eye(45.0, 0.0, below=True)
+    eye = _eye(45.0, 0.0)
     pose = SensorPose(eye, np.zeros(3), np.array([1.0, 0.0, 0.0]))
-    assert not predicted_confirmed(pose, b, np.tile([0.0, 0.0, 1.0], (len(b.points), 1)), model, 0.1).any()
+    up = np.tile([0.0, 0.0, 1.0], (len(b.points), 1))
+    free = SurfaceModel.build([view_membrane(top)])
+    assert predicted_confirmed(pose, b, up, free, 0.1).all()
+    mid = (np.array([0.0, 0.03, 0.0]) + eye) / 2
+    mid = mid + (eye - mid) * (height - mid[2]) / (eye[2] - mid[2])  # on the line of sight, at `height`
+    sq = mid + np.array([[-0.1, -0.02, 0.0], [0.1, -0.02, 0.0], [0.1, 0.02, 0.0], [-0.1, 0.02, 0.0]])
+    shade = Membrane("shade", sq, np.array([[0, 1, 2], [0, 2, 3]]), eye)
+    blocked = SurfaceModel.build([view_membrane(top), shade])
+    assert not predicted_confirmed(pose, b, up, blocked, 0.1).any()
 
 
 @pytest.mark.parametrize("tilt_deg", [0.0, 1.0, -1.0])
 def test_targeted_views_turn_the_measuring_pose_about_the_edge_beyond_the_gap(tilt_deg):
     top, b = _edge_beyond()
-    base = SensorPose(_eye(tilt_deg), np.zeros(3), np.array([0.0, 1.0, 0.0]))
+    base = SensorPose(_eye(tilt_deg), np.zeros(3), np.array([1.0, 1.0, 0.0]) / math.sqrt(2))  # not across x
     cam = Camera.look_at((0.0, 0.0, 0.4), (0.0, 0.0, 0.0), 1000, 640, 480)
     views = targeted_views([b], [base], Reach(), top.points, cam, 0.1)
     assert len(views) == 2 * len(TARGETED_TURNS_DEG)
@@ -141,7 +151,31 @@ def test_targeted_views_turn_the_measuring_pose_about_the_edge_beyond_the_gap(ti
     assert turns == sorted([round(t) for t in TARGETED_TURNS_DEG] * 2)
     for v in views:
         assert abs(v.pose.baseline_dir @ x) < 1e-9  # the edge crosses the image rows
+        assert v.method == "multi-view" and v.name.startswith("gap 1 pose 0 turn")
         assert v.purpose == "cure" and "gap 1" in v.name
     # fewer than the minimum measured points beyond: nothing to aim at
     few = Beyond(b.points[:2], b.tangents[:2], b.centers[:2], b.views[:2])
     assert targeted_views([few], [base], Reach(), top.points, cam, 0.1) == []
+
+
+@pytest.mark.parametrize("tilt_deg, distance", [(35.0, 0.4), (34.0, 0.405), (36.0, 0.395)])
+def test_decide_aims_at_the_unconfirmed_edges_and_the_aimed_view_closes_the_loop(tilt_deg, distance):
+    """Three poses: straight down, turned ``tilt_deg`` about x (the edges along x slide: confirmed)
+    and 10 degrees about y (too little for the edges along y). The pieces stop at the corners;
+    the measured edges along y lie beyond them. ``decide``, with no other candidate, aims a pose
+    turned about y at them, and the outline it then measures closes the loop."""
+    P = _rectangle()
+    eyes = [_eye(distance=distance), _eye(tilt_deg, distance=distance), _eye(0.0, 10.0, distance=distance)]
+    views = [_view(f"pose {k}", P, e) for k, e in enumerate(eyes)]
+    poses = [SensorPose(e, np.zeros(3), np.array([1.0, 0.0, 0.0])) for e in eyes]
+    v = verify(views)
+    assert not v.verified and v.gaps
+    model = SurfaceModel.build([view_membrane(o) for o in views])
+    cam = Camera.look_at(eyes[0], (0.0, 0.0, 0.0), 1000, 640, 480)
+    d = decide(v, views, poses, [], model, 0.1, reach=Reach(), camera=cam)
+    assert d.kind == "view" and d.view.name.startswith("gap "), d.reason
+    assert "confirm: " in d.reason and "(confirm: 0)" not in d.reason
+    after = verify(views + [_view("aimed", P, d.view.pose.center)])
+    assert after.verified, after.reason
+    # without the aimed candidates (no reach given) and no others, it stops and names the gaps
+    assert decide(v, views, poses, [], model, 0.1).kind == "stop"

@@ -15,8 +15,8 @@ outline's local direction (the part that slides a contour), has a measured outli
 ``CONFIRM_TOL_M`` of it. Only points whose disparity was measured on the row
 (not interpolated, ``ViewOutline.matched``) confirm or are confirmed: an interpolated stretch
 agrees with anything its ends agree with. And the two poses must see the edge from the same side
-of the sheet (``outline_sense``): walked counter-clockwise in each left image, their outlines run
-the same way along it (local directions less than 120 degrees apart). A real plate has a
+of the sheet (``outline_sense``): walked with the same orientation in each left image, their
+outlines run the same way along it (local directions less than 120 degrees apart). A real plate has a
 thickness, so its front and back edges are two curves; the bench's plate is a two-sided sheet of
 no thickness, whose edge seen from behind agrees with the front view to the measurement noise, and
 ground truth counts a back-facing boundary point as hidden. Without the rule, a cure seeing a
@@ -116,10 +116,11 @@ def outline_directions(points: np.ndarray, half: int = TANGENT_HALF_POINTS) -> n
 
 
 def outline_sense(view: ViewOutline) -> float:
-    """+1 when the outline runs counter-clockwise in its left image (v down), else -1. Walked that
-    way, the plate's inside is on the same hand in every image of its front side, and on the
-    other hand in an image of its back side (a mirror image): at a true edge, two poses that see it
-    from the same side walk it the same way in 3D."""
+    """+1 when the outline's signed area in its left image's (u, v) pixels is positive (clockwise
+    on the screen, v pointing down), else -1. Walked in the direction that makes the area positive,
+    the plate's inside is on the same hand in every image of its front side, and on the other hand
+    in an image of its back side (a mirror image): at a true edge, two poses that see it from the
+    same side walk it the same way in 3D. Only products of two senses are used."""
     uv = np.asarray(view.image_points, float)
     if len(uv) < 3:
         return 1.0

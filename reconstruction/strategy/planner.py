@@ -17,7 +17,8 @@ already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5
 end), but no pair of poses turned far enough about that stretch's own direction. So the first
 candidates are aimed at it (``targeted_views``): the pose that measured most of the stretch,
 turned by 35 and 50 degrees either way about the stretch's direction, the turn that slides an
-occluding contour and leaves an edge in place. Then the paper's cure 1 and cure 2 (from the
+occluding contour and leaves an edge in place (the turn is about an axis through the pose's
+target, not through the stretch: the ray to the stretch turns about its direction by about as much). Then the paper's cure 1 and cure 2 (from the
 stage-3 reconstruction's most bending curve, when it has one) and further turns of the stage-2
 pose (about ``g``, ``e`` and the two diagonals, up to the reach). Each candidate is checked against
 the reconstructed surface model (``_Targets.check``), before anything is rendered:
@@ -40,6 +41,13 @@ end unconfirmed (cylinder 240 up axis 0, fold 120 down, cylinder 240 down axis 0
 same-side rule leaves more gaps than the view budget closes), silent 0. A budget of 8 cure views
 instead of 5 cured no more plates and gave 2 silent verdicts on 300-degree curls (corners seen
 by one camera of every pose from behind the sheet only).
+
+Known limits, left as they are on purpose (a review found them; fixing them changed which poses
+the study's plates get and, on a 300-degree curl, let a corner seen only from behind the sheet by
+one camera of every pose be confirmed: a silent verdict. That weakness is in the verdict, not
+here, and must be mended first): ``decide`` resets an aimed view's baseline across the gaps'
+directions like any turn's; beyond a gap the normals face the pose that saw the end; a corner's
+next edge is not counted as lying beyond the gap; refuted points may be aimed at.
 
 World frame, metres, radians. Nothing here renders or reads ground truth.
 """
@@ -90,14 +98,15 @@ TARGETED_TURNS_DEG = (35.0, 50.0)  # turns about the measured edge beyond a gap 
 TARGETED_BASES = 2  # ... of the poses that measured most of it, ...
 TARGETED_GAPS = 4  # ... for this many gaps at most (those with most measured beyond them; ray casting cost)
 SAME_VIEW_RAD = float(np.radians(8.0))  # a candidate this close in direction to a done pose adds nothing
-MAX_CURE_VIEWS = 5  # cure poses the view budget leaves room for (8: module doc)
+MAX_CURE_VIEWS = 5  # cure poses the view budget leaves room for (a budget of 8 was worse: module doc)
 MAX_VIEWS = 1 + len(VERIFY_TURNS_DEG) + MAX_CURE_VIEWS  # measuring poses at most: stage 2, verification, cures
 
 
 @dataclass(frozen=True)
 class PlannedView:
     """A pose to measure from, and why: ``purpose`` "verification" or "cure"; ``method``
-    "verification", "cure 1", "cure 2" (the paper's) or "multi-view"."""
+    "verification", "cure 1", "cure 2" (the paper's) or "multi-view" (a turn of the stage-2 pose, or
+    of a pose aimed at a gap: ``targeted_views``)."""
 
     name: str
     pose: SensorPose
@@ -171,7 +180,8 @@ def _close(a: SensorPose, b: SensorPose) -> bool:
 @dataclass(frozen=True)
 class Beyond:
     """The boundary just beyond a gap as the poses measured so far saw it: their row-matched outline
-    points from ``BEYOND_MIN_M`` to ``BEYOND_M`` on along the gap's direction that no pair confirmed.
+    points at least ``BEYOND_MIN_M`` on along the gap's direction and at most ``BEYOND_M``
+    (straight-line distance) from its end, not confirmed (when the confirmations are given).
     ``points`` (K,3), ``tangents`` (K,3) the outline's local direction there, ``centers`` (K,3) the
     mid-baseline point of the pose that measured each, ``views`` (K,) its index in ``done``."""
 
@@ -182,14 +192,16 @@ class Beyond:
 
 
 def beyond_gap(gap: Gap, done: list[ViewOutline], confirmed=()) -> Beyond:
-    """The stretch beyond ``gap`` as measured so far (``Beyond``); ``confirmed``: per pose, the
-    points already confirmed (left out)."""
+    """The stretch beyond ``gap`` as measured so far (``Beyond``); ``confirmed``: per pose of
+    ``done``, (N,) the points already confirmed (left out). Known limit: where a piece stops at a
+    corner, the next edge leaves at about 90 degrees to the gap's direction and is not counted."""
     P, T, C, V = [], [], [], []
     for k, v in enumerate(done):
         rel = v.points - gap.position_m
-        ahead = rel @ gap.direction
-        m = v.matched & (ahead >= BEYOND_MIN_M) & (np.linalg.norm(rel, axis=1) <= BEYOND_M)
-        if k < len(confirmed) and len(confirmed[k]) == len(m):
+        m = v.matched & (rel @ gap.direction >= BEYOND_MIN_M) & (np.linalg.norm(rel, axis=1) <= BEYOND_M)
+        if k < len(confirmed):
+            if len(confirmed[k]) != len(m):
+                raise ValueError(f"confirmed[{k}] has {len(confirmed[k])} entries for {len(m)} outline points")
             m &= ~np.asarray(confirmed[k], bool)
         if m.any():
             P.append(v.points[m])
@@ -290,7 +302,9 @@ class _Targets:
 def _targets(gaps: list[Gap], beyonds: list[Beyond], done: list[ViewOutline], model: SurfaceModel) -> _Targets:
     """``_Targets`` of the gaps. Normals: the surface model's, turned toward the pose that saw the
     gap's end; past the end (off the measured surface) and where the model has none, the normal at
-    the end, or the direction to that pose."""
+    the end, or the direction to that pose. Known limit: beyond the end the normal is turned toward
+    the pose that saw the end, not the one that measured the point (``confirm`` pairs the
+    candidate with the latter; on a curl the two can see the sheet from opposite sides)."""
     centers = {v.name: v.camera_center for v in done}
     seen_from = np.array([centers.get(g.view, done[0].camera_center) for g in gaps])
     ends = np.array([g.position_m for g in gaps])
@@ -394,8 +408,8 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
     if np.linalg.norm(across) > 1e-6 and best.method == "multi-view":
         pose = replace(pose, baseline_dir=perpendicular(across, v))
     view = replace(best, pose=pose, purpose="cure",
-                   reason=best.reason + f"; predicted to see past {len(best_seen)} of {len(gaps)} gap(s), "
-                   f"to confirm the measured edge beyond {len(best_conf)} "
+                   reason=best.reason + f"; predicted to see past or confirm the edge beyond {len(best_seen)} of "
+                   f"{len(gaps)} gap(s) (confirm: {len(best_conf)}) "
                    "(checked by casting rays against the reconstructed surface)")
     return Decision("view", view, view.reason, len(gaps), len(best_seen))
 
