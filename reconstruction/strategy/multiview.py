@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -116,17 +117,23 @@ def outline_directions(points: np.ndarray, half: int = TANGENT_HALF_POINTS) -> n
 
 
 def outline_sense(view: ViewOutline) -> float:
-    """+1 when the outline's signed area in its left image's (u, v) pixels is positive (clockwise
-    on the screen, v pointing down), else -1. Walked in the direction that makes the area positive,
-    the plate's inside is on the same hand in every image of its front side, and on the other hand
-    in an image of its back side (a mirror image): at a true edge, two poses that see it from the
-    same side walk it the same way in 3D. Only products of two senses are used."""
-    uv = np.asarray(view.image_points, float)
+    """+1 or -1: the sign of the outline's oriented area in its left image's pixels
+    (``cv2.contourArea(oriented=True)``). Walked with the orientation that makes it positive, the
+    plate's inside is on the same hand in every image of its front side, and on the other hand in
+    an image of its back side (a mirror image): at a true edge, two poses that see it from the same
+    side walk it the same way in 3D. Only products of two senses are used."""
+    uv = np.asarray(view.image_points, np.float32)
     if len(uv) < 3:
         return 1.0
-    x, y = uv[:, 0], uv[:, 1]
-    area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-    return 1.0 if area >= 0 else -1.0
+    return 1.0 if cv2.contourArea(uv.reshape(-1, 1, 2), oriented=True) >= 0 else -1.0
+
+
+def ray_angles(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) angle (rad) between the rays from ``a`` and from ``b`` ((3,) or (N,3) viewpoints) to
+    each of ``points`` (N,3)."""
+    ra, rb = points - a, points - b
+    cos = np.einsum("ij,ij->i", ra, rb) / (np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1))
+    return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
 def rotation_about(directions: np.ndarray, ray_a: np.ndarray, ray_b: np.ndarray) -> np.ndarray:
@@ -176,13 +183,11 @@ def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_ra
                 near[idx[walk < SAME_SIDE_MIN_COS]] = False
             if not near.any():
                 continue
-            ra, rb = P[near] - vk.camera_center, P[near] - vj.camera_center
-            about = rotation_about(tang[near], ra, rb)
-            cos = np.einsum("ij,ij->i", ra, rb) / (np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1))
-            slide_ok = about >= min_slide_angle_rad
+            Q = P[near]
+            slide_ok = rotation_about(tang[near], Q - vk.camera_center, Q - vj.camera_center) >= min_slide_angle_rad
             if facing is not None:
                 slide_ok |= facing[k][near]
-            ok = (np.arccos(np.clip(cos, -1.0, 1.0)) >= min_angle_rad) & slide_ok
+            ok = (ray_angles(Q, vk.camera_center, vj.camera_center) >= min_angle_rad) & slide_ok
             conf[np.nonzero(near)[0][ok]] = True
         out.append(conf)
     return out

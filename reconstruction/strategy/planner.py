@@ -66,6 +66,7 @@ from platebench.reconstruction.strategy.multiview import (
     Gap,
     ViewOutline,
     outline_directions,
+    ray_angles,
     rotation_about,
 )
 from platebench.reconstruction.strategy.poses import (
@@ -127,7 +128,7 @@ class Decision:
     view: PlannedView | None
     reason: str
     gaps_targeted: int = 0
-    gaps_predicted_seen: int = 0
+    gaps_predicted_seen: int = 0  # gaps the view is predicted to see past or to confirm the edge beyond
 
     def to_dict(self) -> dict:
         return {"decision": self.kind, "reason": self.reason, "gaps_targeted": self.gaps_targeted,
@@ -146,6 +147,19 @@ def _axis(name: str, g: np.ndarray, e: np.ndarray) -> np.ndarray:
     return {"g": g, "e": e, "g+e": unit(g + e), "g-e": unit(g - e)}[name]
 
 
+def _placed(p: SensorPose, reach: Reach, measured: np.ndarray, camera: Camera,
+            baseline_m: float) -> tuple[SensorPose, str | None]:
+    """``p`` moved back to keep the ``measured`` points in view, and why the robot cannot reach it
+    (None: it can)."""
+    p = ensure_in_view(p, measured, camera, baseline_m)
+    return p, reach.why_not(p, measured, baseline_m)
+
+
+def _principal_direction(T: np.ndarray) -> np.ndarray:
+    """(3,) unit axis of the (K,3) directions ``T`` (either sign each): the top eigenvector of T^T T."""
+    return np.linalg.eigh(T.T @ T)[1][:, -1]
+
+
 def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, measured: np.ndarray,
                  camera: Camera, baseline_m: float) -> tuple[list[PlannedView], list[str]]:
     """The stage-2 pose turned as listed ((axis name, degrees)), kept in view, with a diagonal
@@ -156,8 +170,7 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
         p = rotated_pose(first, _axis(ax, g, e), np.radians(deg))
         p = replace(p, baseline_dir=diagonal_baseline(p.view_dir, g, e),
                     reason=f"stage-2 pose turned {deg:+.0f} deg about {ax} through the boundary centre")
-        p = ensure_in_view(p, measured, camera, baseline_m)
-        why = reach.why_not(p, measured, baseline_m)
+        p, why = _placed(p, reach, measured, camera, baseline_m)
         if why:
             skipped.append(f"{name}: {why}")
             continue
@@ -216,16 +229,12 @@ def beyond_gap(gap: Gap, done: list[ViewOutline], confirmed=()) -> Beyond:
     return Beyond(P[keep], T[keep], C[keep], V[keep])
 
 
-def _cameras(pose: SensorPose, baseline_m: float) -> np.ndarray:
-    return np.array([pose.center - pose.baseline_dir * baseline_m / 2, pose.center + pose.baseline_dir * baseline_m / 2])
-
-
 def _seen_by(pose: SensorPose, points: np.ndarray, normals: np.ndarray, model: SurfaceModel,
              baseline_m: float) -> np.ndarray:
     """(K,) both cameras of ``pose`` see each point from the outer side of the surface measured there
     (at least ``FRONT_MARGIN_RAD``) and no measured surface blocks the way."""
     ok = np.ones(len(points), bool)
-    for c in _cameras(pose, baseline_m):
+    for c in pose.camera_centers(baseline_m):
         to_c = c - points
         ok &= np.einsum("ij,ij->i", to_c, normals) / np.linalg.norm(to_c, axis=1) >= np.sin(FRONT_MARGIN_RAD)
         if ok.any():
@@ -234,32 +243,35 @@ def _seen_by(pose: SensorPose, points: np.ndarray, normals: np.ndarray, model: S
     return ok
 
 
-def _ray_angle(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(K,) angle (rad) between the rays from ``a`` and from ``b`` ((3,) or (K,3)) to each point."""
-    ra, rb = points - a, points - b
-    cos = np.einsum("ij,ij->i", ra, rb) / (np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1))
-    return np.arccos(np.clip(cos, -1.0, 1.0))
-
-
 def _turned_enough(beyond: Beyond, center: np.ndarray) -> np.ndarray:
     """(K,) a pose at ``center`` is turned from each point's measuring pose by ``CONFIRM_ANGLE_RAD``
     and about the outline's own direction by ``CONFIRM_SLIDE_ANGLE_RAD``, each with
     ``PREDICT_MARGIN_RAD`` to spare (``multiview.confirm``'s rule, before rendering)."""
     P = beyond.points
-    return (_ray_angle(P, beyond.centers, center) >= CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD) & \
+    return (ray_angles(P, beyond.centers, center) >= CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD) & \
         (rotation_about(beyond.tangents, P - beyond.centers, P - center) >= CONFIRM_SLIDE_ANGLE_RAD + PREDICT_MARGIN_RAD)
+
+
+def _predict(pose: SensorPose, look: np.ndarray, look_normals: np.ndarray, beyond: Beyond,
+             beyond_normals: np.ndarray, model: SurfaceModel, baseline_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """((L,) which ``look`` points ``pose`` sees (``_seen_by``), (K,) which ``beyond`` points it is
+    predicted to confirm (turned enough from the pose that measured each, ``_turned_enough``, and
+    seeing it)), in one ray cast per camera. Normals (L,3)/(K,3): the measured surface's there."""
+    turned = _turned_enough(beyond, pose.center) if len(beyond.points) else np.zeros(0, bool)
+    b_idx = np.nonzero(turned)[0]
+    pts = np.vstack([look, beyond.points[b_idx]])
+    vis = _seen_by(pose, pts, np.vstack([look_normals, beyond_normals[b_idx]]), model, baseline_m) \
+        if len(pts) else np.zeros(0, bool)
+    conf = np.zeros(len(beyond.points), bool)
+    conf[b_idx] = vis[len(look):]
+    return vis[:len(look)], conf
 
 
 def predicted_confirmed(pose: SensorPose, beyond: Beyond, normals: np.ndarray, model: SurfaceModel,
                         baseline_m: float) -> np.ndarray:
-    """(K,) the points of ``beyond`` that ``pose`` is predicted to confirm: turned enough from the
-    pose that measured each (``_turned_enough``) and seeing it (``_seen_by``; ``normals`` (K,3):
-    the measured surface's normal there, toward the measuring side)."""
-    ok = _turned_enough(beyond, pose.center) if len(beyond.points) else np.zeros(0, bool)
-    if ok.any():
-        idx = np.nonzero(ok)[0]
-        ok[idx] = _seen_by(pose, beyond.points[idx], normals[idx], model, baseline_m)
-    return ok
+    """(K,) the points of ``beyond`` that ``pose`` is predicted to confirm (``_predict``; ``normals``
+    (K,3): the measured surface's normal there, toward the measuring side)."""
+    return _predict(pose, np.zeros((0, 3)), np.zeros((0, 3)), beyond, normals, model, baseline_m)[1]
 
 
 @dataclass(frozen=True)
@@ -283,17 +295,14 @@ class _Targets:
         both cameras see the look-ahead points; the gaps whose measured stretch ``pose`` is
         predicted to confirm: ``BEYOND_CONFIRM_FRACTION`` of it, at least ``BEYOND_MIN_POINTS``)."""
         G, A = len(self.ends), len(LOOK_AHEAD_M)
-        gap_ok = _ray_angle(self.ends, self.seen_from, pose.center) >= CONFIRM_ANGLE_RAD
+        gap_ok = ray_angles(self.ends, self.seen_from, pose.center) >= CONFIRM_ANGLE_RAD
         look_idx = np.nonzero(np.repeat(gap_ok, A))[0]
-        turned = _turned_enough(self.beyond, pose.center) if len(self.beyond.points) else np.zeros(0, bool)
-        b_idx = np.nonzero(turned)[0]
-        pts = np.vstack([self.look[look_idx], self.beyond.points[b_idx]])
-        nrm = np.vstack([self.look_normals[look_idx], self.beyond_normals[b_idx]])
-        vis = _seen_by(pose, pts, nrm, model, baseline_m) if len(pts) else np.zeros(0, bool)
+        vis, confirmed = _predict(pose, self.look[look_idx], self.look_normals[look_idx], self.beyond,
+                                  self.beyond_normals, model, baseline_m)
         look_vis = np.zeros(G * A, bool)
-        look_vis[look_idx] = vis[:len(look_idx)]
+        look_vis[look_idx] = vis
         seen = np.nonzero(gap_ok & look_vis.reshape(G, A).all(axis=1))[0]
-        conf_n = np.bincount(self.beyond_gap[b_idx[vis[len(look_idx):]]], minlength=G)
+        conf_n = np.bincount(self.beyond_gap[confirmed], minlength=G)
         conf = np.nonzero((self.beyond_count >= BEYOND_MIN_POINTS) &
                           (conf_n >= BEYOND_CONFIRM_FRACTION * np.maximum(self.beyond_count, 1)))[0]
         return seen.tolist(), conf.tolist()
@@ -352,8 +361,7 @@ def targeted_views(beyonds: list[Beyond], done_poses: list[SensorPose], reach: R
         for k in np.argsort(-counts, kind="stable")[:TARGETED_BASES]:
             if counts[k] < BEYOND_MIN_POINTS:
                 continue
-            T = b.tangents[b.views == k]
-            t = np.linalg.eigh(T.T @ T)[1][:, -1]
+            t = _principal_direction(b.tangents[b.views == k])
             base = done_poses[k]
             for deg in TARGETED_TURNS_DEG:
                 for sgn in (-1.0, 1.0):
@@ -361,8 +369,8 @@ def targeted_views(beyonds: list[Beyond], done_poses: list[SensorPose], reach: R
                     p = replace(p, baseline_dir=perpendicular(np.cross(p.view_dir, t), p.view_dir),
                                 reason=f"pose {k} turned {sgn * deg:+.0f} deg about the edge it measured "
                                        f"beyond gap {i + 1}")
-                    p = ensure_in_view(p, measured, camera, baseline_m)
-                    if reach.why_not(p, measured, baseline_m) is None:
+                    p, why = _placed(p, reach, measured, camera, baseline_m)
+                    if why is None:
                         out.append(PlannedView(f"gap {i + 1} pose {k} turn {sgn * deg:+.0f}", p, "cure",
                                                "multi-view", p.reason))
     return out
@@ -400,8 +408,7 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
         return Decision("stop", None, "no reachable pose is predicted to see past the unverified boundary ("
                         + "; ".join(g.to_dict()["what"] for g in gaps[:3])
                         + (f"; {len(gaps) - 3} more" if len(gaps) > 3 else "") + ")", len(gaps))
-    T = np.array([gaps[i].direction for i in best_seen])
-    t = np.linalg.eigh(T.T @ T)[1][:, -1]
+    t = _principal_direction(np.array([gaps[i].direction for i in best_seen]))
     v = best.pose.view_dir
     across = np.cross(v, t)
     pose = best.pose
@@ -444,8 +451,7 @@ def paper_cure_views(rec, first: SensorPose, reach: Reach, measured: np.ndarray,
                      f"(a = {np.degrees(curve.a_rad):.0f}, b = {np.degrees(curve.b_rad):.0f} deg)")
     views = []
     for method, p in out:
-        p = ensure_in_view(p, measured, camera, baseline_m)
-        why = reach.why_not(p, measured, baseline_m)
+        p, why = _placed(p, reach, measured, camera, baseline_m)
         if why:
             notes.append(f"{method} unreachable: {why}")
             continue

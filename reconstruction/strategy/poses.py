@@ -41,6 +41,13 @@ class SensorPose:
     def distance_m(self) -> float:
         return float(np.linalg.norm(self.target - self.center))
 
+    def camera_centers(self, baseline_m: float) -> np.ndarray:
+        """(2,3) the two cameras' centres: the ends of the baseline, ``baseline_m`` apart along
+        ``baseline_dir`` about the mid-baseline point (which end is the left one is the rig's
+        business, ``scenes.scene_spec.scene_for_pose``)."""
+        half = self.baseline_dir * baseline_m / 2
+        return np.array([self.center - half, self.center + half])
+
     def to_dict(self) -> dict:
         return {"center_m": self.center.tolist(), "target_m": self.target.tolist(),
                 "view_dir": self.view_dir.tolist(), "baseline_dir": self.baseline_dir.tolist(),
@@ -195,7 +202,7 @@ class Reach:
             return (f"view {np.degrees(tilt):.0f} deg from vertical (the robot reaches "
                     f"{np.degrees(self.max_tilt_rad):.0f} deg)")
         low = float(np.min(np.asarray(measured)[:, 2])) if len(measured) else pose.target[2]
-        for c in (pose.center - pose.baseline_dir * baseline_m / 2, pose.center + pose.baseline_dir * baseline_m / 2):
+        for c in pose.camera_centers(baseline_m):
             if c[2] < low + self.clearance_m:
                 return f"a camera at z = {c[2] * 1e3:.0f} mm is below the plate's lowest measured point + clearance"
         return None
