@@ -14,6 +14,8 @@ from platebench.scenes.scene_spec import RenderSettings
 HELP = "studies; 'study false-boundary' runs the sensing loop on plates of every family"
 DEFAULT_GRID = "6x12@12"
 MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
+MAX_PERTURB_AXIS_DEG = 10.0  # --perturb: small shifts only (the study's plates, moved a little)
+MAX_PERTURB_MM = 50.0
 
 
 def add_parser(sub) -> None:
@@ -42,12 +44,18 @@ def add_parser(sub) -> None:
                    "e.g. 120,150,165,172)")
     p.add_argument("--width", type=int, default=640, help="image width in px (default 640; f scales with it)")
     p.add_argument("--spp", type=int, default=2, help="samples per pixel (default 2)")
+    p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed 0 to 2^31-1)")
+    p.add_argument("--perturb", metavar="AXIS_DEG,DISTANCE_MM", default="0,0",
+                   help="shift every plate a little to check that the rates are no knife-edge results: bend axes "
+                        f"turned by AXIS_DEG (allowed -{MAX_PERTURB_AXIS_DEG:g} to {MAX_PERTURB_AXIS_DEG:g}), working "
+                        f"distances changed by DISTANCE_MM (allowed -{MAX_PERTURB_MM:g} to {MAX_PERTURB_MM:g}); "
+                        "default 0,0 (e.g. 1,5 or -1,-5)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     from platebench.bench.progress import bar  # noqa: PLC0415
-    from platebench.bench.run.study import study_cases, write_study  # noqa: PLC0415
+    from platebench.bench.run.study import perturbed_cases, study_cases, write_study  # noqa: PLC0415
 
     bends = parse_range_text(args.bend, "--bend", 0.0, 350.0, max_count=MAX_BENDS)
     l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
@@ -56,6 +64,9 @@ def run(args) -> int:
         raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
     if not (1 <= args.spp <= 1024):
         raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 1024")
+    if not (0 <= args.seed <= 2**31 - 1):
+        raise UserValueError(f"--seed = {args.seed} is out of range: allowed 0 to 2^31-1")
+    axis_deg, distance_mm = parse_perturb(args.perturb)
     cases = study_cases(bends)
     fams = [f.strip() for f in args.families.split(",") if f.strip()]
     if fams != ["all"]:
@@ -68,10 +79,12 @@ def run(args) -> int:
         if args.limit < 1:
             raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
         cases = cases[:args.limit]
+    cases = perturbed_cases(cases, axis_deg, distance_mm)
     base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4, pattern=parse_grid(args.grid)),
-                        render=RenderSettings(spp=args.spp))
+                        render=RenderSettings(spp=args.spp, seed=args.seed))
     settings = {"bends_deg": bends, "families": fams, "grid": args.grid, "width_px": args.width,
-                "height_px": args.width * 3 // 4, "spp": args.spp, "plates": len(cases)}
+                "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
+                "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases)}
     with bar(len(cases), "study false-boundary", unit="plate") as pbar:
         def progress(row):
             pbar.update(1)
@@ -81,6 +94,24 @@ def run(args) -> int:
         print(line)
     print(f"written         {args.out / 'study.json'}, {args.out / 'study.csv'}")
     return 0
+
+
+def parse_perturb(text: str) -> tuple[float, float]:
+    """'AXIS_DEG,DISTANCE_MM' -> (degrees, millimetres), each within the allowed small shift."""
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        axis_deg, distance_mm = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise UserValueError(f"--perturb = {text!r} is not AXIS_DEG,DISTANCE_MM: allowed two numbers, e.g. 1,5") from None
+    if not (abs(axis_deg) <= MAX_PERTURB_AXIS_DEG):
+        raise UserValueError(f"--perturb axis = {axis_deg:g} deg is out of range: allowed -{MAX_PERTURB_AXIS_DEG:g} "
+                             f"to {MAX_PERTURB_AXIS_DEG:g}")
+    if not (abs(distance_mm) <= MAX_PERTURB_MM):
+        raise UserValueError(f"--perturb distance = {distance_mm:g} mm is out of range: allowed -{MAX_PERTURB_MM:g} "
+                             f"to {MAX_PERTURB_MM:g}")
+    return axis_deg, distance_mm
 
 
 def _f(v, spec=".2f"):

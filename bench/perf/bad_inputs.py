@@ -223,6 +223,14 @@ def cases() -> list[Case]:
         c.append(Case(name, ["evaluate", "{W}/good", "{W}/bad_recon"], expect, _damage(rel, how)))
     c.append(Case("study --bend 0:1e12:1e-3", ["study", "false-boundary", "--bend", "0:1e12:1e-3", "--out",
                                                 "{W}/o_study"], ("--bend", "allowed at most"), watch=("o_study",)))
+    for name, value, expect in (("study --perturb 30,0", "30,0", ("--perturb axis = 30", "allowed -10 to 10")),
+                                ("study --perturb 1,500", "1,500", ("--perturb distance = 500", "allowed -50 to 50")),
+                                ("study --perturb 1", "1", ("--perturb = '1'", "AXIS_DEG,DISTANCE_MM")),
+                                ("study --perturb nan,0", "nan,0", ("--perturb axis = nan", "allowed -10 to 10"))):
+        c.append(Case(name, ["study", "false-boundary", "--perturb", value, "--out", "{W}/o_study"], expect,
+                      watch=("o_study",)))
+    c.append(Case("study --seed -1", ["study", "false-boundary", "--seed", "-1", "--out", "{W}/o_study"],
+                  ("--seed = -1", "allowed 0 to 2^31-1"), watch=("o_study",)))
     return c
 
 

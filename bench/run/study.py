@@ -212,6 +212,27 @@ def study_cases(bends_deg=DEFAULT_BENDS_DEG) -> list[StudyCase]:
     return cases
 
 
+def perturbed_cases(cases: list[StudyCase], axis_deg: float = 0.0, distance_mm: float = 0.0) -> list[StudyCase]:
+    """The same plates shifted a little, to check that the study's rates are not knife-edge results:
+    every bend axis (cylinders, folds) turned by ``axis_deg`` (wrapped into [0, 180) degrees: the axis is a
+    line) and every working distance changed by ``distance_mm``. Names say what was shifted; unchanged
+    when both are 0. ValueError when a distance would not stay positive."""
+    if axis_deg == 0.0 and distance_mm == 0.0:
+        return list(cases)
+    tag = " perturbed" + (f" axis {axis_deg:+g}" if axis_deg else "") + (f" distance {distance_mm:+g} mm" if distance_mm else "")
+    out = []
+    for c in cases:
+        d = c.deformation
+        if axis_deg and hasattr(d, "axis_rad"):
+            d = replace(d, axis_rad=float((d.axis_rad + math.radians(axis_deg)) % math.pi))
+        dist = c.distance_m + distance_mm * 1e-3
+        if dist <= 0:
+            raise ValueError(f"{c.name}: distance {c.distance_m:g} m + {distance_mm:g} mm is not positive")
+        axis = None if c.axis_deg is None else float((c.axis_deg + (axis_deg if hasattr(d, "axis_rad") else 0.0)) % 180.0)
+        out.append(replace(c, name=c.name + tag, deformation=d, axis_deg=axis, distance_m=dist))
+    return out
+
+
 def _min_visible(gv: dict) -> float:
     return float(min(v["visible_fraction"] for v in gv.values()))
 
