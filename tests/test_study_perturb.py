@@ -52,3 +52,14 @@ def test_a_perturbed_study_runs_and_records_the_shift(tmp_path):
     assert row["case"] == "cylinder 60 down axis 0 perturbed axis +1 distance +5 mm"
     assert row["axis_deg"] == pytest.approx(1.0) and row["distance_m"] == pytest.approx(0.405)
     assert row["outcome"] == "clean"  # a 60-degree bend hides nothing, moved or not
+
+
+def test_perturb_flag_parses_signed_shifts_and_refuses_large_ones():
+    from platebench.bench.cli.study import parse_perturb
+    from platebench.errors import UserValueError
+
+    assert parse_perturb("-1,-5") == (-1.0, -5.0) and parse_perturb(" 1 , 5 ") == (1.0, 5.0)
+    for bad, words in (("11,0", "allowed -10 to 10"), ("0,-51", "allowed -50 to 50"), ("1;5", "AXIS_DEG,DISTANCE_MM"),
+                       ("inf,0", "allowed -10 to 10")):
+        with pytest.raises(UserValueError, match=words):
+            parse_perturb(bad)

@@ -49,7 +49,7 @@ def add_parser(sub) -> None:
                    help="shift every plate a little to check that the rates are no knife-edge results: bend axes "
                         f"turned by AXIS_DEG (allowed -{MAX_PERTURB_AXIS_DEG:g} to {MAX_PERTURB_AXIS_DEG:g}), working "
                         f"distances changed by DISTANCE_MM (allowed -{MAX_PERTURB_MM:g} to {MAX_PERTURB_MM:g}); "
-                        "default 0,0 (e.g. 1,5 or -1,-5)")
+                        "default 0,0 (e.g. --perturb 1,5; write --perturb=-1,-5 when the first is negative)")
     p.set_defaults(run=run)
 
 
