@@ -44,10 +44,11 @@ def add_parser(sub) -> None:
                    "e.g. 120,150,165,172)")
     p.add_argument("--width", type=int, default=640, help="image width in px (default 640; f scales with it)")
     p.add_argument("--spp", type=int, default=2, help="samples per pixel (default 2)")
-    p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed 0 to 2^31-1)")
+    p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
     p.add_argument("--perturb", metavar="AXIS_DEG,DISTANCE_MM", default="0,0",
                    help="shift every plate a little to check that the rates are no knife-edge results: bend axes "
-                        f"turned by AXIS_DEG (allowed -{MAX_PERTURB_AXIS_DEG:g} to {MAX_PERTURB_AXIS_DEG:g}), working "
+                        f"turned by AXIS_DEG (allowed -{MAX_PERTURB_AXIS_DEG:g} to {MAX_PERTURB_AXIS_DEG:g}; a fold "
+                        "whose axis would leave 0-180 degrees keeps it, as turning it would mirror the fold), working "
                         f"distances changed by DISTANCE_MM (allowed -{MAX_PERTURB_MM:g} to {MAX_PERTURB_MM:g}); "
                         "default 0,0 (e.g. --perturb 1,5; write --perturb=-1,-5 when the first is negative)")
     p.set_defaults(run=run)
@@ -64,8 +65,10 @@ def run(args) -> int:
         raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
     if not (1 <= args.spp <= 1024):
         raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 1024")
-    if not (0 <= args.seed <= 2**31 - 1):
-        raise UserValueError(f"--seed = {args.seed} is out of range: allowed 0 to 2^31-1")
+    try:
+        render = RenderSettings(spp=args.spp, seed=args.seed)  # its own checks, as 'render --seed' has them
+    except ValueError as e:
+        raise UserValueError(f"--{e}") from None
     axis_deg, distance_mm = parse_perturb(args.perturb)
     cases = study_cases(bends)
     fams = [f.strip() for f in args.families.split(",") if f.strip()]
@@ -81,7 +84,7 @@ def run(args) -> int:
         cases = cases[:args.limit]
     cases = perturbed_cases(cases, axis_deg, distance_mm)
     base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4, pattern=parse_grid(args.grid)),
-                        render=RenderSettings(spp=args.spp, seed=args.seed))
+                        render=render)
     settings = {"bends_deg": bends, "families": fams, "grid": args.grid, "width_px": args.width,
                 "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases)}

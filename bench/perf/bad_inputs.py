@@ -230,7 +230,7 @@ def cases() -> list[Case]:
         c.append(Case(name, ["study", "false-boundary", "--perturb", value, "--out", "{W}/o_study"], expect,
                       watch=("o_study",)))
     c.append(Case("study --seed -1", ["study", "false-boundary", "--seed", "-1", "--out", "{W}/o_study"],
-                  ("--seed = -1", "allowed 0 to 2^31-1"), watch=("o_study",)))
+                  ("--seed = -1", "allowed an integer 0 to 2^31-1"), watch=("o_study",)))
     return c
 
 

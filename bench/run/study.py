@@ -212,24 +212,42 @@ def study_cases(bends_deg=DEFAULT_BENDS_DEG) -> list[StudyCase]:
     return cases
 
 
+# Deformations whose plate is the same with the bending coordinate reversed (e -> -e): a bend centred
+# on the plate. Only these may have their axis wrapped past 0 or 180 degrees (measured: a 240-degree
+# cylinder at axis 0 and at 180 - 1e-12 rad agree to 0.002 mm; a fold, anchored on one side of an
+# off-centre band, lands 45 mm away: another plate).
+AXIS_WRAP_SAFE = (CylindricalBend,)
+
+
 def perturbed_cases(cases: list[StudyCase], axis_deg: float = 0.0, distance_mm: float = 0.0) -> list[StudyCase]:
     """The same plates shifted a little, to check that the study's rates are not knife-edge results:
-    every bend axis (cylinders, folds) turned by ``axis_deg`` (wrapped into [0, 180) degrees: the axis is a
-    line) and every working distance changed by ``distance_mm``. Names say what was shifted; unchanged
-    when both are 0. ValueError when a distance would not stay positive."""
+    every bend axis (cylinders, folds) turned by ``axis_deg`` and every working distance changed by
+    ``distance_mm``. An axis that would leave [0, 180) degrees is wrapped (the axis is a line) where
+    that gives the same plate (``AXIS_WRAP_SAFE``); elsewhere it is kept, and the name says so. Each
+    name says what was shifted; unchanged when both are 0. ValueError when a distance would not stay
+    positive."""
     if axis_deg == 0.0 and distance_mm == 0.0:
         return list(cases)
-    tag = " perturbed" + (f" axis {axis_deg:+g}" if axis_deg else "") + (f" distance {distance_mm:+g} mm" if distance_mm else "")
+    dist_tag = f" distance {distance_mm:+g} mm" if distance_mm else ""
     out = []
     for c in cases:
-        d = c.deformation
+        d, axis_tag = c.deformation, ""
         if axis_deg and hasattr(d, "axis_rad"):
-            d = replace(d, axis_rad=float((d.axis_rad + math.radians(axis_deg)) % math.pi))
+            turned = d.axis_rad + math.radians(axis_deg)
+            if 0.0 <= turned < math.pi or isinstance(d, AXIS_WRAP_SAFE):
+                d = replace(d, axis_rad=float(turned % math.pi))
+                axis_tag = f" axis {axis_deg:+g}"
+            else:
+                axis_tag = f" axis kept ({axis_deg:+g} would mirror this {c.family})"
+        if not (axis_tag or dist_tag):
+            out.append(c)
+            continue
         dist = c.distance_m + distance_mm * 1e-3
         if dist <= 0:
             raise ValueError(f"{c.name}: distance {c.distance_m:g} m + {distance_mm:g} mm is not positive")
-        axis = None if c.axis_deg is None else float((c.axis_deg + (axis_deg if hasattr(d, "axis_rad") else 0.0)) % 180.0)
-        out.append(replace(c, name=c.name + tag, deformation=d, axis_deg=axis, distance_m=dist))
+        axis = math.degrees(d.axis_rad) if d is not c.deformation and c.axis_deg is not None else c.axis_deg
+        out.append(replace(c, name=c.name + " perturbed" + axis_tag + dist_tag, deformation=d, axis_deg=axis,
+                           distance_m=dist))
     return out
 
 
