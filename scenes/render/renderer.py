@@ -3,7 +3,8 @@
 One Mitsuba scene holds the plate, the dark ground, the overhead area light, the
 projector and both stereo sensors. Switching lighting, moving the rig or the
 projector, swapping the pattern or the plate only updates parameters through
-``mi.traverse``, so drjit reuses its compiled kernels; only a change of *structure*
+``mi.traverse``, so drjit reuses its compiled kernels (transforms that move with the rig are
+opaque kernel inputs, not literals); only a change of *structure*
 (image size, projector kind or pattern size, material kind, integrator depth)
 rebuilds the scene.
 
@@ -165,6 +166,7 @@ class PlateRenderer:
                 self._load_plate(self._plate)
         p = self.params
         mi = self.mi
+        import drjit as dr  # noqa: PLC0415  (runtime.mitsuba() has chosen libLLVM already)
         for name, cam in spec.rig.cameras.items():
             key = f"{name}.to_world"
             p[key] = mi.Transform4f(perspective_to_world(cam).tolist())
@@ -177,7 +179,12 @@ class PlateRenderer:
             p["projector.to_world"] = mi.Transform4f(spot_to_world(proj.camera).tolist())
         else:
             p["projector.to_world"] = mi.Transform4f(perspective_to_world(proj.camera).tolist())
-        p["light.to_world"] = mi.Transform4f(area_light_to_world(spec).tolist())
+        # The area light rides with the rig. Mitsuba's rectangle would bake a literal transform into
+        # the render kernel, so every new pose would compile it again (0.5-0.7 s of LLVM time);
+        # opaque, the transform is a kernel input and one kernel serves every pose.
+        light = mi.Transform4f(area_light_to_world(spec).tolist())
+        dr.make_opaque(light)
+        p["light.to_world"] = light
         if spec.material.kind == "diffuse":
             p["plate.bsdf.brdf_0.reflectance.value"] = [spec.material.albedo] * 3
         elif spec.material.kind == "roughconductor":

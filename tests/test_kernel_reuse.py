@@ -1,0 +1,64 @@
+"""Moving the rig reuses the compiled render kernel (a real Mitsuba render, kernel history read back).
+
+A sensing run renders the plate from dozens of poses. If anything that moves with the rig entered
+the render kernel as a literal, every new pose would compile that kernel again (0.5-0.7 s of LLVM
+time a pose at 640 x 480, about half a study's time on a machine with an empty kernel cache).
+drjit's kernel history tells whether a launch was compiled or found in its in-memory cache.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from platebench.plates import CylindricalBend, PlateSpec, build_plate
+from platebench.scenes.render import runtime
+from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.scene_spec import RenderSettings, reference_scene, scene_for_pose
+
+pytestmark = pytest.mark.render
+
+BIG_KERNEL_OPS = 1000  # the path tracer's kernel has ~2000 operations; buffer updates a few dozen
+
+
+def _render_kernels(dr, r, scene, settings) -> list[dict]:
+    """The big kernels launched while rendering all four images at ``scene``, each marked
+    ``fresh`` when it was not in drjit's in-memory cache (compiled, or loaded from the disk cache:
+    either way a kernel this process had not run, as a pose-dependent literal would make)."""
+    dr.kernel_history()  # clears it
+    r.set_scene(scene)
+    r.render_all(settings)
+    return [{"ops": k["operation_count"], "fresh": (not k["cache_hit"]) or bool(k["cache_disk"])}
+            for k in dr.kernel_history() if k.get("operation_count", 0) > BIG_KERNEL_OPS]
+
+
+@pytest.mark.parametrize("projector_kind", ["spot", "pinhole"])
+def test_new_poses_reuse_the_render_kernel(projector_kind):
+    mi = runtime.mitsuba()
+    if mi.variant().startswith("scalar"):
+        pytest.skip("scalar variant: no kernels")
+    import drjit as dr  # noqa: PLC0415  (after runtime.mitsuba(): libLLVM chosen)
+
+    base = reference_scene(width=64, height=48, f_px=100.0, projector_kind=projector_kind)
+    base = dataclasses.replace(base, lighting=dataclasses.replace(base.lighting, follows_rig=True))
+    plate = build_plate(PlateSpec(length_m=0.2, width_m=0.1, deformation=CylindricalBend(angle_rad=np.radians(120.0))))
+    settings = RenderSettings(spp=1, seed=3)
+    rng = np.random.default_rng(7)
+
+    def pose(k: int):
+        c = np.array([0.08 * np.cos(k), 0.08 * np.sin(k), 0.4]) + rng.uniform(-0.01, 0.01, 3)
+        return scene_for_pose(c, rng.uniform(-0.01, 0.01, 3), np.array([np.cos(0.3 * k), np.sin(0.3 * k), 0.0]), base)
+
+    r = PlateRenderer(pose(0), plate)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        _render_kernels(dr, r, pose(0), settings)  # the first pose may compile
+        later = [_render_kernels(dr, r, pose(k), settings) for k in (1, 2, 3)]
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+        dr.kernel_history()
+    for k, kernels in enumerate(later, start=1):
+        assert len(kernels) == 4, f"pose {k}: expected the 4 renders' kernels in the history, got {kernels}"
+        fresh = [c["ops"] for c in kernels if c["fresh"]]
+        assert not fresh, f"pose {k} needed new render kernels ({fresh} operations): a pose-dependent literal"
