@@ -25,8 +25,9 @@ camera 0-7 degrees behind the sheet), closing the loop over 17 boundary points n
 from the front: a silent wrong verdict in the study.
 
 The verdict (``verify``) asks whether the confirmed pieces of all poses close into one loop, as a
-plate's boundary does. Pieces are grouped where one leads on from another's end, or where they
-run along the same edge. A piece that stops where no other confirmed piece leads on is a *gap*:
+plate's boundary does. Pieces are grouped where one leads on from another's end (it has points
+past that end, off the end piece and nearest to that very end, not to its other end or its side),
+or where they run along the same edge. A piece that stops where no other confirmed piece leads on is a *gap*:
 part of the boundary that no pose has shown to be a true edge. ``BoundaryVerdict.verified`` is
 true when a group is at least ``LOOP_MIN_FRACTION`` of the first pose's measured outline long
 (lengths over 5 mm chords), goes round (no gap of more than ``LOOP_MAX_ANGLE_GAP_RAD`` in its
@@ -337,10 +338,18 @@ class _PieceIndex:
 
 def _leads_on(i: int, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], near_to: np.ndarray) -> bool:
     """Piece ``i`` (within LINK_M of ``near_to``) has a point within LEAD_M of ``end`` that is
-    farther than LINK_M from the piece ``own`` the end belongs to."""
+    farther than LINK_M from the piece ``own`` the end belongs to, and off *this* end: the nearest
+    point of ``own`` to it lies within LINK_M of ``end``. A piece that runs alongside ``own`` and on
+    past its other end leads on from that end, not from this one (counting it here closed a
+    300-degree curl's loop over a 35 mm stretch no piece covered: a silent wrong verdict). No
+    direction is needed, so a piece's noisy last millimetres cannot turn the test."""
     p = all_pieces[i]
     near = p.points[np.linalg.norm(p.points - end, axis=1) <= LEAD_M + np.linalg.norm(near_to - end)]
-    return bool(len(near) and (trees[own].query(near)[0] > LINK_M).any())
+    if not len(near):
+        return False
+    d, k = trees[own].query(near)
+    off_end = np.linalg.norm(all_pieces[own].points[k] - end, axis=1) <= LINK_M
+    return bool(((d > LINK_M) & off_end).any())
 
 
 def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline],

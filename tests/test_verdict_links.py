@@ -1,0 +1,66 @@
+"""The verdict's links between confirmed pieces: a piece leads on from an end only off that end.
+
+Synthetic outlines of a 100 x 60 mm rectangle (1 point per mm, z = 0) seen by two poses, with the
+confirmed points given, so the cases are exact: a piece continuing past an end, two pieces
+meeting at a corner, and the case a 300-degree curl produced in the study (pieces flanking an
+uncovered stretch, each end "linked" only to a piece that runs back alongside it and on past its
+*other* end), which closed a loop over a stretch no piece covered: a silent wrong verdict.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from platebench.reconstruction.strategy.multiview import ViewOutline, verify
+
+L, W = 0.1, 0.06
+
+
+def _rectangle() -> np.ndarray:
+    """(320, 3) the rectangle's boundary, counter-clockwise from the corner (-L/2, -W/2), every 1 mm."""
+    c = [(-L / 2, -W / 2, 0.0), (L / 2, -W / 2, 0.0), (L / 2, W / 2, 0.0), (-L / 2, W / 2, 0.0)]
+    return np.vstack([np.linspace(c[i], c[(i + 1) % 4], int(round(np.linalg.norm(np.subtract(c[(i + 1) % 4], c[i]))
+                                                                      * 1e3)), endpoint=False) for i in range(4)])
+
+
+P = _rectangle()
+BOTTOM = np.isclose(P[:, 1], -W / 2) & (P[:, 0] < L / 2 - 1e-9)  # the bottom edge, corner (L/2, -W/2) excluded
+
+
+def _bottom(x0_mm: float, x1_mm: float) -> np.ndarray:
+    return BOTTOM & (P[:, 0] >= x0_mm * 1e-3 - 1e-9) & (P[:, 0] <= x1_mm * 1e-3 + 1e-9)
+
+
+def _views() -> list[ViewOutline]:
+    eye = np.array([0.0, 0.0, 0.4])
+    return [ViewOutline(n, P.copy(), np.ones(len(P), bool), eye, P[:, :2] * 1e4, "synthetic") for n in ("a", "b")]
+
+
+def _verdict(a: np.ndarray, b: np.ndarray):
+    return verify(_views(), None, [a, b])
+
+
+def test_a_piece_running_on_past_an_end_links_it():
+    # a: the bottom edge from x = -16 to 31 mm; b: everything but the bottom edge's x in (-13, 28)
+    v = _verdict(_bottom(-16, 31), ~_bottom(-12.5, 27.5))
+    assert v.verified and not v.gaps, v.reason
+
+
+def test_pieces_meeting_at_a_corner_link():
+    # a ends at the bottom-right corner; b starts there, up the right edge, round to x = -13 mm
+    v = _verdict(_bottom(-16, 50), ~_bottom(-12.5, 50))
+    assert v.verified and not v.gaps, v.reason
+
+
+@pytest.mark.parametrize("stretch_mm", [(-8, 23), (-6, 21), (-10, 28)])
+def test_a_piece_running_back_past_the_other_end_does_not_close_the_loop(stretch_mm):
+    """a: two 8 mm pieces flanking an uncovered stretch of the bottom edge; b: the rest of the
+    rectangle, ending 5 mm inside each of them. b's ends link to a's pieces (they run on past them);
+    a's ends face the stretch, and b lies only behind them: no piece leads on from there."""
+    x0, x1 = stretch_mm
+    a = _bottom(x0 - 8, x0) | _bottom(x1, x1 + 8)
+    b = ~_bottom(x0 - 5 + 0.5, x1 + 5 - 0.5)
+    v = _verdict(a, b)
+    assert not v.verified, f"a {x1 - x0} mm stretch no piece covers was verified: {v.reason}"
+    ends = sorted(round(g.position_m[0] * 1e3) for g in v.gaps)
+    assert ends == [x0, x1], f"the gaps should be the two ends facing the stretch, got {ends}"
