@@ -65,7 +65,9 @@ MIN_PIECE_M = 2e-3  # confirmed runs shorter than this are noise, not pieces
 BRIDGE_M = 6e-3  # unconfirmed runs this short inside one pose's outline are bridged (corners)
 LINK_M = 4e-3  # a piece's end links to another piece within this distance ...
 LEAD_M = 12e-3  # ... that leads on: has a point within this of the end, farther than LINK_M from the piece
-OUTLINE_BRIDGE_M = 12e-3  # or to one reached along some pose's measured outline within this arc length
+# or to one reached along some pose's measured outline within this arc length (16 mm, measured on the
+# study with the off-the-end lead rule: 1 more plate cured, and a silent verdict on cylinder 300 up axis 30)
+OUTLINE_BRIDGE_M = 12e-3
 LOOP_MIN_FRACTION = 0.7  # a closed group of pieces is the boundary when at least this x the first pose's outline
 LOOP_MAX_ANGLE_GAP_RAD = float(np.radians(60.0))  # ... and goes round its centroid (seen from the first pose)
 OVERLAP_POINTS = 3  # pieces sharing this many points (within LINK_M) run along the same edge: one group
