@@ -64,3 +64,20 @@ def test_a_piece_running_back_past_the_other_end_does_not_close_the_loop(stretch
     assert not v.verified, f"a {x1 - x0} mm stretch no piece covers was verified: {v.reason}"
     ends = sorted(round(g.position_m[0] * 1e3) for g in v.gaps)
     assert ends == [x0, x1], f"the gaps should be the two ends facing the stretch, got {ends}"
+
+
+def test_views_with_the_same_name_are_refused_not_mixed():
+    """Pieces and unconfirmed runs are keyed by view name: two views of one name would mix their
+    outline indices (an IndexError at best, a wrong verdict at worst)."""
+    a, b = _views()
+    with pytest.raises(ValueError, match="repeated: \\['a'\\]"):
+        verify([a, a], None, [_bottom(-16, 31), ~_bottom(-12.5, 27.5)])
+    assert verify([a, b], None, [_bottom(-16, 31), ~_bottom(-12.5, 27.5)]).verified
+
+
+def test_a_cure_named_like_a_measured_pose_gets_its_own_name():
+    from platebench.bench.run.sensing.loop import unique_name
+
+    assert unique_name("gap 1 pose 5 turn -35", {"stage 2"}) == "gap 1 pose 5 turn -35"
+    assert unique_name("gap 1 pose 5 turn -35", {"gap 1 pose 5 turn -35"}) == "gap 1 pose 5 turn -35 #2"
+    assert unique_name("g", {"g", "g #2"}) == "g #3"

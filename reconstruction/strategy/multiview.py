@@ -426,6 +426,9 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
     but not used: the outline membranes cut chords under a bend, so their normals near an
     occluding contour are wrong, and the shortcut confirmed contours of a 300-degree curl as edges
     (a silent wrong verdict). Every confirmation needs the turn about the edge's own direction."""
+    names = [v.name for v in views]
+    if len(set(names)) != len(names):  # pieces, the unconfirmed runs and refutation are keyed by name
+        raise ValueError(f"verify: every view needs its own name; repeated: {sorted({n for n in names if names.count(n) > 1})}")
     if confirmed is None:
         confirmed = confirm(views)
     if refuted is not None:

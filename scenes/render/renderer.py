@@ -3,8 +3,9 @@
 One Mitsuba scene holds the plate, the dark ground, the overhead area light, the
 projector and both stereo sensors. Switching lighting, moving the rig or the
 projector, swapping the pattern or the plate only updates parameters through
-``mi.traverse``, so drjit reuses its compiled kernels (transforms that move with the rig are
-opaque kernel inputs, not literals); only a change of *structure*
+``mi.traverse``, so drjit reuses its compiled kernels (the area light's transform is made an
+opaque kernel input: Mitsuba's rectangle would bake it in as literals, unlike the sensors and
+emitters, which keep theirs opaque); only a change of *structure*
 (image size, projector kind or pattern size, material kind, integrator depth)
 rebuilds the scene.
 

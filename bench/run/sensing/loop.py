@@ -21,7 +21,7 @@ outcome class (``records.OUTCOMES``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -243,12 +243,24 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
         if d.kind == "view" and len(cures) >= options.max_cures:
             d = Decision("stop", None, f"{len(cures)} cures applied, the most allowed; " + m.verdict.reason,
                          d.gaps_targeted)
+        if d.kind == "view":
+            d = replace(d, view=replace(d.view, name=unique_name(d.view.name, {v.name for v in m.views})))
         steps.append(d)
         if d.kind != "view":
             return tuple(cures), tuple(cands)
         cures.append(d.view)
         _measure(sensor, d.view, m, steps)
         m.update()
+
+
+def unique_name(name: str, taken: set) -> str:
+    """``name``, or ``name #2``, ``#3``, ... when a pose measured already has it (an aimed cure is
+    named by its gap's number in that round, its pose and its turn, so two rounds can give the same
+    name; views are told apart by name in the verdict)."""
+    k, out = 2, name
+    while out in taken:
+        out, k = f"{name} #{k}", k + 1
+    return out
 
 
 def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, cures, reach_poses,
