@@ -84,19 +84,20 @@ def test_a_cure_named_like_a_measured_pose_gets_its_own_name():
 
 
 @pytest.mark.xfail(strict=True, reason="known defect, not yet mended: a piece shorter than LINK_M links back over an "
-                   "uncovered stretch (raising MIN_PIECE_M to LINK_M mends it but cost the study 2 cures and 2 false "
-                   "alarms; see the closing note of 2026-11-24)")
+                   "uncovered stretch (MIN_PIECE_M = LINK_M mends it but the study then cured 10/23, not 12/23, "
+                   "with 3/31 false alarms, not 1/31: see multiview's module doc)")
 @pytest.mark.parametrize("island_mm, at_mm", [(2.5, 19.0), (3.0, 17.0), (3.0, 19.0), (3.0, 20.0), (3.5, 17.0),
                                                 (3.5, 19.0), (3.5, 20.0)])
 def test_a_short_island_cannot_link_back_over_an_uncovered_stretch(island_mm, at_mm):
     """a: the rectangle confirmed but for the bottom edge's x in (-30, 30) mm, with an island of
-    ``island_mm`` confirmed at +-``at_mm`` (10 to 13 mm from the big piece's ends, beyond
-    BRIDGE_M, within OUTLINE_BRIDGE_M of arc). A piece shorter than LINK_M has no "behind" of its own: any point of another piece
-    is off its ends, so the island's end facing the stretch was linked to the big piece behind
-    it, and the loop closed over the 30 mm between the islands (cylinder 300 down axis 60 in a
-    study run with better gap directions: a silent wrong verdict). All 7 cases are verified today:
-    the test is a strict xfail that records the defect, and turns red when a fix lands (then drop
-    the mark). With MIN_PIECE_M = LINK_M (4 mm) all 7 pass."""
+    ``island_mm`` confirmed at +-``at_mm`` (10 to 13 mm from the big piece's ends: beyond
+    BRIDGE_M, within OUTLINE_BRIDGE_M of arc). A piece shorter than LINK_M has no "behind" of its
+    own: any point of another piece is off its ends, so the island's end facing the stretch is
+    linked to the big piece behind it, and the loop closes over the 34 to 40 mm between the islands
+    (in a study run with better gap directions, cylinder 300 down axis 60 closed over a 32 mm
+    stretch this way: a silent wrong verdict). All 7 cases are verified today: the test is a strict
+    xfail that records the defect and turns red when a fix lands (then drop the mark). With
+    MIN_PIECE_M = LINK_M (4 mm) all 7 pass."""
     lo, hi = -at_mm, at_mm
     a = ~_bottom(-30, 30) | _bottom(lo - island_mm, lo) | _bottom(hi, hi + island_mm)
     v = _verdict(a, np.zeros(len(P), bool))
