@@ -83,23 +83,53 @@ def test_a_cure_named_like_a_measured_pose_gets_its_own_name():
     assert unique_name("g", {"g", "g #2"}) == "g #3"
 
 
-@pytest.mark.xfail(strict=True, reason="known defect, not yet mended: a piece shorter than LINK_M links back over an "
-                   "uncovered stretch (MIN_PIECE_M = LINK_M mends it but the study then cured 10/23, not 12/23, "
-                   "with 3/31 false alarms, not 1/31: see multiview's module doc)")
 @pytest.mark.parametrize("island_mm, at_mm", [(2.5, 19.0), (3.0, 17.0), (3.0, 19.0), (3.0, 20.0), (3.5, 17.0),
                                                 (3.5, 19.0), (3.5, 20.0)])
 def test_a_short_island_cannot_link_back_over_an_uncovered_stretch(island_mm, at_mm):
     """a: the rectangle confirmed but for the bottom edge's x in (-30, 30) mm, with an island of
     ``island_mm`` confirmed at +-``at_mm`` (10 to 13 mm from the big piece's ends: beyond
     BRIDGE_M, within OUTLINE_BRIDGE_M of arc). A piece shorter than LINK_M has no "behind" of its
-    own: any point of another piece is off its ends, so the island's end facing the stretch is
-    linked to the big piece behind it, and the loop closes over the 34 to 40 mm between the islands
-    (in a study run with better gap directions, cylinder 300 down axis 60 closed over a 32 mm
-    stretch this way: a silent wrong verdict). All 7 cases are verified today: the test is a strict
-    xfail that records the defect and turns red when a fix lands (then drop the mark). With
-    MIN_PIECE_M = LINK_M (4 mm) all 7 pass."""
+    own: any point of another piece is off its ends. Walking the outline both ways from the island's
+    end facing the stretch linked it to the big piece behind it, and the loop closed over the 34 to
+    40 mm between the islands (all 7 cases verified, until the walk went only away from a short
+    piece; in a study run with other gap directions, cylinder 300 down axis 60 closed over a 32 mm
+    stretch this way: a silent wrong verdict)."""
     lo, hi = -at_mm, at_mm
     a = ~_bottom(-30, 30) | _bottom(lo - island_mm, lo) | _bottom(hi, hi + island_mm)
     v = _verdict(a, np.zeros(len(P), bool))
     assert not v.verified, f"{2 * at_mm:.0f} mm between two {island_mm} mm islands was verified: {v.reason}"
     assert v.gaps
+
+
+@pytest.mark.parametrize("island_mm, half_mm", [(2.5, 10.0), (3.0, 9.0), (3.0, 11.0), (3.5, 10.0), (3.5, 11.5)])
+def test_a_short_island_still_links_on_along_its_own_outline(island_mm, half_mm):
+    """a: the rectangle confirmed but for the bottom edge's x in (-``half_mm``, ``half_mm``), with
+    an island of ``island_mm`` confirmed in its middle: each end of the island reaches a big piece
+    along its own outline, away from the island, within OUTLINE_BRIDGE_M (12 mm), so the loop
+    closes. Without the island the stretch is wider than OUTLINE_BRIDGE_M and is a gap: the
+    island carries the links (pieces shorter than LINK_M do carry true links; dropping them cost the
+    study 2 cures)."""
+    h = island_mm / 2
+    stretch = ~_bottom(-half_mm + 0.5, half_mm - 0.5)
+    v = _verdict(stretch | _bottom(-h, h), np.zeros(len(P), bool))
+    assert v.verified and not v.gaps, v.reason
+    v = _verdict(stretch, np.zeros(len(P), bool))
+    assert not v.verified and len(v.gaps) == 2, v.reason
+
+
+@pytest.mark.parametrize("island_mm, at_mm", [(2.5, 19.0), (3.0, 17.0), (3.5, 20.0)])
+def test_a_short_island_walks_away_in_another_poses_terms(island_mm, at_mm):
+    """As above, with the islands confirmed in a pose whose outline runs the other way round
+    (reversed order, so its ``outline_sense`` is the other sign). Walking the first pose's outline,
+    "away from the island" is the opposite index step: the islands still face the stretch (not
+    verified), and an island in the middle of a narrow stretch still links on both ways (verified)."""
+    a, b = _views()
+    rev = np.arange(len(P))[::-1]
+    b = ViewOutline("b", P[rev], np.ones(len(P), bool), b.camera_center, P[rev, :2] * 1e4, "synthetic")
+    big = ~_bottom(-30, 30)
+    islands = _bottom(-at_mm - island_mm, -at_mm) | _bottom(at_mm, at_mm + island_mm)
+    v = verify([a, b], None, [big, islands[rev]])
+    assert not v.verified and v.gaps, v.reason
+    h = island_mm / 2
+    v = verify([a, b], None, [~_bottom(-9.5, 9.5), _bottom(-h, h)[rev]])
+    assert v.verified and not v.gaps, v.reason
