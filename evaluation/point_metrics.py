@@ -127,6 +127,23 @@ def score_points(estimated, truth, R_left) -> PointScore:
 # ------------------------------------------------------------ exact nearest search
 
 
+RADIUS_CLASS_RATIO = 2.0  # primitives are searched in classes whose radii differ by at most this factor
+RADIUS_CLASSES_MAX = 12  # ... and at most this many classes (radii below max / 2^12 share the first)
+
+
+def radius_classes(radii: np.ndarray) -> list[np.ndarray]:
+    """Indices of the primitives grouped by bounding radius, smallest first: class k holds the radii
+    in [r0 2^k, r0 2^(k+1)) (``RADIUS_CLASS_RATIO`` = 2), r0 = max(smallest radius, largest / 2^12).
+    One class when the radii are within a factor 2 (a uniform mesh)."""
+    r = np.asarray(radii, dtype=np.float64)
+    r_max = float(r.max()) if len(r) else 0.0
+    if r_max <= 0.0:
+        return [np.arange(len(r))]
+    r0 = max(float(r.min()), r_max * RADIUS_CLASS_RATIO ** -RADIUS_CLASSES_MAX)
+    k = np.floor(np.log(np.maximum(r, r0) / r0) / np.log(RADIUS_CLASS_RATIO)).astype(int)
+    return [np.nonzero(k == c)[0] for c in np.unique(k)]
+
+
 def pruned_min_distance(
     points: np.ndarray,
     centers: np.ndarray,
@@ -152,20 +169,44 @@ def pruned_min_distance(
     |p - c_k| - max(r) >= best (no unexamined primitive can be closer);
     otherwise k grows, and in the end every primitive is tried. The result is
     exact, not an approximation. Returns (distance, index of the nearest primitive).
-    ``tree``: a prebuilt ``cKDTree(centers)`` to reuse. ``lower(P, J)``: an
+
+    Primitives of very different sizes (a mesh refined only where it bends: the study's dents have
+    triangles of 0.15 mm and 17 mm) are searched class by class (``radius_classes``), smallest
+    first, each class with its own largest radius in the bound and the best distance so far
+    carried over: one bound with the largest radius of all proves nothing until the k-th centre is
+    17 mm away, and the search ends in the all-primitive pass (measured on a dent plate's surface
+    scoring: 24 s in one class). The minimum over classes is the minimum over all.
+    ``tree``: a prebuilt ``cKDTree(centers)`` to reuse (used when there is one class). ``lower(P, J)``: an
     optional cheap lower bound of ``exact(P, J)`` (e.g. the distance to the
     primitive's bounding box) that skips more exact evaluations.
     """
     from scipy.spatial import cKDTree  # noqa: PLC0415  (scipy.spatial takes a while to import)
 
     P = np.asarray(points, dtype=np.float64)
+    centers = np.asarray(centers, dtype=np.float64)
+    r = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(centers),))
+    best = np.full(len(P), np.inf)
+    best_j = np.full(len(P), -1, dtype=np.int64)
+    classes = radius_classes(r)
+    if len(classes) == 1:
+        _pruned_search(P, centers, r, exact, lower, ks, chunk_pairs, tree if tree is not None else cKDTree(centers),
+                       best, best_j)
+        return best, best_j
+    for ids in classes:
+        found = np.full(len(P), -1, dtype=np.int64)
+        _pruned_search(P, centers[ids], r[ids], lambda Q, J, ids=ids: exact(Q, ids[J]),
+                       None if lower is None else (lambda Q, J, ids=ids: lower(Q, ids[J])),
+                       ks, chunk_pairs, cKDTree(centers[ids]), best, found)
+        hit = found >= 0
+        best_j[hit] = ids[found[hit]]
+    return best, best_j
+
+
+def _pruned_search(P, centers, r, exact, lower, ks, chunk_pairs, tree, best, best_j) -> None:
+    """``pruned_min_distance`` over one class of primitives: lowers ``best`` (N,) in place where a
+    primitive of the class is nearer, and sets ``best_j`` there (indices into ``centers``)."""
     n, m = len(P), len(centers)
-    r = np.broadcast_to(np.asarray(radii, dtype=np.float64), (m,))
     r_max = float(r.max())
-    best = np.full(n, np.inf)
-    best_j = np.full(n, -1, dtype=np.int64)
-    if tree is None:
-        tree = cKDTree(centers)
 
     def refine(chunk, D, J):
         """Update best/best_j of the points ``chunk`` from candidate table (D, J)."""
@@ -215,7 +256,6 @@ def pruned_min_distance(
             D = np.linalg.norm(P[chunk][:, None, :] - centers[None, :, :], axis=2)
             J = np.argsort(D, axis=1)
             refine(chunk, np.take_along_axis(D, J, axis=1), J)
-    return best, best_j
 
 
 def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:

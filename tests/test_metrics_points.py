@@ -185,6 +185,40 @@ def test_point_to_mesh_exact_against_brute_force_and_trimesh_in_mm():
     np.testing.assert_allclose(d * 1e3, d_mm, atol=1e-9)
 
 
+@pytest.mark.parametrize("seed", [5, 6])
+def test_point_to_mesh_exact_on_a_mesh_of_mixed_triangle_sizes(seed):
+    """A dent plate's mesh: triangles of 0.15 mm in the dent and up to 14 mm on the flat around it
+    (searched in radius classes, ``radius_classes``); the distances and nearest faces are the
+    brute-force minimum over every triangle."""
+    from platebench.evaluation.point_metrics import radius_classes
+    from platebench.plates import Dent, PlateSpec, build_plate
+
+    mesh = build_plate(PlateSpec(0.1165, 0.0735, deformation=Dent(0.003, 0.02))).mesh
+    T = mesh.triangles
+    r = np.linalg.norm(T - T.mean(axis=1)[:, None], axis=2).max(axis=1)
+    assert r.max() / np.median(r) > 20 and len(radius_classes(r)) >= 2  # the case the classes are for
+    rng = np.random.default_rng(seed)
+    V = mesh.vertices[rng.choice(len(mesh.vertices), 150)]
+    P = np.vstack([V + rng.normal(0.0, 2e-3, V.shape),  # near the surface, dent and flat
+                   rng.uniform([-0.07, -0.05, -0.02], [0.07, 0.05, 0.03], (50, 3))])  # and around it
+    closest, d, face = closest_point_on_mesh(P, mesh)
+    brute = np.array([point_triangle_distance(np.repeat(p[None], len(T), 0), T[:, 0], T[:, 1], T[:, 2]).min()
+                      for p in P])
+    np.testing.assert_allclose(d, brute, rtol=0, atol=1e-15)
+    own = point_triangle_distance(P, T[face, 0], T[face, 1], T[face, 2])  # the face returned is a nearest one
+    np.testing.assert_allclose(own, d, rtol=0, atol=1e-15)
+    mesh_mm = trimesh.Trimesh(mesh.vertices * 1e3, mesh.faces, process=False)
+    _, d_mm, _ = trimesh.proximity.closest_point(mesh_mm, P * 1e3)
+    np.testing.assert_allclose(d * 1e3, d_mm, atol=1e-9)
+
+
+def test_radius_classes_split_by_factors_of_two():
+    from platebench.evaluation.point_metrics import radius_classes
+
+    assert [c.tolist() for c in radius_classes(np.array([1.0, 1.5, 1.9]))] == [[0, 1, 2]]
+    assert [c.tolist() for c in radius_classes(np.array([8.0, 1.0, 2.5, 1.2, 0.0]))] == [[4], [1, 3], [2], [0]]
+
+
 def test_point_to_mesh_bad_input():
     mesh = flat_grid_mesh(nx=5, ny=5)
     with pytest.raises(ValueError, match="points.*non-finite"):

@@ -9,7 +9,7 @@ from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 HELP = "benchmarks: render and reconstruct timings against same-run baselines"
-TARGETS = ("render", "reconstruct", "sweep")
+TARGETS = ("render", "reconstruct", "sweep", "score")
 EXTRA = ("chaos", "bad-input", "variants")  # run only when named
 
 
@@ -19,7 +19,9 @@ def add_parser(sub) -> None:
                                    "same images, and kernel reuse on a second sample. reconstruct: the paper's "
                                    "pipeline vs OpenCV StereoSGBM on the same passive pair. sweep: samples per "
                                    "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
-                                   "worker. Reference experiment at 1280x960, spp 16 unless told otherwise.")
+                                   "worker. score: exact point-to-mesh distance on a dent plate's mesh (triangles 0.15 to "
+                                   "14 mm) by radius classes vs one class and vs trimesh. Reference experiment at "
+                                   "1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
                    help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
                         "sweep whose scheduler, workers and sweep process are killed and resumed, 10 rounds) and "
@@ -60,10 +62,13 @@ def run(args) -> int:
     cfg = SampleConfig(scene=SceneParams(width=args.width, height=args.height), render=RenderSettings(spp=args.spp))
     out = {}
     for target in args.targets or TARGETS:
-        print(f"== perf {target} ({args.width}x{args.height}, spp {args.spp})")
+        print(f"== perf {target}" + ("" if target == "score" else f" ({args.width}x{args.height}, spp {args.spp})"))
         if target == "sweep":
             from platebench.bench.perf.sweep import perf_sweep  # noqa: PLC0415
             out[target] = perf_sweep()
+        elif target == "score":
+            from platebench.bench.perf.benchmarks import perf_score  # noqa: PLC0415
+            out[target] = perf_score(repeat=args.repeat)
         else:
             out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
     if args.json:
