@@ -154,6 +154,7 @@ def pruned_min_distance(
     chunk_pairs: int = 1 << 20,
     tree: cKDTree | None = None,
     lower: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    by_radius: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exact distance from each point to the nearest of M primitives (segments, triangles).
 
@@ -176,6 +177,7 @@ def pruned_min_distance(
     carried over: one bound with the largest radius of all proves nothing until the k-th centre is
     17 mm away, and the search ends in the all-primitive pass (measured on a dent plate's surface
     scoring: 24 s in one class). The minimum over classes is the minimum over all.
+    ``by_radius=False``: one class whatever the radii (the earlier search; ``perf score``'s baseline).
     ``tree``: a prebuilt ``cKDTree(centers)`` to reuse (used when there is one class). ``lower(P, J)``: an
     optional cheap lower bound of ``exact(P, J)`` (e.g. the distance to the
     primitive's bounding box) that skips more exact evaluations.
@@ -187,7 +189,7 @@ def pruned_min_distance(
     r = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(centers),))
     best = np.full(len(P), np.inf)
     best_j = np.full(len(P), -1, dtype=np.int64)
-    classes = radius_classes(r)
+    classes = radius_classes(r) if by_radius else [np.arange(len(centers))]
     if len(classes) == 1:
         _pruned_search(P, centers, r, exact, lower, ks, chunk_pairs, tree if tree is not None else cKDTree(centers),
                        best, best_j)
@@ -350,7 +352,7 @@ def _mesh_arrays(mesh, name: str = "mesh") -> np.ndarray:
     return tri
 
 
-def closest_point_on_mesh(points, mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def closest_point_on_mesh(points, mesh, by_radius: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact closest point on ``mesh`` for each point: (closest (N,3), distance (N,), face index (N,)).
 
     Exact point-to-triangle distances (:func:`point_triangle_distance`) with a
@@ -378,7 +380,7 @@ def closest_point_on_mesh(points, mesh) -> tuple[np.ndarray, np.ndarray, np.ndar
         g = np.maximum(np.maximum(lo[J] - Q, Q - hi[J]), 0.0)
         return np.sqrt(_dot(g, g))
 
-    dist, face = pruned_min_distance(P, centroids, radii, exact, lower=box_distance)
+    dist, face = pruned_min_distance(P, centroids, radii, exact, lower=box_distance, by_radius=by_radius)
     closest = closest_point_on_triangle(P, a[face], b[face], c[face])
     return closest, dist, face
 

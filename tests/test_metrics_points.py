@@ -205,6 +205,7 @@ def test_point_to_mesh_exact_on_a_mesh_of_mixed_triangle_sizes(seed):
     brute = np.array([point_triangle_distance(np.repeat(p[None], len(T), 0), T[:, 0], T[:, 1], T[:, 2]).min()
                       for p in P])
     np.testing.assert_allclose(d, brute, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(closest_point_on_mesh(P, mesh, by_radius=False)[1], d)  # the one-class search
     own = point_triangle_distance(P, T[face, 0], T[face, 1], T[face, 2])  # the face returned is a nearest one
     np.testing.assert_allclose(own, d, rtol=0, atol=1e-15)
     mesh_mm = trimesh.Trimesh(mesh.vertices * 1e3, mesh.faces, process=False)

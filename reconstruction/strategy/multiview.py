@@ -20,8 +20,8 @@ degree, distances -5 mm) 11/26 and 0/32; comparing single points, 15/23 and 1/31
 and 2/32. Averaging the pieces' points as well (links and gaps on the averaged outline) gave 11/24
 and 0/31: the arc-length thresholds below were set on the measured, unaveraged arcs. The study itself
 (``platebench study false-boundary``, fresh machine, with the averages): cured 15/23, false alarms
-0/31, perturbed 14/25 and 0/32; the dev harness's cached renders moved 1-3 outcomes (planner paths
-diverge on small differences). Only points whose disparity was measured on the row
+0/31, perturbed 14/25 and 0/32; the dev harness (renders cached across commits) differed from it
+by 1-3 outcomes, a difference not traced. Only points whose disparity was measured on the row
 (not interpolated, ``ViewOutline.matched``) confirm or are confirmed: an interpolated stretch
 agrees with anything its ends agree with. And the two poses must see the edge from the same side
 of the sheet (``outline_sense``): walked with the same orientation in each left image, their
