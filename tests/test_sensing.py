@@ -354,7 +354,8 @@ def test_merged_boundary_coverage_is_a_fraction_of_the_true_boundarys_length():
     B = np.asarray(plate.boundary, float)
     dense = resample_path(np.vstack([B, B[:1]]), step=2e-4)[:-1]
     half = dense[dense[:, 0] < 0]
-    m = merged_accuracy(plate, SimpleNamespace(merged=half), SimpleNamespace(samples=np.zeros((0, 3))))
+    m = merged_accuracy(plate, SimpleNamespace(boundary=half, points=np.zeros((0, 3)),
+                                               surface_vertices=np.zeros((0, 3)), surface_faces=np.zeros((0, 3), int)))
     perimeter = float(np.linalg.norm(np.roll(B, -1, axis=0) - B, axis=1).sum())
     assert m["boundary_covered_frac"] == pytest.approx(0.5 + 2 * 2e-3 / perimeter, abs=2e-3)
     assert m["boundary_est_to_gt_mean_mm"] < 1e-3  # the merged points lie on the true boundary

@@ -84,7 +84,10 @@ def summary_lines(s: SensingResult) -> list[str]:
     lines.append("detectors at stage 2: " + ", ".join(
         f"{d.name} {'-' if d.fired is None else ('FIRED' if d.fired else 'quiet')}" for d in s.detectors))
     m = f.merged
-    merged = ", ".join(f"{k} {m[k]:.3f}" for k in ("boundary_mean_mm", "surface_rms_mm", "surface_coverage") if k in m)
+    merged = ", ".join(f"{k} {m[k]:.3f}" for k in ("boundary_mean_mm", "boundary_covered_frac", "points_rms_mm",
+                                                    "surface_rms_mm", "surface_coverage") if k in m)
+    if "points" in m:
+        merged += f", {m['points']} square centres"
     lines.append(f"poses: {len(f.poses)} (stage 2, {len(s.verification_views)} verification views, {s.cures} cures); "
                  f"merged: {merged}")
     a = f.accuracy or {}

@@ -30,8 +30,9 @@ MAX_POSE_PANELS = 15
 
 # ----------------------------------------------------------------------------- plots
 def plot_multiview(npz_path: Path, path: Path) -> Path:
-    """One panel per pose: its measured outline (confirmed points green, others red) over the true
-    boundary (grey), top view (x, y in mm); a last panel: the merged boundary over the true one."""
+    """One panel per pose: its measured outline (confirmed points green, others red) and its checked
+    square centres (black dots) over the true boundary (grey), top view (x, y in mm); a last panel:
+    the merged boundary and every pose's square centres over the true one."""
     d = np.load(npz_path)
     names = [str(n) for n in d["view_names"]][:MAX_POSE_PANELS]
     T = d["true_boundary"] * 1e3
@@ -40,6 +41,8 @@ def plot_multiview(npz_path: Path, path: Path) -> Path:
     rows = (n + cols - 1) // cols
     fig = P._figure(3.0 * cols, 2.6 * rows)
     pts, view, conf = d["outline_points"] * 1e3, d["outline_view"], d["outline_confirmed"].astype(bool)
+    act = d["active_points"] * 1e3 if "active_points" in d else np.zeros((0, 3))
+    act_view = d["active_view"] if "active_view" in d else np.zeros(0, int)
     for k in range(n):
         ax = fig.add_subplot(rows, cols, k + 1)
         ax.plot(np.r_[T[:, 0], T[:, 0][:1]], np.r_[T[:, 1], T[:, 1][:1]], color="0.6", lw=1.0)
@@ -47,7 +50,9 @@ def plot_multiview(npz_path: Path, path: Path) -> Path:
             m = view == k
             ax.scatter(pts[m & ~conf, 0], pts[m & ~conf, 1], s=2, color="#d62728", label="not confirmed")
             ax.scatter(pts[m & conf, 0], pts[m & conf, 1], s=2, color="#2ca02c", label="confirmed")
-            ax.set_title(names[k], fontsize=8)
+            a = act[act_view == k]
+            ax.scatter(a[:, 0], a[:, 1], s=1.5, color="k", label="square centres")
+            ax.set_title(f"{names[k]} ({len(a)} squares)", fontsize=8)
         else:
             M = d["merged"] * 1e3
             if len(M):
@@ -55,7 +60,9 @@ def plot_multiview(npz_path: Path, path: Path) -> Path:
             G = d["gaps"] * 1e3
             if len(G):
                 ax.scatter(G[:, 0], G[:, 1], s=30, marker="x", color="#d62728")
-            ax.set_title("merged boundary (x: gaps)", fontsize=8)
+            if len(act):
+                ax.scatter(act[:, 0], act[:, 1], s=1, color="k")
+            ax.set_title(f"merged: boundary (x: gaps), {len(act)} square centres", fontsize=8)
         ax.set_aspect("equal")
         ax.tick_params(labelsize=6)
     fig.suptitle("Measured outline per pose vs the true boundary (grey), top view, mm", fontsize=9)
@@ -156,8 +163,10 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
                {"label": "verification views", "value": len(doc.get("verification_views") or [])},
                {"label": "poses", "value": len(final.get("poses") or [])}]
     for k, label, unit in (("boundary_mean_mm", "merged boundary mean distance", "mm"),
-                           ("surface_coverage", "measured surface coverage", "fraction"),
-                           ("surface_rms_mm", "measured surface RMS", "mm")):
+                           ("points", "merged square centres (all poses)", ""),
+                           ("points_rms_mm", "merged square centres' RMS distance to the plate", "mm"),
+                           ("surface_coverage", "merged surface coverage", "fraction"),
+                           ("surface_rms_mm", "merged surface RMS", "mm")):
         if finite(merged.get(k)) is not None:
             figures.append({"label": label, "value": round(merged[k], 3), "unit": unit})
     if finite(acc.get("depth_rms_mm")) is not None:

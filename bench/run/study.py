@@ -277,6 +277,8 @@ def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = Sen
     m = f.merged
     row.update(merged_boundary_mean_mm=m.get("boundary_mean_mm"), merged_boundary_covered=m.get("boundary_covered_frac"),
                merged_surface_rms_mm=m.get("surface_rms_mm"), merged_surface_coverage=m.get("surface_coverage"),
+               merged_points=m.get("points"), merged_points_rms_mm=m.get("points_rms_mm"),
+               merged_points_max_mm=m.get("points_max_mm"),
                depth_rms_mm=(f.accuracy or {}).get("depth_rms_mm"), unverified_parts=len(f.unverified_parts),
                verdict=f.verdict_reason, time_s=time.perf_counter() - t0)
     return row

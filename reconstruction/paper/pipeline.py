@@ -135,18 +135,12 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
     regions, stereo, plane, ls_plane = passive.regions, passive.stereo, passive.plane, passive.least_squares_plane
 
     # -- active stereo: squares ---------------------------------------------------
-    dets = {c: extract_squares(images[f"{c}_active"], regions[c].mask, f"{c}_active") for c in ("left", "right")}
-    lap("squares_s")
-    groups = {c: group_squares(dets[c].squares) for c in ("left", "right")}
-    fig6 = {f"{c}_active": check_fig6(dets[c].squares, groups[c], f"{c}_active") for c in ("left", "right")}
-    ys = sorted(dets["left"].squares[g[0]].centroid[1] for g in groups["left"])
+    sq = square_stereo(images, {c: regions[c].mask for c in ("left", "right")}, rig)
+    dets, matches, pts, uvl, uvr = sq.detections, sq.matches, sq.points, sq.uv_left, sq.uv_right
+    fig6 = {f"{c}_active": check_fig6(dets[c].squares, sq.groups[c], f"{c}_active") for c in ("left", "right")}
     heights = [s.bbox[3] - s.bbox[1] + 1 for s in dets["left"].squares]
-    tol = 0.5 * float(np.median(np.diff(ys))) if len(ys) > 1 else float(np.median(heights))
-    matches = match_squares(dets["left"].squares, dets["right"].squares, groups["left"], groups["right"], tol)
-    lap("square_matching_s")
-    uvl = np.array([dets["left"].squares[i].centroid for i, _ in matches.pairs]).reshape(-1, 2)
-    uvr = np.array([dets["right"].squares[j].centroid for _, j in matches.pairs]).reshape(-1, 2)
-    pts = triangulate_rectified(uvl[:, 0], 0.5 * (uvl[:, 1] + uvr[:, 1]), uvr[:, 0], rig.left, rig.baseline_m)
+    timings.update(sq.timings_s)
+    t = time.perf_counter()
     labels = _label(uvl, rays, plane, rig.left, max_px=float(np.median(heights)))
     feats = {f.id: f for f in pattern.features}
     rows = np.array([feats[i].row if i in feats else -1 for i in labels], int)
@@ -170,6 +164,39 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
     return Reconstruction(pts, uvl, uvr, labels, rows, cols, stereo.points, stereo.source, plane, ls_plane,
                           verts, faces, fb, fig6, matches.unmatched, stereo.corner_row_mismatch_px, thresholds,
                           timings)
+
+
+@dataclass(frozen=True)
+class SquareStereo:
+    """The active pair's squares (paper III): detections per camera ("left"/"right"), the horizontal
+    arrays, the matches, and the triangulated centres (M,3) (world, metres) with their (M,2) pixels."""
+
+    detections: dict
+    groups: dict
+    matches: object  # SquareMatches
+    points: np.ndarray
+    uv_left: np.ndarray
+    uv_right: np.ndarray
+    timings_s: dict
+
+
+def square_stereo(images: dict, masks: dict, rig: StereoRig) -> SquareStereo:
+    """Squares of ``images["left_active"]``/``["right_active"]`` inside the plate masks ((H,W) bool,
+    by camera), sorted into horizontal arrays, matched by the paper's criteria and triangulated."""
+    t0 = time.perf_counter()
+    dets = {c: extract_squares(images[f"{c}_active"], masks[c], f"{c}_active") for c in ("left", "right")}
+    t1 = time.perf_counter()
+    groups = {c: group_squares(dets[c].squares) for c in ("left", "right")}
+    ys = sorted(dets["left"].squares[g[0]].centroid[1] for g in groups["left"])
+    heights = [s.bbox[3] - s.bbox[1] + 1 for s in dets["left"].squares]
+    tol_px = 0.5 * float(np.median(np.diff(ys))) if len(ys) > 1 else float(np.median(heights)) if heights else 0.0
+    matches = match_squares(dets["left"].squares, dets["right"].squares, groups["left"], groups["right"], tol_px)
+    t2 = time.perf_counter()
+    uvl = np.array([dets["left"].squares[i].centroid for i, _ in matches.pairs]).reshape(-1, 2)
+    uvr = np.array([dets["right"].squares[j].centroid for _, j in matches.pairs]).reshape(-1, 2)
+    pts = triangulate_rectified(uvl[:, 0], 0.5 * (uvl[:, 1] + uvr[:, 1]), uvr[:, 0], rig.left, rig.baseline_m)
+    return SquareStereo(dets, groups, matches, pts, uvl, uvr,
+                        {"squares_s": t1 - t0, "square_matching_s": t2 - t1})
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,19 @@ SAMPLE_SPACING_M = 1.0e-3  # surface samples for normals and coverage
 NORMAL_RADIUS_M = 6e-3  # neighbourhood of a local plane fit
 MIN_TRIANGLE_QUALITY = 0.05  # 1 for an equilateral triangle; below this a triangle gives no normal
 BLOCK_SLACK_M = 3e-3  # a segment is blocked only by surface farther than this from its ends
+# A pose's measured surface for the merged reconstruction (``view_membrane``): row-matched outline
+# points and checked square centres; no triangle with a 3D edge over SURFACE_EDGE_ROWS times the
+# projected grid's row spacing at the pose (``active_views.row_spacing``; SURFACE_MAX_EDGE_M where
+# the pose measured no square): such a triangle spans more than the rows of squares next to it,
+# surface nobody measured (the study's grid, rows 15 mm apart at 0.4 m, gives 22 mm: a 22 mm chord
+# of a 28 mm radius curl lies up to 2.2 mm off it); and none stretched over SURFACE_MAX_STRETCH
+# times its image length (a depth step between two layers of a curl). Measured on 3 study plates
+# (240 and 180 degrees concave, a 120-degree fold at aspect 3) with a 20 mm cap: surface RMS
+# 0.85-1.40 mm at coverage 0.88-0.99; with no cap and no stretch rule 3.4-7.2 mm (chords across a
+# concave curl's opening); with the cap alone, 1.03-1.95 mm.
+SURFACE_EDGE_ROWS = 1.5
+SURFACE_MAX_EDGE_M = 22e-3
+SURFACE_MAX_STRETCH = 3.0
 
 
 @dataclass(frozen=True)
@@ -39,13 +52,24 @@ class Membrane:
 
 
 def view_membrane(view: ViewOutline, extra_uv=None, extra_points=None,
-                  spacing_m: float = MEMBRANE_SPACING_M) -> Membrane:
+                  spacing_m: float = MEMBRANE_SPACING_M, matched_only: bool = False,
+                  max_edge_m: float | None = None, max_stretch: float | None = None) -> Membrane:
     """Triangulate a pose's outline (and extra interior points with their left-image pixels) in its
-    image; keep the triangles inside the outline; lift them to 3D."""
+    image; keep the triangles inside the outline; lift them to 3D.
+
+    ``matched_only``: of the outline, only the points whose disparity was measured on the row
+    (``ViewOutline.matched``) become vertices; an interpolated stretch of outline lies up to 30 mm
+    off the plate on a 240-degree curl, a row-matched point 0.2 mm (median) and 2 mm at most.
+    ``max_edge_m``: triangles with a longer 3D edge are dropped (a chord over unmeasured surface).
+    ``max_stretch``: triangles with an edge longer in 3D than this many times its image length
+    times the metres per pixel at its range (``view.left``) are dropped (a depth step: the edge
+    joins two layers of a curl that overlap in the image). See ``SURFACE_MAX_EDGE_M``."""
     P, uv = view.points, view.image_points
     arc = np.concatenate([[0.0], np.cumsum(view.arc_m[:-1])])
     keep = np.unique(np.searchsorted(arc, np.arange(0.0, arc[-1] if len(arc) else 0.0, spacing_m)))
     keep = keep[keep < len(P)]
+    if matched_only:
+        keep = keep[np.asarray(view.matched, bool)[keep]]
     V, U = P[keep], uv[keep]
     if extra_uv is not None and len(extra_uv):
         inside = points_in_polygon(np.asarray(extra_uv, float), uv)
@@ -57,6 +81,18 @@ def view_membrane(view: ViewOutline, extra_uv=None, extra_points=None,
     F = tri.simplices
     cent = U[F].mean(axis=1)
     F = F[points_in_polygon(cent, uv)]
+    if len(F) and (max_edge_m is not None or max_stretch is not None):
+        e3 = np.stack([np.linalg.norm(V[F[:, i]] - V[F[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
+        keep_f = np.ones(len(F), bool)
+        if max_edge_m is not None:
+            keep_f &= e3.max(axis=1) <= max_edge_m
+        if max_stretch is not None and view.left is not None:
+            m_per_px = np.linalg.norm(V - view.left.center, axis=1) / view.left.K[0, 0]
+            for i in range(3):
+                a_, b_ = F[:, i], F[:, (i + 1) % 3]
+                px = np.linalg.norm(U[a_] - U[b_], axis=1)
+                keep_f &= e3[:, i] <= max_stretch * px * 0.5 * (m_per_px[a_] + m_per_px[b_])
+        F = F[keep_f]
     return Membrane(view.name, V, F, view.camera_center)
 
 

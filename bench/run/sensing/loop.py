@@ -5,13 +5,17 @@ say when it is not sure.
    the paper's exploring strategy, the precise boundary. Stage 3: the projector on its centre
    line, active stereo, the paper's counting test and Fig. 2 symptom (reported as they are).
 2. ``verification_stage``: views every plate gets (not cures), the stage-2 pose turned about the
-   boundary centre (``reconstruction.strategy.planner``). Each measures the outline by passive stereo.
+   boundary centre (``reconstruction.strategy.planner``). Each measures the outline by passive stereo
+   and, with ``SensingOptions.active_views``, the square grid by active stereo (projector riding
+   beside the rig, centres checked by the projector's calibration: ``reconstruction.strategy.active_views``).
 3. The verdict (``reconstruction.strategy.multiview.verify``): outline points confirmed by a second,
    turned pose; pieces that close into one loop mean a verified boundary. The detectors of a false
    boundary at stage 2 are reported one by one (``reconstruction.strategy.detectors``).
 4. ``cure_stage``: while not verified, ``planner.decide`` picks the paper's cure 1 or 2 or a
    further pose, checked against the reconstructed surface model, or stops with the reason.
-5. ``final_record``: the verdict, and its scores against ground truth (``scoring``).
+5. ``final_record``: the verdict, the merged reconstruction (every pose's boundary pieces, square
+   centres and visible surface in one world frame, ``active_views.merge``), and their scores against
+   ground truth (``scoring``).
 
 Decisions are pure functions of measurements in ``reconstruction.strategy``; the simulated robot
 (``sensor``) renders, and holds the ground truth for scoring only: each step's ``gt_visibility``
@@ -20,6 +24,7 @@ outcome class (``records.OUTCOMES``).
 """
 from __future__ import annotations
 
+import io
 import time
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -28,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.atomic import write_json
+from platebench.bench.io.atomic import write_bytes, write_json
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.run.render import RenderedSample
@@ -48,6 +53,13 @@ from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, Si
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.pipeline import Reconstruction, passive_stereo, projector_feature_rays, reconstruct
 from platebench.reconstruction.paper.plate_region import ReconstructionError
+from platebench.reconstruction.strategy.active_views import (
+    ActivePoints,
+    MergedReconstruction,
+    merge,
+    on_feature_rays,
+    pattern_rowcol,
+)
 from platebench.reconstruction.strategy.detectors import (
     DetectorResult,
     end_tangents,
@@ -75,7 +87,13 @@ from platebench.reconstruction.strategy.poses import (
     validate_pose,
 )
 from platebench.reconstruction.strategy.refutation import membrane_mesh, refute
-from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane
+from platebench.reconstruction.strategy.surface_model import (
+    SURFACE_EDGE_ROWS,
+    SURFACE_MAX_EDGE_M,
+    SURFACE_MAX_STRETCH,
+    SurfaceModel,
+    view_membrane,
+)
 
 
 @dataclass(frozen=True)
@@ -143,17 +161,41 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
 
 
-class Measurements:
-    """The poses measured so far (each with an outline), their membranes, and the surface model and
-    verdict over them (None until ``update``). The stage-2 pose is first; its membrane also holds
-    stage 3's square centres."""
+def stage3_active(first: FirstStages, rays_for) -> ActivePoints | None:
+    """Stage 3's square centres as the stage-2 pose's ``ActivePoints``, checked against the stage-3
+    projector's feature rays as every later pose's are (None without a stage-3 reconstruction)."""
+    rec = first.rec
+    if rec is None:
+        return None
+    scene = first.sample3.scene
+    return on_feature_rays(first.view2.name, rec.points, rec.uv_left, rays_for(scene),
+                           rowcol=pattern_rowcol(scene.projector.pattern))
 
-    def __init__(self, first: FirstStages):
+
+class Measurements:
+    """The poses measured so far (each with an outline, and square centres when active views are
+    on), and over them the verdict's surface model (None until ``update``) and the merged
+    reconstruction (``merged``). The stage-2 pose is first; its square centres are stage 3's.
+    ``rays_for`` (scene -> ``FeatureRays``): the projector's calibration, which checks stage 3's
+    centres; with ``active_views`` every later pose measures the square grid too (else its passive
+    pair only).
+
+    Two membranes per pose: ``membranes`` (the whole outline triangulated in the pose's image, the
+    stage-2 pose's with stage 3's centres) feed the planner's model and refutation, as before the
+    poses measured squares; ``surfaces`` (row-matched outline points and the pose's checked square
+    centres, no chords, ``_membrane``) are the merged reconstruction's surface. Feeding the
+    squares to the verdict's model too was measured on the study (61 plates): 7 outcomes changed
+    (3 plates cured that were not, 4 no longer cured: 14/23 against 15/23), so the verdict stays on
+    the outlines and the squares are measurements of the surface only."""
+
+    def __init__(self, first: FirstStages, rays_for, active_views: bool = True):
+        v = replace(first.view2, active=stage3_active(first, rays_for))
         rec = first.rec
-        v = first.view2
+        self.rays_for = rays_for if active_views else None
         self.views: list[PassiveView] = [v]
         self.membranes = [view_membrane(v.outline, None if rec is None else rec.uv_left,
                                         None if rec is None else rec.points)]
+        self.surfaces = [_membrane(v)]
         self.meshes = [membrane_mesh(self.membranes[0])]  # for refutation, one per pose, built once
         self.model: SurfaceModel | None = None
         self.verdict: BoundaryVerdict | None = None
@@ -171,10 +213,20 @@ class Measurements:
         """(M,3) every measured outline point."""
         return np.vstack([o.points for o in self.outlines])
 
+    @property
+    def actives(self) -> list[ActivePoints]:
+        """Each pose's checked square centres (empty for a pose that measured none)."""
+        return [v.active if v.active is not None else ActivePoints.empty(v.name) for v in self.views]
+
+    def merged(self) -> MergedReconstruction:
+        """Every pose's measurements in one reconstruction (``active_views.merge``)."""
+        return merge(self.verdict.merged, self.actives, self.surfaces)
+
     def add(self, view: PassiveView) -> None:
         if view.outline is not None:
             self.views.append(view)
             self.membranes.append(view_membrane(view.outline))
+            self.surfaces.append(_membrane(view))
             self.meshes.append(membrane_mesh(self.membranes[-1]))
 
     def update(self) -> BoundaryVerdict:
@@ -186,11 +238,28 @@ class Measurements:
         return self.verdict
 
 
+def _true_rays(scene):
+    return projector_feature_rays(scene.projector.camera, scene.projector.pattern)
+
+
+def _membrane(view: PassiveView):
+    """A pose's measured surface for the merged reconstruction: its row-matched outline points and
+    checked square centres triangulated in its image, without chords or depth steps
+    (``surface_model.view_membrane``, ``SURFACE_EDGE_ROWS``)."""
+    a = view.active
+    extra = (None, None) if a is None else (a.uv_left, a.points)
+    rows = np.nan if a is None else a.row_spacing_m
+    return view_membrane(view.outline, *extra, matched_only=True,
+                         max_edge_m=SURFACE_EDGE_ROWS * rows if np.isfinite(rows) else SURFACE_MAX_EDGE_M,
+                         max_stretch=SURFACE_MAX_STRETCH)
+
+
 def _measure(sensor: SimulatedSensor, view: PlannedView, into: Measurements, steps: list) -> None:
-    pv = sensor.passive_view(view.name, view.pose)
+    pv = sensor.passive_view(view.name, view.pose, into.rays_for)
     o = pv.outline
     steps.append(ViewRecord(view, 0 if o is None else len(o.points), "" if o is None else o.method,
-                            gt_visibility_dict(pv.gt_visibility), pv.error))
+                            gt_visibility_dict(pv.gt_visibility), pv.error,
+                            None if pv.active is None else pv.active.to_dict()))
     into.add(pv)
 
 
@@ -281,8 +350,7 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
                             bool(cures) or not verdict.verified)
     reach_vis = gt_visibility_dict(sensor.boundary_visible_from(reach_poses)) if options.ground_truth_reach else None
     accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None
-    merged = merged_accuracy(sensor.plate, verdict, m.model,
-                             None if rec is None else np.vstack([rec.surface_vertices, rec.points]))
+    merged = merged_accuracy(sensor.plate, m.merged())
     merged["poses"] = len(m.views)
     return FinalRecord(first.pose2, "stage3", None if rec is None else rec.false_boundary,
                        0 if rec is None else len(rec.points), verdict.verified, verdict.reason, unverified,
@@ -300,7 +368,7 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     points, the merged boundary, and the true boundary for plots)."""
     t0 = time.perf_counter()
     sensor = sensor or SimulatedSensor(cfg, progress)
-    rays_for = feature_rays or (lambda scene: projector_feature_rays(scene.projector.camera, scene.projector.pattern))
+    rays_for = feature_rays or _true_rays
     first = first_stages(sensor, options, rays_for)
     steps, notes = list(first.records), list(first.notes)
     if out is not None and options.write_stages:
@@ -308,7 +376,7 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
         if first.rec is not None:
             write_reconstruction(Path(out) / "stage3" / "recon", first.rec, Path(out) / "stage3" / "sample",
                                  image_checksums(first.sample3.digital), overwrite=True)
-    m = Measurements(first)
+    m = Measurements(first, rays_for, options.active_views)
     verif = verification_stage(sensor, first, m, options, steps, notes)
     dets = detectors(first, m)
     cures, cands = cure_stage(sensor, first, m, options, steps, notes)
@@ -318,20 +386,37 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
                            time.perf_counter() - t0, tuple(m.outlines))
     if out is not None:
         write_json(Path(out) / "sensing.json", result.to_dict())
-        write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary))
+        write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary),
+                        m.merged())
     return result
 
 
-def write_multiview(path: Path, views: list[ViewOutline], verdict: BoundaryVerdict, true_boundary) -> None:
+def write_multiview(path: Path, views: list[ViewOutline], verdict: BoundaryVerdict, true_boundary,
+                    merged: MergedReconstruction | None = None) -> None:
     """The poses' outlines (points, pose index, confirmed), the merged boundary, the gaps and the true
-    boundary (for plots), in metres."""
+    boundary (for plots), and the merged reconstruction's square centres (``active_points``, with
+    ``active_view``, the pose index), in metres. With ``merged``, also ``merged_points.ply`` (the
+    square centres) and ``merged_surface.ply`` (the poses' visible surfaces) beside ``path``, which
+    ``platebench evaluate STAGE3_SAMPLE --points/--mesh`` scores like any other method's files."""
+    import trimesh  # noqa: PLC0415 (heavy)
+
     conf = verdict.confirmed if verdict.confirmed else [np.zeros(len(v.points), bool) for v in views]
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, outline_points=np.vstack([v.points for v in views]),
+    extra = {} if merged is None else {"active_points": merged.points, "active_view": merged.point_view}
+    buf = io.BytesIO()
+    np.savez_compressed(buf, outline_points=np.vstack([v.points for v in views]),
                         outline_view=np.concatenate([np.full(len(v.points), k) for k, v in enumerate(views)]),
                         outline_confirmed=np.concatenate(conf), view_names=np.array([v.name for v in views]),
                         merged=verdict.merged, gaps=np.array([g.position_m for g in verdict.gaps]).reshape(-1, 3),
-                        true_boundary=np.asarray(true_boundary))
+                        true_boundary=np.asarray(true_boundary), **extra)
+    write_bytes(path, buf.getvalue())
+    if merged is not None:
+        if len(merged.points):
+            write_bytes(path.parent / "merged_points.ply",
+                        trimesh.PointCloud(merged.points).export(file_type="ply"))
+        if len(merged.surface_faces):
+            mesh = trimesh.Trimesh(merged.surface_vertices, merged.surface_faces, process=False)
+            write_bytes(path.parent / "merged_surface.ply", mesh.export(file_type="ply", encoding="binary"))
 
 
 __all__ = ["run_sensing", "first_stages", "verification_stage", "cure_stage", "final_record", "detectors",

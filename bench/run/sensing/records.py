@@ -61,6 +61,9 @@ class SensingOptions:
     max_cures: int = 6  # cure poses at most
     max_views: int = MAX_VIEWS  # measuring poses at most (stage 2, verification, cures)
     verification: bool = True  # False: the paper's loop alone (stages 1-3, no verification views)
+    # Every later measuring pose also projects the square grid (projector between the cameras) and
+    # measures its centres: the merged reconstruction's points and surface (``active_views``).
+    active_views: bool = True
     write_stages: bool = True
     reach: Reach = field(default_factory=Reach)
     # For scoring only: cast ground truth's boundary visibility from every pose the loop could reach
@@ -120,10 +123,12 @@ class ViewRecord:
     outline_method: str
     gt_visibility: dict
     error: str | None = None
+    active: dict | None = None  # ``ActivePoints.to_dict()`` (None: no active pair at this pose)
 
     def to_dict(self) -> dict:
         return {"stage": "view", **self.view.to_dict(), "outline_points": self.outline_points,
-                "outline_method": self.outline_method, "gt_visibility": self.gt_visibility, "error": self.error}
+                "outline_method": self.outline_method, "gt_visibility": self.gt_visibility, "error": self.error,
+                "active": self.active}
 
 
 @dataclass(frozen=True)

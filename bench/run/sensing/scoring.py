@@ -11,12 +11,14 @@ from platebench.bench.run.score import score_in_memory
 from platebench.evaluation.boundary_metrics import points_to_polyline_distance
 from platebench.evaluation.metrics_row import MetricsRow
 from platebench.evaluation.surface_metrics import score_surface
-from platebench.reconstruction.strategy.multiview import BoundaryVerdict
-from platebench.reconstruction.strategy.surface_model import SurfaceModel
+from platebench.evaluation.point_metrics import closest_point_on_mesh
+from platebench.reconstruction.strategy.active_views import MergedReconstruction
+from platebench.reconstruction.strategy.surface_model import sample_triangles
 from platebench.scenes.render.ground_truth import combined_visibility
 
 TRIANGULATED_PX = 3.0  # a true boundary point lies on a pose's measured outline within this (left image)
 TRUE_BOUNDARY_STEP_M = 0.5e-3  # the true boundary is sampled this finely (by arc length) for the merged scores
+SURFACE_SAMPLE_M = 2e-3  # the merged surface is sampled this finely for its scores (under the 2 mm coverage radius)
 
 
 def stage3_accuracy(sample, rec) -> dict:
@@ -29,36 +31,35 @@ def stage3_accuracy(sample, rec) -> dict:
             "goals_met": score.goals.met if score.goals else None}
 
 
-def merged_accuracy(plate, verdict: BoundaryVerdict, model: SurfaceModel, measured_surface=None) -> dict:
-    """The merged multi-view result against ground truth (millimetres): the merged boundary's mean
-    (symmetric) distance to the true boundary, its one-way distance, the fraction of the true
-    boundary's length within 2 mm of it (the true side sampled uniformly by arc length every
-    ``TRUE_BOUNDARY_STEP_M``: the plate's boundary vertices are dense on bends and up to 30 mm
-    apart on flat stretches, so a mean over vertices would weigh the bends only); the measured
-    surface (``measured_surface``, (S,3): the stage-3 interpolated surface and points, with the
-    merged boundary) RMS distance to the true surface and its coverage (true surface within 2 mm of
-    it); and the surface model's own RMS (the poses' outline membranes, which the planner uses for
-    normals and ray casting: a coarse model, not a measurement)."""
-    out = {"boundary_points": int(len(verdict.merged))}
+def merged_accuracy(plate, merged: MergedReconstruction) -> dict:
+    """The merged multi-view reconstruction (``active_views.MergedReconstruction``) against ground
+    truth (millimetres):
+
+    * its boundary: mean (symmetric) distance to the true boundary, the one-way distance, and the
+      fraction of the true boundary's length within 2 mm of it (the true side sampled uniformly by
+      arc length every ``TRUE_BOUNDARY_STEP_M``: the plate's boundary vertices are dense on bends
+      and up to 30 mm apart on flat stretches, so a mean over vertices would weigh the bends only);
+    * its square centres (every pose's, checked): RMS and maximum distance to the true surface;
+    * its surface (the poses' visible surfaces, sampled every ``SURFACE_SAMPLE_M``): RMS distance to the true
+      surface and coverage (the fraction of the true surface within 2 mm of it)."""
+    out = {"boundary_points": int(len(merged.boundary)), "points": int(len(merged.points))}
     B = np.asarray(plate.boundary, float)
-    if len(verdict.merged):
-        est_gt = points_to_polyline_distance(verdict.merged, B)
+    if len(merged.boundary):
+        est_gt = points_to_polyline_distance(merged.boundary, B)
         dense = resample_path(np.vstack([B, B[:1]]), step=TRUE_BOUNDARY_STEP_M)[:-1]  # closed: drop the repeat
-        gt_est = cKDTree(verdict.merged).query(dense)[0]
+        gt_est = cKDTree(merged.boundary).query(dense)[0]
         out.update(boundary_mean_mm=float(0.5 * (est_gt.mean() + gt_est.mean()) * 1e3),
                    boundary_est_to_gt_mean_mm=float(est_gt.mean() * 1e3),
                    boundary_covered_frac=float(np.mean(gt_est <= 2e-3)))
-    parts = [np.asarray(p, float).reshape(-1, 3) for p in (measured_surface, verdict.merged) if p is not None]
-    S = np.vstack(parts) if parts else np.zeros((0, 3))
+    if len(merged.points):
+        d = closest_point_on_mesh(merged.points, plate.mesh)[1]
+        out.update(points_rms_mm=float(np.sqrt(np.mean(d ** 2)) * 1e3), points_max_mm=float(d.max() * 1e3))
+    S = sample_triangles(merged.surface_vertices, merged.surface_faces, SURFACE_SAMPLE_M)
     if len(S):
-        s = score_surface(S, plate.mesh, sample_spacing_m=1e-3, coverage_radius_m=2e-3, max_distance_m=1e-3)
+        s = score_surface(S, plate.mesh, sample_spacing_m=SURFACE_SAMPLE_M, coverage_radius_m=2e-3,
+                          max_distance_m=1e-3)
         out.update(surface_rms_mm=float(s.dist.rms * 1e3), surface_coverage=float(s.coverage_frac),
                    surface_points=int(len(S)))
-    M = model.samples
-    if len(M):
-        M = M[::max(1, len(M) // 4000)]
-        s = score_surface(M, plate.mesh, sample_spacing_m=2e-3, coverage_radius_m=2e-3, max_distance_m=1e-3)
-        out.update(model_surface_rms_mm=float(s.dist.rms * 1e3), model_surface_coverage=float(s.coverage_frac))
     return out
 
 

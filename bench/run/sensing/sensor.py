@@ -3,7 +3,9 @@
 ``SimulatedSensor`` owns the one renderer of a sensing run (parameters are updated from pose to
 pose, never a scene rebuilt) and hands back what a real sensor would give (images), with ground
 truth's boundary visibility beside it for scoring only. ``passive_view`` is one measuring pose of
-the loop: the passive pair rendered and its outline measured by the general outline stereo.
+the loop: the passive pair rendered and its outline measured by the general outline stereo, and,
+when asked, the active pair (projector beside the rig, ``active_views.projector_pose``) and its checked square centres
+(``reconstruction.strategy.active_views``).
 World frame, metres.
 """
 from __future__ import annotations
@@ -17,6 +19,7 @@ from platebench.bench.run.render import ground_truth_at, render_images
 from platebench.plates import build_plate
 from platebench.reconstruction.paper.outline_stereo import match_outlines
 from platebench.reconstruction.paper.plate_region import ReconstructionError, plate_mask
+from platebench.reconstruction.strategy.active_views import ActivePoints, active_points, projector_pose
 from platebench.reconstruction.strategy.multiview import ViewOutline
 from platebench.reconstruction.strategy.poses import SensorPose
 from platebench.scenes.render.ground_truth import GroundTruthCaster, combined_visibility
@@ -40,7 +43,8 @@ class Shot:
 @dataclass(frozen=True)
 class PassiveView:
     """A measuring pose's result: its outline (None when passive stereo failed, with ``error``), its
-    left camera, and ground truth's visibility from both cameras (scoring only)."""
+    checked square centres (None when no active pair was taken; empty when none passed), its left
+    camera, and ground truth's visibility from both cameras (scoring only)."""
 
     name: str
     pose: SensorPose
@@ -48,11 +52,17 @@ class PassiveView:
     left_camera: object
     gt_visibility: dict
     error: str | None = None
+    active: ActivePoints | None = None
 
 
-def measure_outline(name: str, scene: SceneSpec, digital: dict) -> ViewOutline:
+def plate_masks(digital: dict) -> dict:
+    """camera -> ``PlateMask`` of its passive image."""
+    return {c: plate_mask(digital[f"{c}_passive"], f"{c}_passive") for c in ("left", "right")}
+
+
+def measure_outline(name: str, scene: SceneSpec, digital: dict, masks: dict | None = None) -> ViewOutline:
     """The plate's outline in the world frame from a passive pair (general outline stereo)."""
-    m = {c: plate_mask(digital[f"{c}_passive"], f"{c}_passive") for c in ("left", "right")}
+    m = masks or plate_masks(digital)
     st = match_outlines(digital["left_passive"], digital["right_passive"], m["left"], m["right"], scene.rig)
     return ViewOutline.from_stereo(name, st, scene.rig.center, scene.rig.left)
 
@@ -87,15 +97,26 @@ class SimulatedSensor:
         """Dense ground truth and boundary visibility at the last shot's scene (scoring only)."""
         return ground_truth_at(self.renderer)
 
-    def passive_view(self, name: str, pose: SensorPose) -> PassiveView:
-        """Render the passive pair at ``pose`` and measure its outline."""
-        shot = self.shoot(pose, PASSIVE, label=name)
+    def passive_view(self, name: str, pose: SensorPose, rays_for=None) -> PassiveView:
+        """Render the passive pair at ``pose`` and measure its outline; with ``rays_for`` (scene ->
+        ``FeatureRays``, the projector's calibration) also the active pair, with the projector
+        between the cameras, and its square centres (``active_views.active_points``)."""
+        shot = self.shoot(pose, PASSIVE + (ACTIVE if rays_for is not None else ()),
+                          projector=projector_pose(pose) if rays_for is not None else None, label=name)
         try:
-            o = measure_outline(name, shot.scene, shot.digital)
+            masks = plate_masks(shot.digital)
+            o = measure_outline(name, shot.scene, shot.digital, masks)
         except ReconstructionError as err:
             return PassiveView(name, pose, None, shot.scene.rig.left, shot.gt_visibility,
                                f"passive stereo failed: {err}")
-        return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility)
+        active = None
+        if rays_for is not None:
+            try:
+                active = active_points(name, shot.digital, {c: m.mask for c, m in masks.items()}, shot.scene.rig,
+                                       rays_for(shot.scene), shot.scene.projector.pattern)
+            except ReconstructionError:
+                active = ActivePoints.empty(name)
+        return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility, active=active)
 
     def boundary_visible_from(self, poses) -> dict:
         """camera -> ``BoundaryVisibility`` of the true boundary from any of ``poses`` (that camera of
