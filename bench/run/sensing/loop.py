@@ -185,8 +185,10 @@ class Measurements:
     poses measured squares; ``surfaces`` (row-matched outline points and the pose's checked square
     centres, no chords, ``_membrane``) are the merged reconstruction's surface. Feeding the
     squares to the verdict's model too was measured on the study (61 plates): 7 outcomes changed
-    (3 plates cured that were not, 4 no longer cured: 14/23 against 15/23), so the verdict stays on
-    the outlines and the squares are measurements of the surface only."""
+    (3 plates cured that were not, 4 no longer cured: 14/23 against 15/23); refuting against the
+    chord-free ``surfaces`` instead of the outline membranes changed 1 (cylinder 300 down axis 60,
+    cured -> unconfirmed: 14/23). So the verdict stays on the outlines and the squares are
+    measurements of the surface only."""
 
     def __init__(self, first: FirstStages, rays_for, active_views: bool = True):
         v = replace(first.view2, active=stage3_active(first, rays_for))

@@ -13,7 +13,7 @@ from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 from platebench.reconstruction.strategy.detectors import DetectorResult
 from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline
-from platebench.reconstruction.strategy.planner import MAX_VIEWS, PlannedView
+from platebench.reconstruction.strategy.planner import MAX_CURE_VIEWS, MAX_VIEWS, PlannedView
 from platebench.reconstruction.strategy.poses import Reach, SensorPose
 
 OUTCOMES = ("cured", "honest", "silent", "clean", "false_alarm", "unconfirmed")
@@ -58,7 +58,7 @@ class SensingOptions:
     # Stage 3 places the projector on its centre line at this distance from the boundary centre;
     # None: at the cameras' distance (a fixed far projector shrinks its squares when cameras move).
     projector_distance_m: float | None = None
-    max_cures: int = 6  # cure poses at most
+    max_cures: int = MAX_CURE_VIEWS  # cure poses at most
     max_views: int = MAX_VIEWS  # measuring poses at most (stage 2, verification, cures)
     verification: bool = True  # False: the paper's loop alone (stages 1-3, no verification views)
     # Every later measuring pose also projects the square grid (projector between the cameras) and
