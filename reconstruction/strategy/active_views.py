@@ -43,6 +43,7 @@ from platebench.reconstruction.paper.pipeline import square_stereo
 from platebench.reconstruction.strategy.poses import SensorPose
 from platebench.scenes.pattern import Pattern
 from platebench.scenes.rig import StereoRig
+from platebench.scenes.scene_spec import up_for_baseline
 
 # A square centre lies within this of its feature's calibrated ray. Row-matched centres at 0.4 m
 # lie 0.1-0.3 mm from it (640 x 480); a centre matched one square off lies millimetres from every ray.
@@ -168,8 +169,7 @@ def pattern_rowcol(pattern: Pattern) -> dict:
 def projector_pose(pose: SensorPose, offset_m: float = PROJECTOR_OFFSET_M) -> SensorPose:
     """Where a measuring pose's projector sits: ``offset_m`` from the mid-baseline point across the
     baseline (along the images' "up"), aimed at the pose's target, its image x along the baseline."""
-    up = np.cross(pose.baseline_dir, pose.view_dir)
-    up /= np.linalg.norm(up)
+    up = up_for_baseline(pose.view_dir, pose.baseline_dir)  # the rig's image "up" (scene_spec's convention)
     return SensorPose(pose.center + offset_m * up, pose.target.copy(), pose.baseline_dir.copy(),
                       "projector of a measuring pose: beside the rig's centre line, across the baseline")
 

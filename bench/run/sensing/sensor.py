@@ -114,7 +114,7 @@ class SimulatedSensor:
             try:
                 active = active_points(name, shot.digital, {c: m.mask for c, m in masks.items()}, shot.scene.rig,
                                        rays_for(shot.scene), shot.scene.projector.pattern)
-            except ReconstructionError:
+            except ReconstructionError:  # no square inside the outline: recorded as 0 points (ViewRecord.active)
                 active = ActivePoints.empty(name)
         return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility, active=active)
 
