@@ -83,10 +83,9 @@ def test_turned_pose_measures_squares_on_the_plate_and_rejects_squares_matched_o
     surface (exact closest point on the plate's mesh); the same squares matched one array position
     off (left i with right i+1) triangulate millimetres off every feature ray and are all rejected."""
     from platebench.bench.config import SampleConfig, SceneParams
-    from platebench.bench.run.sensing.loop import _true_rays
     from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, SimulatedSensor, plate_masks
     from platebench.evaluation.point_metrics import closest_point_on_mesh
-    from platebench.reconstruction.paper.pipeline import square_stereo
+    from platebench.reconstruction.paper.pipeline import projector_feature_rays, square_stereo
     from platebench.reconstruction.strategy.poses import SensorPose
     from platebench.scenes.camera import triangulate_rectified
     from platebench.scenes.scene_spec import RenderSettings
@@ -98,7 +97,7 @@ def test_turned_pose_measures_squares_on_the_plate_and_rejects_squares_matched_o
     shot = s.shoot(pose, PASSIVE + ACTIVE)
     masks = {c: m.mask for c, m in plate_masks(shot.digital).items()}
     sq = square_stereo(shot.digital, masks, shot.scene.rig)
-    rays = _true_rays(shot.scene)
+    rays = projector_feature_rays(shot.scene.projector.camera, shot.scene.projector.pattern)
     good = on_feature_rays("turned", sq.points, sq.uv_left, rays)
     assert len(sq.points) >= 6 and good.rejected == 0
     assert closest_point_on_mesh(good.points, s.plate.mesh)[1].max() < 1e-3

@@ -189,7 +189,10 @@ def square_stereo(images: dict, masks: dict, rig: StereoRig) -> SquareStereo:
     groups = {c: group_squares(dets[c].squares) for c in ("left", "right")}
     ys = sorted(dets["left"].squares[g[0]].centroid[1] for g in groups["left"])
     heights = [s.bbox[3] - s.bbox[1] + 1 for s in dets["left"].squares]
-    tol_px = 0.5 * float(np.median(np.diff(ys))) if len(ys) > 1 else float(np.median(heights)) if heights else 0.0
+    if len(ys) > 1:  # arrays are matched by their leftmost squares' y within half the arrays' spacing
+        tol_px = 0.5 * float(np.median(np.diff(ys)))
+    else:
+        tol_px = float(np.median(heights)) if heights else 0.0
     matches = match_squares(dets["left"].squares, dets["right"].squares, groups["left"], groups["right"], tol_px)
     t2 = time.perf_counter()
     uvl = np.array([dets["left"].squares[i].centroid for i, _ in matches.pairs]).reshape(-1, 2)

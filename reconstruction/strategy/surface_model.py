@@ -36,7 +36,7 @@ BLOCK_SLACK_M = 3e-3  # a segment is blocked only by surface farther than this f
 # (240 and 180 degrees concave, a 120-degree fold at aspect 3) with a 20 mm cap: surface RMS
 # 0.85-1.40 mm at coverage 0.88-0.99; with no cap and no stretch rule 3.4-7.2 mm (chords across a
 # concave curl's opening); with the cap alone, 1.03-1.95 mm. With these values, on the study's 61
-# plates (``platebench study false-boundary``): RMS 0.34-1.86 mm (median 0.67), coverage 0.63-1.00
+# plates (``platebench study false-boundary``): RMS 0.34-1.80 mm (median 0.67), coverage 0.68-1.00
 # (median 0.99).
 SURFACE_EDGE_ROWS = 1.5
 SURFACE_MAX_EDGE_M = 22e-3

@@ -163,7 +163,10 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
 
 def stage3_active(first: FirstStages, rays_for) -> ActivePoints | None:
     """Stage 3's square centres as the stage-2 pose's ``ActivePoints``, checked against the stage-3
-    projector's feature rays as every later pose's are (None without a stage-3 reconstruction)."""
+    projector's feature rays (None without a stage-3 reconstruction). Weaker than a later pose's
+    check: the paper's stage-3 projector sits on the rig's centre line, where centres matched an
+    even number of squares off land on a ray (``active_views`` module doc), and the pipeline does
+    not hand over its arrays, so no array is checked whole."""
     rec = first.rec
     if rec is None:
         return None
@@ -241,6 +244,7 @@ class Measurements:
 
 
 def _true_rays(scene):
+    """The feature rays of ``scene``'s projector from its true K, R, t (the default calibration)."""
     return projector_feature_rays(scene.projector.camera, scene.projector.pattern)
 
 

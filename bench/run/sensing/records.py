@@ -61,8 +61,9 @@ class SensingOptions:
     max_cures: int = MAX_CURE_VIEWS  # cure poses at most
     max_views: int = MAX_VIEWS  # measuring poses at most (stage 2, verification, cures)
     verification: bool = True  # False: the paper's loop alone (stages 1-3, no verification views)
-    # Every later measuring pose also projects the square grid (projector between the cameras) and
-    # measures its centres: the merged reconstruction's points and surface (``active_views``).
+    # Every later measuring pose also projects the square grid (projector beside the rig,
+    # ``active_views.projector_pose``) and measures its centres: the merged reconstruction's points
+    # and surface (``active_views``).
     active_views: bool = True
     write_stages: bool = True
     reach: Reach = field(default_factory=Reach)

@@ -4,8 +4,8 @@
 pose, never a scene rebuilt) and hands back what a real sensor would give (images), with ground
 truth's boundary visibility beside it for scoring only. ``passive_view`` is one measuring pose of
 the loop: the passive pair rendered and its outline measured by the general outline stereo, and,
-when asked, the active pair (projector beside the rig, ``active_views.projector_pose``) and its checked square centres
-(``reconstruction.strategy.active_views``).
+when asked, the active pair (projector beside the rig, ``active_views.projector_pose``) and its
+checked square centres (``reconstruction.strategy.active_views``).
 World frame, metres.
 """
 from __future__ import annotations
@@ -100,7 +100,8 @@ class SimulatedSensor:
     def passive_view(self, name: str, pose: SensorPose, rays_for=None) -> PassiveView:
         """Render the passive pair at ``pose`` and measure its outline; with ``rays_for`` (scene ->
         ``FeatureRays``, the projector's calibration) also the active pair, with the projector
-        between the cameras, and its square centres (``active_views.active_points``)."""
+        beside the rig (``active_views.projector_pose``), and its square centres
+        (``active_views.active_points``)."""
         shot = self.shoot(pose, PASSIVE + (ACTIVE if rays_for is not None else ()),
                           projector=projector_pose(pose) if rays_for is not None else None, label=name)
         try:
