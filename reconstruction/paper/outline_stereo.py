@@ -41,6 +41,7 @@ REFINE_STEEP_SIN = np.sin(np.radians(30.0))  # refine along the row when |dv/ds|
 MATCH_STEEP_DEG = 30.0  # a crossing gives a disparity only if the outline crosses the row this steeply
 MAX_DISPARITY_JUMP_PX = 3.0  # a matched disparity this far from its neighbours' median is dropped
 NEIGHBOURS = 7  # matched points on either side for that median
+NOTCH_PX = 2  # a row's gaps and runs this narrow are outline noise (``_row_runs``)
 ANCHOR_POINTS = 8  # matched points on each side of a gap that anchor its fill
 ANCHOR_EXTRAPOLATION_PX = 10  # a gap's fill extrapolates its anchors' d(v) by at most this many rows
 METHOD = "contour-rows"
@@ -133,17 +134,32 @@ def image_contour(image: np.ndarray, region: PlateMask) -> ImageContour:
                         np.array(side))
 
 
+def _row_runs(mask_row: np.ndarray) -> list[tuple[int, int]]:
+    """The plate's runs on one row, (first, last) plate pixel each, left to right, with slivers of
+    at most ``NOTCH_PX`` plate pixels dropped and then gaps of at most ``NOTCH_PX`` closed: the
+    filled outline's one-pixel spurs and dents along an edge that runs with the rows differ
+    between the two images, and would otherwise make their rows' sequences differ (and lose the
+    steep crossings of the same rows). A row of slivers only keeps them."""
+    m = np.asarray(mask_row, np.int8)
+    d = np.diff(np.concatenate([[0], m, [0]]))
+    runs = [[int(a), int(b) - 1] for a, b in zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0])]
+    wide = [r for r in runs if r[1] - r[0] + 1 > NOTCH_PX] or runs
+    merged: list[list[int]] = []
+    for r in wide:
+        if merged and r[0] - merged[-1][1] - 1 <= NOTCH_PX:
+            merged[-1][1] = r[1]
+        else:
+            merged.append(list(r))
+    return [(a, b) for a, b in merged]
+
+
 def _row_crossings(mask: np.ndarray) -> dict:
-    """Row -> sorted list of (first plate pixel u, s) where the region is entered (s=+1, plate to the
-    right) or left (s=-1), scanning the row from left to right."""
+    """Row -> list of (first plate pixel u, s), left to right, where the region is entered (s=+1,
+    plate to the right) or left (s=-1) (``_row_runs``: slivers and notches of at most
+    ``NOTCH_PX`` ignored)."""
     out = {}
-    m = mask.astype(np.int8)
-    d = np.diff(np.pad(m, ((0, 0), (1, 1))), axis=1)  # +1 at u of an entry, -1 at u+1 of an exit
-    for v in np.nonzero(m.any(axis=1))[0]:
-        enter = np.nonzero(d[v] == 1)[0]
-        leave = np.nonzero(d[v] == -1)[0] - 1
-        cr = sorted([(int(u), 1) for u in enter] + [(int(u), -1) for u in leave])
-        out[int(v)] = cr
+    for v in np.nonzero(mask.any(axis=1))[0]:
+        out[int(v)] = [c for a, b in _row_runs(mask[v]) for c in ((a, 1), (b, -1))]
     return out
 
 
