@@ -16,7 +16,7 @@ from platebench.reconstruction.strategy.multiview import (
     ViewOutline,
     confirm,
     outline_sense,
-    rotation_about,
+    slide_angles,
     verify,
 )
 from platebench.reconstruction.strategy.planner import (
@@ -109,7 +109,12 @@ def test_the_prediction_agrees_with_the_confirmation_it_predicts(about_x, about_
     if (about_x, about_y) == (0.0, 45.0):  # turned across it: it would not slide, so nothing
         assert not pred.any() and not conf[idx].any()
     ra, rb = b.points - top.camera_center, b.points - eye
-    slide = rotation_about(b.tangents, ra, rb)
+    edge = np.tile([1.0, 0.0, 0.0], (len(b.points), 1))  # the true edge's direction
+
+    def plane(c):  # the true contour plane through a camera at c and the edge
+        n = np.cross(b.points - c, edge)
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+    slide = np.minimum(slide_angles(plane(top.eye), b.points, eye), slide_angles(plane(eye), b.points, top.eye))
     ang = np.arccos(np.clip(np.einsum("ij,ij->i", ra, rb) / np.linalg.norm(ra, axis=1) / np.linalg.norm(rb, axis=1),
                             -1, 1))
     need_slide, need_ang = CONFIRM_SLIDE_ANGLE_RAD + PREDICT_MARGIN_RAD, CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD
@@ -146,15 +151,19 @@ def test_targeted_views_turn_the_measuring_pose_about_the_edge_beyond_the_gap(ti
     views = targeted_views([b], [base], Reach(), top.points, cam, 0.1)
     assert len(views) == 2 * len(TARGETED_TURNS_DEG)
     x = np.array([1.0, 0.0, 0.0])
-    turns = sorted(round(math.degrees(float(rotation_about(x[None], -base.view_dir[None],
-                                                            -v.pose.view_dir[None])[0]))) for v in views)
+
+    def turn_about_x(a, b):  # angle between two view directions projected across x
+        a, b = a - x * (a @ x), b - x * (b @ x)
+        return math.degrees(math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+    turns = sorted(round(turn_about_x(base.view_dir, v.pose.view_dir)) for v in views)
     assert turns == sorted([round(t) for t in TARGETED_TURNS_DEG] * 2)
     for v in views:
         assert abs(v.pose.baseline_dir @ x) < 1e-9  # the edge crosses the image rows
         assert v.method == "multi-view" and v.name.startswith("gap 1 pose 0 turn")
         assert v.purpose == "cure" and "gap 1" in v.name
     # fewer than the minimum measured points beyond: nothing to aim at
-    few = Beyond(b.points[:2], b.tangents[:2], b.centers[:2], b.views[:2])
+    few = Beyond(*(getattr(b, f)[:2] for f in ("points", "tangents", "centers", "views", "normals", "eyes",
+                                               "outside")))
     assert targeted_views([few], [base], Reach(), top.points, cam, 0.1) == []
 
 

@@ -132,7 +132,7 @@ def table_lines(doc: dict) -> list[str]:
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
              "occluding_contour": "occ", "end_tangents": "end"}
     out = [f"{'plate':38s} {'outcome':12s} {'cur':>3s} {'vws':>3s} " + " ".join(f"{short[d]:>3s}" for d in DETECTORS)
-           + f" {'GT vis 1st':>10s} {'final':>6s} {'reach':>5s} {'bnd mm':>6s} {'cover':>5s} {'time s':>6s}"]
+           + f" {'GT vis 1st':>10s} {'final':>6s} {'reach':>5s} {'verif':>5s} {'bnd mm':>6s} {'cover':>5s} {'time s':>6s}"]
     for r in doc["rows"]:
         if r["outcome"] == "error":
             out.append(f"{r['case']:38s} {'error':12s} {r['error']}")
@@ -140,7 +140,8 @@ def table_lines(doc: dict) -> list[str]:
         out.append(f"{r['case']:38s} {r['outcome']:12s} {r['cures']:3d} {r['views']:3d} "
                    + " ".join(f"{_yn(r.get('det_' + d)):>3s}" for d in DETECTORS)
                    + f" {_f(r['gt_visible_first'], '10.3f')} {_f(r['gt_visible_final'], '6.3f')} "
-                   f"{_yn(r.get('gt_reachable')):>5s} {_f(r.get('merged_boundary_mean_mm'), '6.2f')} "
+                   f"{_yn(r.get('gt_reachable')):>5s} {_yn(r.get('gt_verifiable')):>5s} "
+                   f"{_f(r.get('merged_boundary_mean_mm'), '6.2f')} "
                    f"{_f(r.get('merged_surface_coverage'), '5.2f')} {r['time_s']:6.1f}")
     out.append("outcomes: " + ", ".join(f"{k} {v}" for k, v in doc["outcomes"].items()))
     for fam, c in doc["outcomes_by_family"].items():
@@ -156,6 +157,10 @@ def table_lines(doc: dict) -> list[str]:
                f"{t['false_alarms']}/{t['nothing_hidden']} "
                f"({_f(None if t['false_alarm_frac'] is None else t['false_alarm_frac'] * 100, '.0f')} %); "
                + ", ".join(f"{k}: {'n/a' if v is None else ('met' if v else 'NOT met')}" for k, v in t["met"].items()))
+    if t.get("seen_all_of_curable") is not None:
+        out.append(f"  of the {t['curable']} curable plates: the final poses see it all on {t['seen_all_of_curable']} "
+                   f"(cured or unconfirmed); {t['verifiable']} are verifiable by pairs of reachable poses (GT), of "
+                   f"which {t['cured_of_verifiable']} cured")
     n = len(doc["rows"])
     out.append(f"time: {doc['time_s']:.0f} s for {n} plates ({doc['time_s'] / max(n, 1):.1f} s per plate)")
     return out

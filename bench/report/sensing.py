@@ -210,7 +210,7 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
 _ROW_COLUMNS = ("case", "family", "bend_deg", "direction", "axis_deg", "aspect", "distance_m", "outcome",
                 "boundary_verified", "cures", "views", "det_counting_test", "det_arrays_disagree",
                 "det_viewpoint_consistency", "det_occluding_contour", "det_end_tangents", "gt_visible_first",
-                "gt_visible_final", "gt_reachable", "merged_boundary_mean_mm", "merged_surface_coverage",
+                "gt_visible_final", "gt_reachable", "gt_verifiable", "merged_boundary_mean_mm", "merged_surface_coverage",
                 "time_s", "error")
 
 
@@ -233,7 +233,9 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
     summary = ("Targets: " + ", ".join(f"{k} {'n/a' if v is None else ('met' if v else 'NOT met')}"
                                        for k, v in met.items())
                + (f". Cured {t.get('cured_of_curable')} of {t.get('curable')} plates whose stage-2 pose hides part "
-                  f"of the boundary and whose reachable poses see it; false alarms {t.get('false_alarms')} of "
+                  f"of the boundary and whose reachable poses see it (the final poses see it all on "
+                  f"{t.get('seen_all_of_curable')}; {t.get('cured_of_verifiable')} of the {t.get('verifiable')} that "
+                  f"pairs of reachable poses could also confirm); false alarms {t.get('false_alarms')} of "
                   f"{t.get('nothing_hidden')} plates with nothing hidden." if t else ""))
     det = doc.get("detectors") or {}
     keys = ("true_positive", "false_positive", "false_negative", "true_negative", "precision", "recall")

@@ -272,7 +272,10 @@ def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = Sen
                verification_views=len(r.verification_views), views=len(f.poses),
                gt_visible_first=_min_visible(f.gt_visibility_first), gt_visible_final=_min_visible(f.gt_visibility),
                gt_hidden_first=f.hidden_first, gt_hidden_final=f.hidden_final,
-               gt_reachable=f.gt_reachable, false_boundary_gt=f.hidden_first)
+               gt_reachable=f.gt_reachable, gt_verifiable=f.gt_verifiable,
+               gt_verifiable_fraction=_min_visible(f.gt_verifiable_visibility) if f.gt_verifiable_visibility else None,
+               gt_unconfirmable_max_mm=None if f.gt_unconfirmable_max_m is None else f.gt_unconfirmable_max_m * 1e3,
+               false_boundary_gt=f.hidden_first)
     row.update({f"det_{d.name}": d.fired for d in r.detectors})
     m = f.merged
     row.update(merged_boundary_mean_mm=m.get("boundary_mean_mm"), merged_boundary_covered=m.get("boundary_covered_frac"),
@@ -317,17 +320,32 @@ def outcome_counts(rows: list[dict], key=None) -> dict:
 
 def targets(rows: list[dict]) -> dict:
     """The issue's targets: silent = 0, errors = 0, cured >= 90 % of the plates whose stage-2 pose
-    hides part of the boundary and whose reachable poses see all of it, false alarms <= 2 % of the
-    plates where nothing is hidden."""
+    hides part of the boundary and whose reachable poses see all of it ("curable"), false alarms
+    <= 2 % of the plates where nothing is hidden.
+
+    "Cured" is the strict class: the final poses see the whole boundary *and* the loop verified
+    it. Beside it: ``seen_all_of_curable`` (cured or unconfirmed: the final poses see it all,
+    whether or not the loop could confirm it, the issue's own wording of "cured"), and the cured
+    share of the curable plates whose boundary pairs of reachable poses could also confirm
+    (``gt_verifiable``: no stretch longer than the verdict links over is seen from too narrow a
+    window of viewpoints to be confirmed, ``scoring.verifiable_visibility``)."""
     c = outcome_counts(rows)
     curable = [r for r in rows if r.get("gt_hidden_first") and r.get("gt_reachable")]
+    verifiable = [r for r in curable if r.get("gt_verifiable")]
     clean = [r for r in rows if r.get("outcome") != "error" and not r.get("gt_hidden_first")]
     cured = sum(r["outcome"] == "cured" for r in curable)
+    seen_all = sum(r["outcome"] in ("cured", "unconfirmed") for r in curable)
+    cured_v = sum(r["outcome"] == "cured" for r in verifiable)
     fa = sum(r["outcome"] == "false_alarm" for r in clean)
-    cured_frac = cured / len(curable) if curable else None
-    fa_frac = fa / len(clean) if clean else None
+
+    def frac(a, b):
+        return a / len(b) if b else None
+    cured_frac, fa_frac = frac(cured, curable), frac(fa, clean)
     return {"silent": c["silent"], "errors": c["error"], "curable": len(curable), "cured_of_curable": cured,
-            "cured_frac": cured_frac, "nothing_hidden": len(clean), "false_alarms": fa, "false_alarm_frac": fa_frac,
+            "cured_frac": cured_frac, "seen_all_of_curable": seen_all, "seen_all_frac": frac(seen_all, curable),
+            "verifiable": len(verifiable), "cured_of_verifiable": cured_v,
+            "cured_of_verifiable_frac": frac(cured_v, verifiable),
+            "nothing_hidden": len(clean), "false_alarms": fa, "false_alarm_frac": fa_frac,
             "met": {"silent = 0": c["silent"] == 0, "errors = 0": c["error"] == 0,
                     "cured >= 90 %": None if cured_frac is None else cured_frac >= 0.9,
                     "false alarms <= 2 %": None if fa_frac is None else fa_frac <= 0.02}}

@@ -48,7 +48,12 @@ from platebench.bench.run.sensing.records import (
     hidden,
     outcome_class,
 )
-from platebench.bench.run.sensing.scoring import final_visibility, merged_accuracy, stage3_accuracy
+from platebench.bench.run.sensing.scoring import (
+    final_visibility,
+    merged_accuracy,
+    reach_visibility,
+    stage3_accuracy,
+)
 from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, SimulatedSensor, measure_outline
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.pipeline import Reconstruction, passive_stereo, projector_feature_rays, reconstruct
@@ -87,6 +92,7 @@ from platebench.reconstruction.strategy.poses import (
     validate_pose,
 )
 from platebench.reconstruction.strategy.refutation import membrane_mesh, refute
+from platebench.reconstruction.strategy.sides import FrontSide, front_side
 from platebench.reconstruction.strategy.surface_model import (
     SURFACE_EDGE_ROWS,
     SURFACE_MAX_EDGE_M,
@@ -184,14 +190,12 @@ class Measurements:
     pair only).
 
     Two membranes per pose: ``membranes`` (the whole outline triangulated in the pose's image, the
-    stage-2 pose's with stage 3's centres) feed the planner's model and refutation, as before the
-    poses measured squares; ``surfaces`` (row-matched outline points and the pose's checked square
-    centres, no chords, ``_membrane``) are the merged reconstruction's surface. Feeding the
-    squares to the verdict's model too was measured on the study (61 plates): 7 outcomes changed
-    (3 plates cured that were not, 4 no longer cured: 14/23 against 15/23); refuting against the
-    chord-free ``surfaces`` instead of the outline membranes changed 1 (cylinder 300 down axis 60,
-    cured -> unconfirmed: 14/23). So the verdict stays on the outlines and the squares are
-    measurements of the surface only."""
+    stage-2 pose's with stage 3's centres) feed the planner's surface model; ``surfaces``
+    (row-matched outline points and the pose's checked square centres, no chords, ``_membrane``)
+    are the merged reconstruction's surface and what refutation casts against (``refutation``
+    module doc: the outline membranes' chords refuted true rims of concave plates). The square
+    centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
+    the sheet neither confirms nor is confirmed."""
 
     def __init__(self, first: FirstStages, rays_for, active_views: bool = True):
         v = replace(first.view2, active=stage3_active(first, rays_for))
@@ -201,8 +205,9 @@ class Measurements:
         self.membranes = [view_membrane(v.outline, None if rec is None else rec.uv_left,
                                         None if rec is None else rec.points)]
         self.surfaces = [_membrane(v)]
-        self.meshes = [membrane_mesh(self.membranes[0])]  # for refutation, one per pose, built once
+        self.meshes = [membrane_mesh(self.surfaces[0])]  # for refutation, one per pose, built once
         self.model: SurfaceModel | None = None
+        self.front: FrontSide | None = None
         self.verdict: BoundaryVerdict | None = None
 
     @property
@@ -232,13 +237,20 @@ class Measurements:
             self.views.append(view)
             self.membranes.append(view_membrane(view.outline))
             self.surfaces.append(_membrane(view))
-            self.meshes.append(membrane_mesh(self.membranes[-1]))
+            self.meshes.append(membrane_mesh(self.surfaces[-1]))
+
+    def front_side(self) -> FrontSide:
+        """The plate's front (``sides``) over every pose's checked square centres (outline points
+        are left out: along an edge their neighbours lie on a line, which fits no plane)."""
+        return front_side(np.vstack([a.points for a in self.actives]))
 
     def update(self) -> BoundaryVerdict:
-        """Rebuild the surface model and the verdict from every pose measured so far (confirmations
-        that other poses see as the inside of the plate refuted first, ``refutation``)."""
+        """Rebuild the surface model and the verdict from every pose measured so far (points a pose
+        sees from behind the sheet left out, ``sides``; confirmations that other poses see as the
+        inside of the plate refuted, ``refutation``)."""
         self.model = SurfaceModel.build(self.membranes)
-        confirmed = confirm(self.outlines)
+        self.front = self.front_side()
+        confirmed = confirm(self.outlines, front=[self.front.side(o.points, o.eye) >= 0 for o in self.outlines])
         self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
         return self.verdict
 
@@ -314,7 +326,7 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
     cands = candidate_views(first.pose2, g, e, options.reach, measured, cam, B, paper)
     cures: list[PlannedView] = []
     while True:
-        d = decide(m.verdict, m.outlines, m.poses, cands, m.model, B, options.max_views, options.reach, cam)
+        d = decide(m.verdict, m.outlines, m.poses, cands, m.model, B, options.max_views, options.reach, cam, m.front)
         if d.kind == "view" and len(cures) >= options.max_cures:
             d = Decision("stop", None, f"{len(cures)} cures applied, the most allowed; " + m.verdict.reason,
                          d.gaps_targeted)
@@ -354,13 +366,18 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
            for u in verdict.unconfirmed if not u.covered])
     outcome = outcome_class(hidden(gt_first), hidden(gt_final), verdict.verified,
                             bool(cures) or not verdict.verified)
-    reach_vis = gt_visibility_dict(sensor.boundary_visible_from(reach_poses)) if options.ground_truth_reach else None
+    reach_vis = verif_vis = unconfirmable = None
+    if options.ground_truth_reach:
+        reach, verif = reach_visibility(P, reach_poses, sensor.baseline_m, sensor.boundary_visibility_masks(reach_poses))
+        reach_vis, verif_vis = gt_visibility_dict(reach), gt_visibility_dict(verif)
+        unconfirmable = max([h["length_m"] for h in verif["left"].hidden_segments], default=0.0)
     accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None
     merged = merged_accuracy(sensor.plate, m.merged())
     merged["poses"] = len(m.views)
     return FinalRecord(first.pose2, "stage3", None if rec is None else rec.false_boundary,
                        0 if rec is None else len(rec.points), verdict.verified, verdict.reason, unverified,
-                       tuple(v.name for v in m.views), gt_final, gt_first, accuracy, merged, outcome, reach_vis)
+                       tuple(v.name for v in m.views), gt_final, gt_first, accuracy, merged, outcome, reach_vis,
+                       verif_vis, unconfirmable)
 
 
 def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = SensingOptions(),

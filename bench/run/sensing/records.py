@@ -12,7 +12,7 @@ from platebench.bench.config import SampleConfig
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 from platebench.reconstruction.strategy.detectors import DetectorResult
-from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline
+from platebench.reconstruction.strategy.multiview import OUTLINE_BRIDGE_M, BoundaryVerdict, ViewOutline
 from platebench.reconstruction.strategy.planner import MAX_CURE_VIEWS, MAX_VIEWS, PlannedView
 from platebench.reconstruction.strategy.poses import Reach, SensorPose
 
@@ -150,6 +150,10 @@ class FinalRecord:
     merged: dict
     outcome: str
     gt_reachable_visibility: dict | None = None  # union over every reachable candidate pose (scoring only)
+    # the boundary points some pair of those poses could confirm (``scoring.verifiable_visibility``),
+    # and the longest stretch of boundary no pair could (metres)
+    gt_verifiable_visibility: dict | None = None
+    gt_unconfirmable_max_m: float | None = None
 
     @property
     def hidden_first(self) -> bool:
@@ -166,6 +170,15 @@ class FinalRecord:
         """Ground truth: the reachable candidate poses together see the whole boundary (None: not cast)."""
         return None if self.gt_reachable_visibility is None else not hidden(self.gt_reachable_visibility)
 
+    @property
+    def gt_verifiable(self) -> bool | None:
+        """Ground truth: pairs of reachable candidate poses could confirm the boundary by the
+        verdict's rule, but for stretches no longer than the verdict links over along a measured
+        outline (``multiview.OUTLINE_BRIDGE_M``) (None: not cast)."""
+        if self.gt_unconfirmable_max_m is None:
+            return None
+        return self.gt_unconfirmable_max_m <= OUTLINE_BRIDGE_M
+
     def to_dict(self) -> dict:
         return {"pose": self.pose.to_dict(), "stage_dir": self.stage_dir,
                 "false_boundary": None if self.false_boundary is None else self.false_boundary.to_dict(),
@@ -175,7 +188,10 @@ class FinalRecord:
                 "gt_visibility_first": self.gt_visibility_first, "accuracy": self.accuracy, "merged": self.merged,
                 "outcome": self.outcome, "outcome_text": OUTCOME_TEXT[self.outcome],
                 "gt_hidden_first": self.hidden_first, "gt_hidden_final": self.hidden_final,
-                "gt_reachable_visibility": self.gt_reachable_visibility, "gt_reachable": self.gt_reachable}
+                "gt_reachable_visibility": self.gt_reachable_visibility, "gt_reachable": self.gt_reachable,
+                "gt_verifiable_visibility": self.gt_verifiable_visibility, "gt_verifiable": self.gt_verifiable,
+                "gt_unconfirmable_max_mm": None if self.gt_unconfirmable_max_m is None
+                else round(self.gt_unconfirmable_max_m * 1e3, 1)}
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,8 @@ from platebench.evaluation.surface_metrics import score_surface
 from platebench.evaluation.point_metrics import closest_point_on_mesh
 from platebench.reconstruction.strategy.active_views import MergedReconstruction
 from platebench.reconstruction.strategy.surface_model import sample_triangles
-from platebench.scenes.render.ground_truth import combined_visibility
+from platebench.reconstruction.strategy.multiview import CONFIRM_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RAD
+from platebench.scenes.render.ground_truth import BoundaryVisibility, combined_visibility, summarise_visibility
 
 TRIANGULATED_PX = 3.0  # a true boundary point lies on a pose's measured outline within this (left image)
 TRUE_BOUNDARY_STEP_M = 0.5e-3  # the true boundary is sampled this finely (by arc length) for the merged scores
@@ -78,3 +79,51 @@ def final_visibility(true_boundary: np.ndarray, measured_views) -> dict:
         for c in ("left", "right"):
             masks[c].append(np.asarray(v.gt_visibility[c].visible, bool) & tri)
     return {c: combined_visibility(P, masks[c]) for c in ("left", "right")}
+
+
+def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: np.ndarray,
+                          masks: dict) -> BoundaryVisibility:
+    """Which points of the true boundary (N,3, closed) a pair of the poses could confirm, by ground
+    truth: both cameras of both poses see the point (``masks``: camera -> (P, N) bool), their
+    rays differ by ``CONFIRM_ANGLE_RAD`` and each pose lies ``CONFIRM_SLIDE_ANGLE_RAD`` out of
+    the plane through the other pose and the boundary's true tangent there
+    (``multiview.confirm``'s rule, on the true edge: rays from the mid-baseline points ``centers``
+    (P,3), planes and slides from the left cameras' centres ``eyes`` (P,3)). A boundary point no pair can confirm is one that only a narrower window of viewpoints
+    sees (a 300-degree curl's tips within the robot's reach): the loop can see it, and says it
+    cannot verify it."""
+    P = np.asarray(true_boundary, float)
+    C = np.asarray(centers, float)
+    E = np.asarray(eyes, float)
+    t = np.roll(P, -1, axis=0) - np.roll(P, 1, axis=0)
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-15)
+    both = np.asarray(masks["left"], bool) & np.asarray(masks["right"], bool)  # (Pn, N)
+
+    def rays(X):  # (Pn, N, 3) unit, point -> pose
+        r = X[:, None, :] - P[None, :, :]
+        return r / np.linalg.norm(r, axis=2, keepdims=True)
+    rc, r = rays(C), rays(E)
+    n = np.cross(r, t[None])  # each pose's plane through the true tangent
+    n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-15)
+    ok = np.zeros(len(P), bool)
+    sin_slide, cos_angle = np.sin(CONFIRM_SLIDE_ANGLE_RAD), np.cos(CONFIRM_ANGLE_RAD)
+    for a in range(len(C)):
+        if not both[a].any():
+            continue
+        pair = both[a][None, :] & both  # (Pn, N)
+        slide_b = np.abs(np.einsum("pnk,nk->pn", r, n[a]))  # pose b out of a's plane
+        slide_a = np.abs(np.einsum("pnk,pnk->pn", n, np.broadcast_to(r[a], r.shape)))  # a out of b's
+        turned = np.einsum("pnk,nk->pn", rc, rc[a]) <= cos_angle
+        ok |= (pair & turned & (slide_b >= sin_slide) & (slide_a >= sin_slide)).any(axis=0)
+    return summarise_visibility(P, ok)
+
+
+def reach_visibility(true_boundary: np.ndarray, poses, baseline_m: float, masks: dict) -> tuple[dict, dict]:
+    """Ground truth over reachable ``poses`` (``SensorPose``; ``masks``: camera -> (P, N) bool,
+    ``SimulatedSensor.boundary_visibility_masks``): (camera -> the boundary seen by that camera of
+    some pose, camera -> the boundary some pair of poses could confirm, ``verifiable_visibility``,
+    the same for both cameras)."""
+    P = np.asarray(true_boundary, float)
+    seen = {c: combined_visibility(P, list(m)) for c, m in masks.items()}
+    v = verifiable_visibility(P, np.array([p.center for p in poses]),
+                              np.array([p.camera_centers(baseline_m)[0] for p in poses]), masks)
+    return seen, {"left": v, "right": v}

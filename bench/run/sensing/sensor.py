@@ -119,15 +119,22 @@ class SimulatedSensor:
                 active = ActivePoints.empty(name)
         return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility, active=active)
 
-    def boundary_visible_from(self, poses) -> dict:
-        """camera -> ``BoundaryVisibility`` of the true boundary from any of ``poses`` (that camera of
-        at least one pose sees the point; ground truth, scoring only). Updates the renderer's scene
-        parameters pose by pose; renders nothing."""
+    def boundary_visibility_masks(self, poses) -> dict:
+        """camera -> (P, N) bool: which true boundary points that camera of each of ``poses`` sees
+        (ground truth, scoring only). Updates the renderer's scene parameters pose by pose; renders
+        nothing."""
         masks = {"left": [], "right": []}
         for p in poses:
             self.renderer.set_scene(self.scene_at(p))
             caster = GroundTruthCaster(self.renderer)
             for c in ("left", "right"):
                 masks[c].append(np.asarray(caster.boundary_visibility(c).visible, bool))
+        n = len(self.plate.boundary)
+        return {c: np.array(m, bool).reshape(len(poses), n) for c, m in masks.items()}
+
+    def boundary_visible_from(self, poses) -> dict:
+        """camera -> ``BoundaryVisibility`` of the true boundary from any of ``poses`` (that camera of
+        at least one pose sees the point; ground truth, scoring only)."""
+        masks = self.boundary_visibility_masks(poses)
         P = np.asarray(self.plate.boundary, float)
-        return {c: combined_visibility(P, masks[c]) for c in ("left", "right")}
+        return {c: combined_visibility(P, list(m)) for c, m in masks.items()}

@@ -1,0 +1,136 @@
+"""Which side of the sheet a pose sees, from the measured surface alone.
+
+The bench's plate is a two-sided sheet of no thickness: seen from behind, its edge shows where the
+front view shows it, and two poses that both see it from behind agree on it. Ground truth, like a
+plate of real thickness (whose back edge is another curve), counts a boundary point seen only
+from behind as hidden. So a confirmation counts only where both poses see the plate's front.
+
+The front is found the way surface reconstruction orients point clouds (Hoppe et al., "Surface
+reconstruction from unorganized points", SIGGRAPH 1992): a normal at each measured surface point
+from the plane through its nearest neighbours, the normals made to agree along a minimum spanning
+tree of the neighbour graph (weighted by how much neighbouring normals disagree), starting from a
+seed whose front is known: the plate lies on the table front up, and every deformation the bench
+makes keeps the plate's middle level, so the measured point whose normal is nearest the vertical
+is front where its normal points up. (A 300-degree curl's tips turn their backs up, at 30 degrees
+from the vertical; the middle of the plate, level, wins. The stage-2 sensor is no seed: on such a
+curl its centre line passes between the tips, whose backs it sees.) The orientation is carried
+over the surface, not taken from any one pose: a pose can see the front of one part of a curl and
+the back of another.
+
+World frame, metres. Nothing here renders or reads ground truth.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+from scipy.spatial import cKDTree
+
+NEIGHBOURS = 10  # points in each normal's plane fit
+JOIN_M = 12e-3  # points this close are neighbours in the spanning tree (the layers of a curl stay apart)
+SIDE_CANDIDATES = 8  # nearest surface points tried for a point's side ...
+SAME_SHEET_M = 3e-3  # ... the first whose tangent plane passes this close to it
+TANGENTIAL_RAD = float(np.radians(30.0))  # neighbours joined only along the sheet (two layers face across)
+SEED_VERTICAL_COS = 0.95
+GRAZING_RAD = float(np.radians(10.0))  # a side is called only this far from grazing
+GRAZING_SIN = float(np.sin(GRAZING_RAD))  # normals this near the vertical vote on which way is up
+SIDE_RADIUS_M = 15e-3  # a point's side is read from the nearest measured surface point this close
+
+
+@dataclass(frozen=True)
+class FrontSide:
+    """Measured surface points (S,3) with unit normals (S,3) toward the plate's front; ``known``
+    (S,) False where the point's normal could not be oriented (not joined to the seed)."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    known: np.ndarray
+
+    def normals_at(self, points: np.ndarray) -> np.ndarray:
+        """(N,3) the front's unit normal at ``points`` (N,3): that of the nearest oriented surface
+        point within ``SIDE_RADIUS_M`` whose tangent plane passes within ``SAME_SHEET_M`` of the
+        point (on a tight fold the nearest measured point can lie on the other face); NaN where
+        there is none."""
+        P = np.atleast_2d(np.asarray(points, float))
+        out = np.full((len(P), 3), np.nan)
+        if not self.known.any() or not len(P):
+            return out
+        S, N = self.points[self.known], self.normals[self.known]
+        k = min(SIDE_CANDIDATES, len(S))
+        d, i = cKDTree(S).query(P, k=k, distance_upper_bound=SIDE_RADIUS_M)
+        d, i = d.reshape(len(P), k), i.reshape(len(P), k)
+        ok = np.isfinite(d)
+        ii = np.where(ok, i, 0)
+        on_sheet = ok & (np.abs(np.einsum("nkj,nkj->nk", N[ii], P[:, None, :] - S[ii])) <= SAME_SHEET_M)
+        has = on_sheet.any(axis=1)
+        out[has] = N[ii[np.arange(len(P)), np.argmax(on_sheet, axis=1)]][has]
+        return out
+
+    def side(self, points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+        """(N,) +1 where a camera at ``eyes`` ((3,) or (N,3)) sees ``points`` (N,3) from the front,
+        -1 from behind, 0 unknown (``normals_at``) or within ``GRAZING_RAD`` of grazing (the
+        normal is read a few millimetres away, where a curl has turned by as much)."""
+        P = np.atleast_2d(np.asarray(points, float))
+        n = self.normals_at(P)
+        r = np.broadcast_to(np.asarray(eyes, float), P.shape) - P
+        with np.errstate(invalid="ignore"):
+            sin = np.einsum("ij,ij->i", n, r) / np.linalg.norm(r, axis=1)
+        out = np.zeros(len(P), int)
+        out[sin > GRAZING_SIN] = 1
+        out[sin < -GRAZING_SIN] = -1
+        return out
+
+
+def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
+    """Orient the normals of the measured surface ``points`` (S,3) toward the plate's front (module
+    doc). Each connected part (points within ``JOIN_M`` of one another) is made consistent from
+    its point whose normal is nearest ``up`` (the table's normal, world +Z); in the largest part,
+    which holds the plate's middle, the points whose normals are within ``SEED_VERTICAL_COS`` of
+    the vertical vote which way is up (the level middle against the few that a neighbourhood
+    straddling a curl's opening makes level). The other parts stay unknown: a flap folded over
+    the plate is level too, but faces down."""
+    P = np.asarray(points, float)
+    S = len(P)
+    if S < NEIGHBOURS:
+        return FrontSide(P, np.zeros((S, 3)), np.zeros(S, bool))
+    kd = cKDTree(P)
+    _, nn = kd.query(P, k=min(NEIGHBOURS, S))
+    W = P[nn] - P[nn].mean(axis=1, keepdims=True)
+    normals = np.linalg.eigh(np.einsum("ski,skj->sij", W, W))[1][:, :, 0]
+    pairs = kd.query_pairs(JOIN_M, output_type="ndarray")
+    known = np.zeros(S, bool)
+    if not len(pairs):
+        return FrontSide(P, normals, known)
+    rows, cols = pairs[:, 0], pairs[:, 1]
+    off = P[cols] - P[rows]
+    off /= np.linalg.norm(off, axis=1, keepdims=True)
+    along = np.maximum(np.abs(np.einsum("ij,ij->i", normals[rows], off)),
+                       np.abs(np.einsum("ij,ij->i", normals[cols], off)))
+    keep = along <= np.sin(TANGENTIAL_RAD)  # one sheet: neighbours lie along it, not across
+    rows, cols = rows[keep], cols[keep]
+    w = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + 1e-6
+    sym = minimum_spanning_tree(coo_matrix((w, (rows, cols)), shape=(S, S)))
+    sym = sym + sym.T
+    u = np.asarray(up, float)
+    todo = np.ones(S, bool)
+    parts = []
+    while todo.any():  # each connected part of the surface, from its most level point
+        seed = int(np.nonzero(todo)[0][np.argmax(np.abs(normals[todo] @ u))])
+        order, pred = breadth_first_order(sym, seed, directed=False, return_predecessors=True)
+        for i in order[1:]:
+            if normals[i] @ normals[pred[i]] < 0:
+                normals[i] = -normals[i]
+        todo[order] = False
+        parts.append(order)
+    main = max(parts, key=len)  # the plate's middle: its level points vote which way is up
+    level = main[np.abs(normals[main] @ u) >= SEED_VERTICAL_COS]
+    if len(main) >= NEIGHBOURS and len(level):
+        if np.sum(np.sign(normals[level] @ u)) < 0:
+            normals[main] = -normals[main]
+        known[main] = True
+    return FrontSide(P, normals, known)
+
+
+__all__ = ["FrontSide", "front_side", "NEIGHBOURS", "JOIN_M", "SIDE_RADIUS_M", "SEED_VERTICAL_COS"]
