@@ -155,3 +155,23 @@ def test_smoothed_points_average_the_row_matched_noise_and_leave_the_rest(seed):
 
     assert err(S[matched]) < 0.7 * err(noisy[matched])
     assert np.array_equal(S[~matched], noisy[~matched])
+
+
+@pytest.mark.parametrize("overshoot_mm, jump_mm", [(3.0, 5.0), (2.5, 4.5), (3.5, 5.5)])
+def test_a_piece_overshooting_a_corner_after_a_jump_links_to_the_next_edge(overshoot_mm, jump_mm):
+    """a: the bottom edge to x = 53 - jump mm, then one point ``overshoot_mm`` past the corner
+    (a row-matched piece's last point, after a bridged unconfirmed jump, as in the study); b: the
+    right edge up from the corner and round. The next edge's points lie nearest to a's point before
+    the jump, more than LINK_M back from a's end, but beside the end, not behind it: they lead on."""
+    end_x = L / 2 + overshoot_mm * 1e-3
+    before = BOTTOM & (P[:, 0] <= end_x - jump_mm * 1e-3 + 1e-9)
+    k = int(np.nonzero(before)[0][-1])
+    pa = np.vstack([P[:k + 1], [[end_x, -W / 2, 0.0]], P[k + 1:][~BOTTOM[k + 1:]]])
+    conf_a = np.zeros(len(pa), bool)
+    conf_a[:k + 2] = BOTTOM[:k + 1].tolist() + [True]
+    conf_a[:k + 1] &= P[:k + 1, 0] >= -0.016
+    eye = np.array([0.0, 0.0, 0.4])
+    va = ViewOutline("a", pa, np.ones(len(pa), bool), eye, pa[:, :2] * 1e4, "synthetic")
+    vb = ViewOutline("b", P.copy(), np.ones(len(P), bool), eye, P[:, :2] * 1e4, "synthetic")
+    v = verify([va, vb], None, [conf_a, ~_bottom(-12.5, 50)])
+    assert v.verified and not v.gaps, v.reason
