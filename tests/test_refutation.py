@@ -13,9 +13,11 @@ from platebench.reconstruction.strategy.multiview import ViewOutline, verify
 from platebench.reconstruction.strategy.refutation import (
     REFUTE_DEPTH_M,
     REFUTE_MARGIN_PX,
+    free_space_faces,
     membrane_mesh,
     refute,
     seen_inside,
+    seen_outside,
 )
 from platebench.reconstruction.strategy.surface_model import view_membrane
 from platebench.scenes.camera import Camera
@@ -84,3 +86,50 @@ def test_refute_needs_one_membrane_per_view():
     v = _view("top", _rectangle(), (0.0, 0.0, 0.4))
     with pytest.raises(ValueError, match="1 membrane meshes for 2 views"):
         refute([v, v], [np.ones(len(v.points), bool)] * 2, [membrane_mesh(view_membrane(v))])
+
+
+@pytest.mark.parametrize("tilt_deg, distance", [(35.0, 0.4), (34.0, 0.405), (36.0, 0.395)])
+def test_points_beside_the_plate_are_seen_outside_and_points_on_or_above_it_are_not(tilt_deg, distance):
+    """Every point of the plate in view projects inside a pose's outline. Points 30 mm beside the
+    plate project outside it (the pose saw background there); points on the plate, 20 mm above or
+    below its middle (seen against it), and points within the pixel margin of the outline do not;
+    nor do points out of the frame or behind the camera, about which the pose saw nothing."""
+    views = [_view(f"pose {k}", _rectangle(), e) for k, e in enumerate(_eyes(tilt_deg, distance))]
+    on = np.array([[0.0, 0.0, 0.0], [0.03, 0.01, 0.0], [-0.04, -0.02, 0.0]])
+    beside = np.array([[0.08, 0.0, 0.0], [0.0, 0.06, 0.0], [-0.08, -0.05, 0.0]])
+    px_m = distance / 1000  # metres per pixel at the plate, f = 1000 px
+    near_edge = np.array([[0.05 + 0.5 * REFUTE_MARGIN_PX * px_m, 0.0, 0.0]])
+    for v in views:
+        assert not seen_outside(on, v).any()
+        middle = np.array([[0.0, 0.0, 0.0], [0.01, 0.005, 0.0]])
+        assert not seen_outside(middle + [0.0, 0.0, 0.02], v).any()
+        assert not seen_outside(middle - [0.0, 0.0, 0.02], v).any()
+        assert seen_outside(beside, v).all()
+        assert not seen_outside(near_edge, v).any()
+        assert not seen_outside(np.array([[5.0, 0.0, 0.0], [0.0, 0.0, 2.0]]), v).any()  # out of frame, behind
+    blind = ViewOutline("blind", views[0].points, views[0].matched, views[0].camera_center, views[0].image_points,
+                        "synthetic")
+    assert not seen_outside(beside, blind).any()
+
+
+@pytest.mark.parametrize("lift_m", [0.025, 0.03])
+def test_the_merged_surface_drops_the_faces_of_a_stretch_measured_off_the_plate(lift_m):
+    """A fourth pose's surface: the plate, with its outline's corner stretch measured ``lift_m``
+    too far along its own rays (a mismatched stretch, which then lies beyond the plate's edge:
+    beside it in the other poses' images). The three other poses saw background there: the faces
+    touching it are dropped, the rest kept; the three true surfaces keep every face."""
+    views = [_view(f"pose {k}", _rectangle(), e) for k, e in enumerate(_eyes())]
+    bad = _rectangle()
+    lift = (bad[:, 0] > 0.035) & (bad[:, 1] > 0.015)
+    eye = np.array([-0.1, -0.1, 0.38])
+    ray = bad[lift] - eye
+    bad[lift] += lift_m * ray / np.linalg.norm(ray, axis=1, keepdims=True)  # along the pose's own rays
+    views.append(_view("mismatched", bad, eye))
+    membranes = [view_membrane(v) for v in views]
+    keep = free_space_faces(membranes, views)
+    assert all(k.all() for k in keep[:3])
+    faces = np.asarray(membranes[3].faces)
+    lifted = np.nonzero(np.linalg.norm(membranes[3].vertices[:, None] - bad[lift][None], axis=2).min(axis=1) < 1e-9)[0]
+    touching = np.isin(faces, lifted).any(axis=1)
+    assert touching.any() and not keep[3][touching].any()
+    assert keep[3][~touching].all()

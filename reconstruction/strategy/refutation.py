@@ -92,6 +92,50 @@ def seen_inside(points: np.ndarray, view: ViewOutline, mesh) -> np.ndarray:
     return out
 
 
+def seen_outside(points: np.ndarray, view: ViewOutline) -> np.ndarray:
+    """(N,) True where pose ``view`` saw background where ``points`` ((N,3), world) project: at
+    least ``REFUTE_MARGIN_PX`` outside its outline and inside its image frame, in front of its
+    camera. Every point of the plate in a pose's view projects inside the plate's outline there,
+    so such a point is not on the plate (the visual hull). False where the pose has no camera."""
+    P = np.atleast_2d(np.asarray(points, float))
+    out = np.zeros(len(P), bool)
+    cam = view.left
+    if cam is None or len(P) == 0 or len(view.points) < 3:
+        return out
+    uv = cam.project(P)
+    m = REFUTE_MARGIN_PX
+    framed = np.all(np.isfinite(uv), axis=1) & (cam.depth(P) > 0)
+    framed &= (uv[:, 0] >= m) & (uv[:, 0] <= cam.width - 1 - m) & (uv[:, 1] >= m) & (uv[:, 1] <= cam.height - 1 - m)
+    j = np.nonzero(framed)[0]
+    if len(j):
+        outside = ~points_in_polygon(uv[j], view.image_points)
+        outside &= cKDTree(view.image_points).query(uv[j])[0] >= m
+        out[j[outside]] = True
+    return out
+
+
+def free_space_faces(membranes: list, views: list[ViewOutline], poses_needed: int = REFUTE_POSES) -> list[np.ndarray]:
+    """Per pose, (F,) bool: the faces of its membrane (``surface_model.Membrane``) to keep in the
+    merged surface: those none of whose vertices at least ``poses_needed`` other poses saw as
+    background (``seen_outside``). A row-matched stretch of outline that stereo put off the plate
+    (a 6-pixel spike of a concave trough's outline matched 65 mm off it, in the study) lies
+    outside the other poses' outlines. Measured on the study's 61 plates: merged surface RMS
+    median 0.65 -> 0.58 mm, worst 4.53 -> 1.47 mm, coverage median unchanged (1.00; one plate
+    0.912 -> 0.863). A test along the rays as well (a vertex inside another pose's outline with
+    that pose's measured surface 10 mm or more behind it) lowered the RMS of a few more plates by
+    up to 0.15 mm (worst 1.43 mm, median unchanged) for 37 s more over the study, which runs close
+    to its 15-minute budget: left out. Same order for both lists."""
+    keep = []
+    for k, mb in enumerate(membranes):
+        count = np.zeros(len(mb.vertices), int)
+        for m, vm in enumerate(views):
+            if m != k and len(mb.vertices):
+                count += seen_outside(mb.vertices, vm)
+        faces = np.asarray(mb.faces, int).reshape(-1, 3)
+        keep.append(~np.any(count[faces] >= poses_needed, axis=1))
+    return keep
+
+
 def refute(views: list[ViewOutline], confirmed: list[np.ndarray], meshes: list,
            poses_needed: int = REFUTE_POSES) -> list[np.ndarray]:
     """Per pose, (N,) bool: the confirmed points that at least ``poses_needed`` other poses see as
@@ -113,4 +157,5 @@ def refute(views: list[ViewOutline], confirmed: list[np.ndarray], meshes: list,
     return out
 
 
-__all__ = ["refute", "seen_inside", "membrane_mesh", "REFUTE_MARGIN_PX", "REFUTE_OFF_OUTLINE_M", "REFUTE_DEPTH_M", "REFUTE_POSES"]
+__all__ = ["refute", "seen_inside", "seen_outside", "free_space_faces", "membrane_mesh", "REFUTE_MARGIN_PX",
+           "REFUTE_OFF_OUTLINE_M", "REFUTE_DEPTH_M", "REFUTE_POSES"]

@@ -91,7 +91,7 @@ from platebench.reconstruction.strategy.poses import (
     stage2_pose,
     validate_pose,
 )
-from platebench.reconstruction.strategy.refutation import membrane_mesh, refute
+from platebench.reconstruction.strategy.refutation import free_space_faces, membrane_mesh, refute
 from platebench.reconstruction.strategy.sides import FrontSide, front_side
 from platebench.reconstruction.strategy.surface_model import (
     SURFACE_EDGE_ROWS,
@@ -229,8 +229,12 @@ class Measurements:
         return [v.active if v.active is not None else ActivePoints.empty(v.name) for v in self.views]
 
     def merged(self) -> MergedReconstruction:
-        """Every pose's measurements in one reconstruction (``active_views.merge``)."""
-        return merge(self.verdict.merged, self.actives, self.surfaces)
+        """Every pose's measurements in one reconstruction (``active_views.merge``); of each
+        pose's surface, the faces no two other poses saw as background (``refutation.free_space_faces``:
+        a mismatched stretch of outline off the plate)."""
+        keep = free_space_faces(self.surfaces, self.outlines)
+        surfaces = [replace(s, faces=np.asarray(s.faces, int).reshape(-1, 3)[k]) for s, k in zip(self.surfaces, keep)]
+        return merge(self.verdict.merged, self.actives, surfaces)
 
     def add(self, view: PassiveView) -> None:
         if view.outline is not None:
