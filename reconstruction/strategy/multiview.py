@@ -236,12 +236,10 @@ def contour_planes(view: ViewOutline) -> np.ndarray:
     through the mid-baseline point containing the 3D direction."""
     P = np.asarray(view.points, float)
     if view.left is not None and len(P) >= 3:
-        cam = view.left
-        t = image_tangents(view.image_points)
-        Kinv = np.linalg.inv(cam.K)
-        ray = np.column_stack([view.image_points, np.ones(len(P))]) @ Kinv.T @ cam.R
-        along = np.column_stack([t, np.zeros(len(P))]) @ Kinv.T @ cam.R
-        n = np.cross(ray, along)
+        uv = np.asarray(view.image_points, float)
+        _, ray = view.left.rays(uv)
+        _, ahead = view.left.rays(uv + image_tangents(uv))  # the tangent line's pixel one step on
+        n = np.cross(ray, ahead)
     else:
         n = np.cross(P - view.camera_center, outline_directions(P))
     norm = np.linalg.norm(n, axis=1, keepdims=True)

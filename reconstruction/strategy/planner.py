@@ -297,9 +297,8 @@ def outside_points(view: ViewOutline, idx: np.ndarray) -> np.ndarray:
     n2 = np.column_stack([-t[:, 1], t[:, 0]])
     out = np.where(points_in_polygon(uv + n2 * OUTSIDE_PX, view.image_points)[:, None], -n2, n2)
     uv_out = uv + out * OUTSIDE_PX
-    z = cam.depth(P)
-    ray = np.column_stack([uv_out, np.ones(len(P))]) @ np.linalg.inv(cam.K).T  # camera frame, z = 1
-    return (ray * z[:, None] - cam.t) @ cam.R
+    c, d = cam.rays(uv_out)
+    return c + d * (cam.depth(P) / (d @ cam.R[2]))[:, None]  # at the point's depth along the optical axis
 
 
 def _seen_by(pose: SensorPose, points: np.ndarray, normals: np.ndarray, model: SurfaceModel,

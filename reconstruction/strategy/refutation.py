@@ -103,13 +103,11 @@ def seen_outside(points: np.ndarray, view: ViewOutline) -> np.ndarray:
     if cam is None or len(P) == 0 or len(view.points) < 3:
         return out
     uv = cam.project(P)
-    m = REFUTE_MARGIN_PX
-    framed = np.all(np.isfinite(uv), axis=1) & (cam.depth(P) > 0)
-    framed &= (uv[:, 0] >= m) & (uv[:, 0] <= cam.width - 1 - m) & (uv[:, 1] >= m) & (uv[:, 1] <= cam.height - 1 - m)
+    framed = np.all(np.isfinite(uv), axis=1) & (cam.depth(P) > 0) & cam.in_image(uv, margin=REFUTE_MARGIN_PX)
     j = np.nonzero(framed)[0]
     if len(j):
         outside = ~points_in_polygon(uv[j], view.image_points)
-        outside &= cKDTree(view.image_points).query(uv[j])[0] >= m
+        outside &= cKDTree(view.image_points).query(uv[j])[0] >= REFUTE_MARGIN_PX
         out[j[outside]] = True
     return out
 
