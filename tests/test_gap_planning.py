@@ -188,3 +188,38 @@ def test_decide_aims_at_the_unconfirmed_edges_and_the_aimed_view_closes_the_loop
     assert after.verified, after.reason
     # without the aimed candidates (no reach given) and no others, it stops and names the gaps
     assert decide(v, views, poses, [], model, 0.1).kind == "stop"
+
+
+def _planned(name, eye):
+    from platebench.reconstruction.strategy.planner import PlannedView
+    return PlannedView(name, SensorPose(np.asarray(eye, float), np.zeros(3), np.array([0.0, 1.0, 0.0])), "cure",
+                       "multi-view", name)
+
+
+@pytest.mark.parametrize("grazing_deg, distance", [(80.0, 0.4), (79.0, 0.405), (81.0, 0.395)])
+def test_a_grazing_view_is_chosen_to_confirm_only_when_no_steeper_view_would(grazing_deg, distance):
+    """The poses of the aimed-view case leave the edges along y unconfirmed. A candidate turned
+    ``grazing_deg`` about y sees the plate about 10 degrees above its surface: below the margin
+    asked of a view (``FRONT_MARGIN_RAD``, 15 degrees) but above ``GRAZING_FRONT_MARGIN_RAD``.
+    ``decide`` takes it (and says so) only when no candidate confirms from higher up; the outline
+    it then measures closes the loop. A view 3 degrees above the surface is never taken."""
+    from platebench.reconstruction.strategy.planner import FRONT_MARGIN_RAD, GRAZING_FRONT_MARGIN_RAD
+    assert GRAZING_FRONT_MARGIN_RAD < math.radians(90.0 - grazing_deg - 1.5) < FRONT_MARGIN_RAD
+    P = _rectangle()
+    eyes = [_eye(distance=distance), _eye(35.0, distance=distance), _eye(0.0, 10.0, distance=distance)]
+    views = [_view(f"pose {k}", P, e) for k, e in enumerate(eyes)]
+    poses = [SensorPose(e, np.zeros(3), np.array([1.0, 0.0, 0.0])) for e in eyes]
+    v = verify(views)
+    assert not v.verified and v.gaps
+    model = SurfaceModel.build([view_membrane(o) for o in views])
+    grazing = _planned("grazing", _eye(0.0, grazing_deg, distance=distance))
+    steep = _planned("steep", _eye(0.0, 55.0, distance=distance))
+    flat = _planned("flat", _eye(0.0, 87.0, distance=distance))
+    d = decide(v, views, poses, [grazing], model, 0.1)
+    assert d.kind == "view" and d.view.name == "grazing" and "grazing view" in d.view.reason, d.reason
+    assert "(confirm: 0)" not in d.reason
+    after = verify(views + [_view("grazing", P, d.view.pose.center)])
+    assert after.verified, after.reason
+    d2 = decide(v, views, poses, [grazing, steep], model, 0.1)
+    assert d2.view.name == "steep" and "grazing" not in d2.view.reason
+    assert decide(v, views, poses, [flat], model, 0.1).kind == "stop"

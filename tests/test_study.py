@@ -75,7 +75,8 @@ def test_detection_score_skips_unknown_cases():
 def test_study_cli_refuses_bad_flags_and_writes_nothing(tmp_path):
     for flags, msg in ((["--bend", "0:400:10"], "--bend value 360 is out of range: allowed 0 to 350"),
                        (["--families", "cube"], "--families value 'cube' is unknown"),
-                       (["--limit", "0"], "--limit = 0 is out of range")):
+                       (["--limit", "0"], "--limit = 0 is out of range"),
+                       (["--workers", "0"], "--workers = 0 is out of range: allowed 1 to 64")):
         p = run_cli("study", "false-boundary", "--out", tmp_path / "t", *flags)
         assert p.returncode == 2 and msg in p.stderr, p.stderr
     assert not (tmp_path / "t").exists()
@@ -83,11 +84,13 @@ def test_study_cli_refuses_bad_flags_and_writes_nothing(tmp_path):
 
 @pytest.mark.render
 def test_a_small_study_runs_and_reports(tmp_path):
-    """Two plates through the CLI at 320 x 240: the flat plate is clean; study.json holds the rows,
-    outcome counts, detector scores and targets; the report draws the study section."""
+    """Two plates through the CLI at 320 x 240, two at a time (worker processes): the flat plate is
+    clean; study.json holds the rows in case order, outcome counts, detector scores and targets,
+    each row as the same plate run alone in this process gives it; the report draws the study
+    section."""
     out = tmp_path / "study"
     p = run_cli("study", "false-boundary", "--out", out, "--families", "flat,dome", "--limit", "2",
-                "--width", "320", "--spp", "2")
+                "--width", "320", "--spp", "2", "--workers", "2")
     assert p.returncode == 0, p.stderr
     doc = json.loads((out / "study.json").read_text())
     assert [r["family"] for r in doc["rows"]] == ["flat", "dome"]
@@ -96,10 +99,65 @@ def test_a_small_study_runs_and_reports(tmp_path):
     assert doc["outcomes"]["error"] == 0 and doc["targets"]["silent"] == 0
     assert set(doc["detectors"]["all"]) == {"counting_test", "arrays_disagree", "viewpoint_consistency",
                                             "occluding_contour", "end_tangents"}
-    assert "time:" in p.stdout and "targets:" in p.stdout and (out / "study.csv").is_file()
+    assert "time:" in p.stdout and "2 workers" in p.stdout and "targets:" in p.stdout and (out / "study.csv").is_file()
+    assert doc["settings"]["workers"] == 2
+    from platebench.bench.config import SampleConfig, SceneParams, parse_grid
+    from platebench.bench.run.study import run_study
+    from platebench.scenes.scene_spec import RenderSettings
+    base = SampleConfig(scene=SceneParams(width=320, height=240, pattern=parse_grid("6x12@12")),
+                        render=RenderSettings(spp=2, seed=0))
+    alone = run_study([c for c in study_cases() if c.family == "dome"][:1], base, workers=1).rows[0]
+    pooled = doc["rows"][1]
+    for k in ("case", "outcome", "cures", "views", "boundary_verified", "gt_visible_final", "merged_boundary_mean_mm",
+              "merged_surface_rms_mm", "merged_points"):
+        assert pooled[k] == alone[k], (k, pooled[k], alone[k])
     from platebench.bench.report.sensing import study_section
     sec = study_section(out, tmp_path / "plots")
     assert sec["figures"][0] == {"label": "plates", "value": 2}
     assert [t["title"] for t in sec["tables"]][:3] == ["Outcomes per family", "Outcomes per bend",
                                                        "Detectors: precision and recall"]
     assert all((tmp_path / "plots" / pl["file"]).is_file() for pl in sec["plots"])
+
+
+@pytest.mark.render
+def test_an_interrupted_study_keeps_its_finished_plates_and_resume_runs_the_rest(tmp_path):
+    """SIGTERM once the first plate is in the journal: exit 143, no output folder, the finished
+    plate kept (and said so). Without --resume or --overwrite the journal is refused; with other
+    settings it is refused; --resume runs only the other plate and writes the same rows a study
+    run at once writes; the journal is then gone."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from platebench.bench.run.journal import journal_path
+    out = tmp_path / "study"
+    flags = ["--families", "flat,dome", "--limit", "2", "--width", "320", "--spp", "2", "--workers", "1"]
+    proc = subprocess.Popen([sys.executable, "-m", "platebench", "study", "false-boundary", "--out", str(out), *flags],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    journal = journal_path(out)
+    t0 = time.time()
+    while time.time() - t0 < 300 and proc.poll() is None:
+        if journal.exists() and len(journal.read_text().splitlines()) >= 2:  # the header and one plate
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    assert "1 finished plates are kept in" in err and "--resume" in err
+    assert not out.exists() and journal.is_file()
+    p = run_cli("study", "false-boundary", "--out", out, *flags)
+    assert p.returncode == 2 and "finished plates of an interrupted study" in p.stderr and "--resume" in p.stderr
+    p = run_cli("study", "false-boundary", "--out", out, *flags[:-4], "--spp", "4", "--resume")
+    assert p.returncode == 2 and "other settings" in p.stderr and "spp" in p.stderr, p.stderr
+    p = run_cli("study", "false-boundary", "--out", out, *flags, "--resume")
+    assert p.returncode == 0, p.stderr
+    assert "resumed         1 plates" in p.stdout
+    doc = json.loads((out / "study.json").read_text())
+    assert doc["resumed_plates"] == 1 and [r["family"] for r in doc["rows"]] == ["flat", "dome"]
+    assert not journal.exists()
+    whole = tmp_path / "whole"
+    assert run_cli("study", "false-boundary", "--out", whole, *flags).returncode == 0
+    again = json.loads((whole / "study.json").read_text())
+    for a, b in zip(doc["rows"], again["rows"]):
+        assert {k: v for k, v in a.items() if k != "time_s"} == {k: v for k, v in b.items() if k != "time_s"}

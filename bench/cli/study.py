@@ -2,6 +2,7 @@
 each detector's precision and recall, the targets; the smallest hiding bend and the L formula."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams, parse_grid
@@ -16,6 +17,8 @@ DEFAULT_GRID = "6x12@12"
 MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
 MAX_PERTURB_AXIS_DEG = 10.0  # --perturb: small shifts only (the study's plates, moved a little)
 MAX_PERTURB_MM = 50.0
+DEFAULT_WORKERS = 2  # plates at once (study --workers)
+MAX_WORKERS = 64
 
 
 def add_parser(sub) -> None:
@@ -45,6 +48,13 @@ def add_parser(sub) -> None:
     p.add_argument("--width", type=int, default=640, help="image width in px (default 640; f scales with it)")
     p.add_argument("--spp", type=int, default=2, help="samples per pixel (default 2)")
     p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
+    p.add_argument("--resume", action="store_true",
+                   help="finish an interrupted study: the plates it finished (kept in OUT.journal.jsonl beside "
+                        "OUT, one line each as they finish) are not run again; the other settings must be the same")
+    p.add_argument("--workers", type=int, default=DEFAULT_WORKERS,
+                   help=f"plates run at once, each in its own process, the CPU cores shared among them (allowed 1 to "
+                        f"{MAX_WORKERS}; default {DEFAULT_WORKERS}: the loop's decisions use one core, its renders "
+                        "all it is given, so two plates at a time keep a 2-core machine busy; 1 runs in this process)")
     p.add_argument("--perturb", metavar="AXIS_DEG,DISTANCE_MM", default="0,0",
                    help="shift every plate a little to check that the rates are no knife-edge results: bend axes "
                         f"turned by AXIS_DEG (allowed -{MAX_PERTURB_AXIS_DEG:g} to {MAX_PERTURB_AXIS_DEG:g}; a fold "
@@ -69,6 +79,8 @@ def run(args) -> int:
         render = RenderSettings(spp=args.spp, seed=args.seed)  # its own checks, as 'render --seed' has them
     except ValueError as e:
         raise UserValueError(f"--{e}") from None
+    if not (1 <= args.workers <= MAX_WORKERS):
+        raise UserValueError(f"--workers = {args.workers} is out of range: allowed 1 to {MAX_WORKERS}")
     axis_deg, distance_mm = parse_perturb(args.perturb)
     cases = study_cases(bends)
     fams = [f.strip() for f in args.families.split(",") if f.strip()]
@@ -87,12 +99,27 @@ def run(args) -> int:
                         render=render)
     settings = {"bends_deg": bends, "families": fams, "grid": args.grid, "width_px": args.width,
                 "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
-                "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases)}
+                "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
+                "workers": args.workers}
+    from platebench.bench.run.journal import journal_path  # noqa: PLC0415
+
+    ran = 0
     with bar(len(cases), "study false-boundary", unit="plate") as pbar:
         def progress(row):
+            nonlocal ran
+            ran += 1
             pbar.update(1)
             pbar.write(f"{row['case']:38s} {row['outcome']:12s} {row['time_s']:6.1f} s")
-        doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends)
+        try:
+            doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
+                              args.resume)
+        except (KeyboardInterrupt, Exception):
+            if ran and journal_path(args.out).exists():
+                print(f"platebench: {ran} finished plates are kept in {journal_path(args.out)}; "
+                      "the same command with --resume runs the rest", file=sys.stderr)
+            raise
+    if doc.get("resumed_plates"):
+        print(f"resumed         {doc['resumed_plates']} plates from the journal of an interrupted run")
     for line in table_lines(doc):
         print(line)
     print(f"written         {args.out / 'study.json'}, {args.out / 'study.csv'}")
@@ -162,5 +189,8 @@ def table_lines(doc: dict) -> list[str]:
                    f"(cured or unconfirmed); {t['verifiable']} are verifiable by pairs of reachable poses (GT), of "
                    f"which {t['cured_of_verifiable']} cured")
     n = len(doc["rows"])
-    out.append(f"time: {doc['time_s']:.0f} s for {n} plates ({doc['time_s'] / max(n, 1):.1f} s per plate)")
+    w = doc.get("settings", {}).get("workers", 1)
+    each = sum(r.get("time_s") or 0.0 for r in doc["rows"])
+    out.append(f"time: {doc['time_s']:.0f} s for {n} plates ({doc['time_s'] / max(n, 1):.1f} s per plate; {w} "
+               f"worker{'s' if w != 1 else ''}, each plate's own run {each / max(n, 1):.1f} s on average)")
     return out

@@ -21,6 +21,7 @@ import numpy as np
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.atomic import staged_output, write_json, write_text
+from platebench.bench.run.journal import StudyJournal, case_key
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
@@ -30,6 +31,7 @@ from platebench.reconstruction.strategy.exploring import bending_curve, tangent_
 from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import scene_for_pose
+from platebench.version import __version__
 
 
 class VisibilityProbe:
@@ -373,23 +375,78 @@ class StudyResult:
 
 
 def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOptions = SensingOptions(),
-              progress=None, settings: dict | None = None, l_bends_deg=()) -> StudyResult:
-    """The sensing loop on every case (``study_row``); ``progress(row)`` after each. With
-    ``l_bends_deg``: also the smallest hiding bend and the L formula at those convex bends."""
+              progress=None, settings: dict | None = None, l_bends_deg=(), workers: int = 1,
+              done: dict[int, dict] | None = None, record=None) -> StudyResult:
+    """The sensing loop on every case (``study_row``); ``progress(row)`` after each, in the order
+    they finish. With ``l_bends_deg``: also the smallest hiding bend and the L formula at those
+    convex bends. ``workers`` > 1: the plates run in that many spawned processes, the CPU cores
+    shared between their renderers (``_study_rows``); rows come back in case order either way, and
+    each row's figures are the same (every plate is its own deterministic run). ``done``: case
+    index -> a row already run (an interrupted study's journal, ``bench.run.journal``), not run
+    again; ``record(index, row)``: told of each row as it finishes."""
     t0 = time.perf_counter()
-    rows = []
-    for case in cases:
-        row = study_row(case, base, options)
-        rows.append(row)
+    if workers < 1:
+        raise ValueError(f"workers = {workers} is out of range: allowed >= 1")
+    done = dict(done or {})
+    todo = [i for i in range(len(cases)) if i not in done]
+    if progress is not None:
+        for i in sorted(done):
+            progress(done[i])
+
+    def finished(k, row):
+        if record is not None:
+            record(todo[k], row)
         if progress is not None:
             progress(row)
-    extra = {}
+    ran = list(_study_rows([cases[i] for i in todo], base, options, finished, workers))
+    rows = [done[i] if i in done else None for i in range(len(cases))]
+    for i, row in zip(todo, ran):
+        rows[i] = row
+    extra = {"resumed_plates": len(done)} if done else {}
     if len(l_bends_deg):
         probe = VisibilityProbe(base)
         extra["smallest_hiding_bend_deg"] = {d: smallest_hiding_bend(probe, base, d, base.scene.distance_m)
                                              for d in ("down", "up")}
         extra["l_formula"] = l_formula_table(base, l_bends_deg, probe)
     return StudyResult(tuple(rows), dict(settings or {}), time.perf_counter() - t0, extra)
+
+
+def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOptions, progress, workers: int):
+    """``study_row`` of every case, in case order; ``progress(k, row)`` as case ``k`` finishes. One
+    worker: in this process. More: a spawned
+    process pool (each worker dies with this process, ``workers.pool_worker_init``; the renderer's threads are
+    the cores divided among them). Rendering uses every core it is given, but the loop's decisions
+    (confirmation, planning, ray casts against the measured surface) run on one, so two plates at a
+    time keep both cores of a 2-core machine busy (README gives the measured times)."""
+    if workers == 1 or len(cases) <= 1:
+        for k, case in enumerate(cases):
+            row = study_row(case, base, options)
+            if progress is not None:
+                progress(k, row)
+            yield row
+        return
+    import multiprocessing  # noqa: PLC0415
+    import os  # noqa: PLC0415
+    from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: PLC0415
+
+    from platebench.bench.run.workers import pool_worker_init  # noqa: PLC0415
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    rows: list[dict | None] = [None] * len(cases)
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(cases)), mp_context=multiprocessing.get_context("spawn"),
+                               initializer=pool_worker_init, initargs=(os.getpid(), threads))
+    try:
+        futures = {pool.submit(study_row, case, base, options): i for i, case in enumerate(cases)}
+        for fut in as_completed(futures):
+            row = fut.result()  # study_row records a plate's own failure; a dead worker stops the study
+            rows[futures[fut]] = row
+            if progress is not None:
+                progress(futures[fut], row)
+    except BaseException:  # interrupted: do not wait for the plates running (the workers die with us)
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    yield from rows
 
 
 def study_csv(rows: list[dict]) -> str:
@@ -403,11 +460,26 @@ def study_csv(rows: list[dict]) -> str:
 
 
 def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite: bool = False, progress=None,
-                settings: dict | None = None, l_bends_deg=()) -> dict:
+                settings: dict | None = None, l_bends_deg=(), workers: int = 1, resume: bool = False) -> dict:
     """Run the study (``run_study``) and write ``out/study.json`` and ``out/study.csv``; the folder
-    appears complete or not at all (``staged_output``: checked and locked before the first plate). Returns study.json's dict."""
+    appears complete or not at all (``staged_output``: checked and locked before the first plate).
+    Each finished plate's row goes to the journal beside it (``bench.run.journal``) at once, so an
+    interrupted study keeps them; ``resume``: reuse the journal's rows of plates still to run.
+    Returns study.json's dict."""
+    settings = dict(settings or {})
+    header = {"version": __version__, "l_bends_deg": list(l_bends_deg),
+              **{k: v for k, v in settings.items() if k != "workers"}}
+    keys = [case_key(c, c.config(base)) for c in cases]
+    journal = StudyJournal(out, header)
     with staged_output(out, overwrite=overwrite, what="study") as stage:
-        doc = run_study(cases, base, progress=progress, settings=settings, l_bends_deg=l_bends_deg).to_dict()
-        write_json(stage / "study.json", doc)
-        write_text(stage / "study.csv", study_csv(doc["rows"]))
+        kept = journal.start(resume, overwrite)
+        try:
+            done = {i: kept[k] for i, k in enumerate(keys) if k in kept}
+            doc = run_study(cases, base, progress=progress, settings=settings, l_bends_deg=l_bends_deg,
+                            workers=workers, done=done, record=lambda i, row: journal.record(keys[i], row)).to_dict()
+            write_json(stage / "study.json", doc)
+            write_text(stage / "study.csv", study_csv(doc["rows"]))
+        finally:
+            journal.close(remove=False)
+    journal.close(remove=True)  # the study is in place
     return doc

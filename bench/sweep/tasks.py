@@ -23,7 +23,6 @@ import json
 import os
 import resource
 import socket
-import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -34,6 +33,7 @@ from platebench.bench.io.layout import RECON, SAMPLE, method_folder
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
+from platebench.bench.run.workers import die_with_parent, set_render_threads
 from platebench.bench.sweep.dataset import (
     RESULT_FORMAT,
     VERSION,
@@ -41,7 +41,6 @@ from platebench.bench.sweep.dataset import (
     now_utc,
     tree_checksums,
 )
-from platebench.scenes.render import runtime
 
 
 # ----------------------------------------------------------------------------- tasks
@@ -73,29 +72,12 @@ _STATE = {"renderer": None, "samples": 0, "parent": None}
 _LOCK = threading.Lock()
 
 
-def set_render_threads(n: int | None) -> bool:
-    """Limit the renderer's CPU threads in this process (N workers on C cores: C // N each)."""
-    if not n:
-        return False
-    runtime.set_thread_count(int(n))
-    return True
-
-
 def worker_init(parent_pid: int | None = None, render_threads: int | None = None) -> None:
-    """Initializer of local pool workers: die with the parent (Linux PR_SET_PDEATHSIG), so a sweep
-    killed with -9 leaves no worker writing behind it; share the CPU cores between workers."""
+    """Initializer of local pool workers: die with the parent (``workers.die_with_parent``), so a
+    sweep killed with -9 leaves no worker writing behind it; share the CPU cores between workers."""
     _STATE["parent"] = parent_pid
     _STATE["render_threads"] = render_threads if set_render_threads(render_threads) else None
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes  # noqa: PLC0415
-            import signal  # noqa: PLC0415
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-    if parent_pid is not None and os.getppid() != parent_pid:
-        os._exit(1)  # the parent is already gone
+    die_with_parent(parent_pid)
 
 
 def worker_info() -> dict:
