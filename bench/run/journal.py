@@ -2,7 +2,8 @@
 study (Ctrl-C, SIGTERM, a crash, a power cut) loses none of the plates it finished.
 
 The study's output folder appears complete or not at all (``staged_output``); the journal lives
-beside it, ``OUT.journal.jsonl``: a header line (the study's settings and the package version),
+beside it, ``OUT.journal.jsonl``: a header line (the study's settings, the package version and a
+hash of its source, ``code_digest``),
 then one line per finished plate (its key and its row), each appended, flushed and fsync'ed. A
 half-written last line (the process killed mid-write) is ignored. ``platebench study ... --resume``
 reuses the rows whose key matches a plate still to run, and the journal is removed once the study's
@@ -20,12 +21,26 @@ from platebench.bench.io.atomic import json_default
 from platebench.errors import UserValueError
 
 JOURNAL_SUFFIX = ".journal.jsonl"
+CODE_DIRS = ("plates", "scenes", "reconstruction", "evaluation", "bench")  # the package's code (code_digest)
 
 
 def journal_path(out: Path) -> Path:
     """Where the study writing ``out`` keeps its journal: beside it, ``OUT.journal.jsonl``."""
     out = Path(out)
     return out.parent / f"{out.name}{JOURNAL_SUFFIX}"
+
+
+def code_digest() -> str:
+    """A hash of the package's Python source (its top-level modules and every ``*.py`` under
+    ``CODE_DIRS``, by relative path and content):
+    a journal written by other code is not resumed, whatever the version number says."""
+    root = Path(__file__).resolve().parents[2]  # the package: bench/run/journal.py -> platebench
+    files = list(root.glob("*.py")) + [f for d in CODE_DIRS for f in (root / d).rglob("*.py")]
+    h = hashlib.sha1()
+    for f in sorted(files):
+        h.update(str(f.relative_to(root)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
 
 
 def case_key(*parts) -> str:
@@ -69,6 +84,10 @@ class StudyJournal:
         header, rows = self.read()
         if header is not None or rows:
             if resume:
+                if header is not None and {k: v for k, v in header.items() if k != "code"} == \
+                        {k: v for k, v in self.header.items() if k != "code"} and header != self.header:
+                    raise UserValueError(f"--resume: {self.path} was written by other code (the package's source "
+                                         "has changed since): allowed the same code, or --overwrite to start again")
                 if header != self.header:
                     raise UserValueError(f"--resume: {self.path} is the journal of a study with other settings "
                                          f"({_difference(header, self.header)}): allowed the same settings, or "
@@ -86,6 +105,8 @@ class StudyJournal:
             tmp.write_text(json.dumps({"header": self.header}) + "\n", encoding="utf-8")
             os.replace(tmp, self.path)
         self._file = open(self.path, "a", encoding="utf-8")
+        if _ends_torn(self.path):  # a half-written last line: end it, so the next row stands alone
+            self._file.write("\n")
         return rows
 
     def record(self, key: str, row: dict) -> None:
@@ -101,6 +122,16 @@ class StudyJournal:
             self._file = None
         if remove:
             self.path.unlink(missing_ok=True)
+
+
+def _ends_torn(path: Path) -> bool:
+    """The file is not empty and its last byte is not a newline."""
+    with open(path, "rb") as f:
+        size = f.seek(0, os.SEEK_END)
+        if size == 0:
+            return False
+        f.seek(size - 1)
+        return f.read(1) != b"\n"
 
 
 def _difference(a: dict | None, b: dict) -> str:

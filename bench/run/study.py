@@ -21,7 +21,7 @@ import numpy as np
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.atomic import staged_output, write_json, write_text
-from platebench.bench.run.journal import StudyJournal, case_key
+from platebench.bench.run.journal import StudyJournal, case_key, code_digest
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
@@ -467,7 +467,7 @@ def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite
     interrupted study keeps them; ``resume``: reuse the journal's rows of plates still to run.
     Returns study.json's dict."""
     settings = dict(settings or {})
-    header = {"version": __version__, "l_bends_deg": list(l_bends_deg),
+    header = {"version": __version__, "code": code_digest(), "l_bends_deg": list(l_bends_deg),
               **{k: v for k, v in settings.items() if k != "workers"}}
     keys = [case_key(c, c.config(base)) for c in cases]
     journal = StudyJournal(out, header)
