@@ -133,6 +133,12 @@ class Camera:
         d /= np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
         return self.center, d
 
+    def at_depth(self, pixels, depth) -> np.ndarray:
+        """(N,3) world points seen at (N,2) ``pixels`` at z-depth ``depth`` ((N,) or scalar, metres
+        along the optical axis, as ``depth`` measures it): the inverse of ``project`` with ``depth``."""
+        c, d = self.rays(pixels)
+        return c + d * (np.asarray(depth, float) / (d @ self.R[2]))[..., None]
+
     def in_image(self, uv, margin: float = 0.0) -> np.ndarray:
         """True where pixel coordinates lie inside the image (pixel edges at -0.5, W-0.5)."""
         uv = np.atleast_2d(uv)

@@ -85,11 +85,25 @@ def test_disparity_is_fB_over_Z_at_every_plate_pixel(small_sample):
     vv, uu = np.nonzero(g.mask)
     P = g.points[g.mask].astype(np.float64)
     # Recompute from the float64 depth: project the exact GT point into the right camera.
-    o, d = rig.left.rays(np.column_stack([uu, vv]).astype(float))
-    P = o + d * (g.depth64[g.mask] / (d @ rig.left.R[2]))[:, None]
+    P = rig.left.at_depth(np.column_stack([uu, vv]).astype(float), g.depth64[g.mask])
     u_right = rig.right.project(P)[:, 0]
     disparity = uu - u_right
     assert g.mask.sum() > 5000
     np.testing.assert_allclose(disparity, rig.left.f_px * rig.baseline_m / g.depth64[g.mask], atol=1e-7)
     # Same row in both images (conventional geometry).
     np.testing.assert_allclose(rig.right.project(P)[:, 1], vv, atol=1e-7)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_at_depth_inverts_project_and_depth_on_a_skewed_turned_camera(seed):
+    """``Camera.at_depth`` (pixel and z-depth -> world point) against ``project`` and ``depth``: a
+    camera looking from a random place, with a skew term, at random pixels and depths."""
+    from platebench.scenes.camera import Camera
+    rng = np.random.default_rng(seed)
+    cam = Camera.look_at(rng.normal(size=3) * 0.4 + [0, 0, 0.5], rng.normal(size=3) * 0.05, 900.0, 640, 480)
+    cam = dataclasses.replace(cam, K=cam.K + np.array([[0.0, 3.0, 0.0], [0, 0, 0], [0, 0, 0]]))
+    uv = rng.uniform([0, 0], [640, 480], size=(50, 2))
+    z = rng.uniform(0.2, 1.5, size=50)
+    P = cam.at_depth(uv, z)
+    np.testing.assert_allclose(cam.project(P), uv, atol=1e-9)
+    np.testing.assert_allclose(cam.depth(P), z, atol=1e-12)

@@ -154,7 +154,8 @@ def test_an_interrupted_study_keeps_its_finished_plates_and_resume_runs_the_rest
     assert p.returncode == 0, p.stderr
     assert "resumed         1 plates" in p.stdout
     doc = json.loads((out / "study.json").read_text())
-    assert doc["resumed_plates"] == 1 and [r["family"] for r in doc["rows"]] == ["flat", "dome"]
+    assert doc["resumed_plates"] == 1 and doc["plates_run"] == 1 and [r["family"] for r in doc["rows"]] == ["flat", "dome"]
+    assert "time: " in p.stdout and "for 1 plates" in p.stdout and "1 more from the journal" in p.stdout
     assert not journal.exists()
     whole = tmp_path / "whole"
     assert run_cli("study", "false-boundary", "--out", whole, *flags).returncode == 0

@@ -189,8 +189,10 @@ def table_lines(doc: dict) -> list[str]:
                    f"(cured or unconfirmed); {t['verifiable']} are verifiable by pairs of reachable poses (GT), of "
                    f"which {t['cured_of_verifiable']} cured")
     n = len(doc["rows"])
+    ran = doc.get("plates_run", n)  # the plates this run measured (the others came from a journal)
     w = doc.get("settings", {}).get("workers", 1)
     each = sum(r.get("time_s") or 0.0 for r in doc["rows"])
-    out.append(f"time: {doc['time_s']:.0f} s for {n} plates ({doc['time_s'] / max(n, 1):.1f} s per plate; {w} "
-               f"worker{'s' if w != 1 else ''}, each plate's own run {each / max(n, 1):.1f} s on average)")
+    out.append(f"time: {doc['time_s']:.0f} s for {ran} plates ({doc['time_s'] / max(ran, 1):.1f} s per plate; {w} "
+               f"worker{'s' if w != 1 else ''}, each plate's own run {each / max(n, 1):.1f} s on average)"
+               + (f"; {n - ran} more from the journal of an interrupted run" if ran != n else ""))
     return out

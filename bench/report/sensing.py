@@ -228,7 +228,9 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
         {"label": k.replace("_", " "), "value": v,
          "status": ("bad" if v else "good") if k in ("silent", "error") else ""} for k, v in oc.items()]
     if finite(doc.get("time_s")) is not None:
-        figures.append({"label": "time per plate", "value": round(doc["time_s"] / max(len(rows), 1), 1), "unit": "s"})
+        ran = doc.get("plates_run", len(rows))  # time_s covers the plates this run measured (not a journal's)
+        if isinstance(ran, int) and ran > 0:
+            figures.append({"label": "time per plate", "value": round(doc["time_s"] / ran, 1), "unit": "s"})
     met = t.get("met") or {}
     summary = ("Targets: " + ", ".join(f"{k} {'n/a' if v is None else ('met' if v else 'NOT met')}"
                                        for k, v in met.items())

@@ -402,7 +402,7 @@ def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOption
     rows = [done[i] if i in done else None for i in range(len(cases))]
     for i, row in zip(todo, ran):
         rows[i] = row
-    extra = {"resumed_plates": len(done)} if done else {}
+    extra = {"plates_run": len(todo), **({"resumed_plates": len(done)} if done else {})}  # time_s covers plates_run
     if len(l_bends_deg):
         probe = VisibilityProbe(base)
         extra["smallest_hiding_bend_deg"] = {d: smallest_hiding_bend(probe, base, d, base.scene.distance_m)

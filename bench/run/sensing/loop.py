@@ -209,6 +209,7 @@ class Measurements:
         self.model: SurfaceModel | None = None
         self.front: FrontSide | None = None
         self.verdict: BoundaryVerdict | None = None
+        self._merged = None  # (state, MergedReconstruction): merged()'s last result
 
     @property
     def outlines(self) -> list[ViewOutline]:
@@ -232,9 +233,13 @@ class Measurements:
         """Every pose's measurements in one reconstruction (``active_views.merge``); of each
         pose's surface, the faces no two other poses saw as background (``refutation.free_space_faces``:
         a mismatched stretch of outline off the plate)."""
-        keep = free_space_faces(self.surfaces, self.outlines)
-        surfaces = [replace(s, faces=np.asarray(s.faces, int).reshape(-1, 3)[k]) for s, k in zip(self.surfaces, keep)]
-        return merge(self.verdict.merged, self.actives, surfaces)
+        state = (len(self.views), id(self.verdict))  # computed once per state (scored, then written)
+        if self._merged is None or self._merged[0] != state:
+            keep = free_space_faces(self.surfaces, self.outlines)
+            surfaces = [replace(s, faces=np.asarray(s.faces, int).reshape(-1, 3)[k])
+                        for s, k in zip(self.surfaces, keep)]
+            self._merged = (state, merge(self.verdict.merged, self.actives, surfaces))
+        return self._merged[1]
 
     def add(self, view: PassiveView) -> None:
         if view.outline is not None:

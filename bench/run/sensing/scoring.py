@@ -89,8 +89,8 @@ def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: 
     the plane through the other pose and the boundary's true tangent there
     (``multiview.confirm``'s rule, on the true edge: rays from the mid-baseline points ``centers``
     (P,3), planes and slides from the left cameras' centres ``eyes`` (P,3)). A boundary point no
-    pair can confirm is one that only a narrower window of viewpoints sees (a 300-degree curl's tips within the robot's reach): the loop can see it, and says it
-    cannot verify it."""
+    pair can confirm is one that only a narrower window of viewpoints sees (a 300-degree curl's
+    tips within the robot's reach): the loop can see it, and says it cannot verify it."""
     P = np.asarray(true_boundary, float)
     C = np.asarray(centers, float)
     E = np.asarray(eyes, float)
