@@ -6,6 +6,9 @@ measured interior points (the active stage's square centres), are triangulated i
 (Delaunay, triangles inside the outline) and lifted to their 3D points. Between outline points
 on opposite sides the triangles run straight across: exact for a ruled plate (cylinders, folds,
 flat, twisted), a chord for a doubly curved one. The model is the union of every pose's membrane.
+The sensing loop builds it from the membranes without chords (``SURFACE_EDGE_ROWS``,
+``SURFACE_MAX_STRETCH``): a chord across a curl's opening lies where no plate is, and blocked, in
+the model, rays to gap ends the poses had measured (``bench.run.sensing.loop.Measurements``).
 
 It never sees ground truth. It answers: the surface normal near a point (``normals_near``), whether
 a straight segment is blocked by the measured plate (``blocked``), and points on the measured

@@ -189,21 +189,20 @@ class Measurements:
     centres; with ``active_views`` every later pose measures the square grid too (else its passive
     pair only).
 
-    Two membranes per pose: ``membranes`` (the whole outline triangulated in the pose's image, the
-    stage-2 pose's with stage 3's centres) feed the planner's surface model; ``surfaces``
-    (row-matched outline points and the pose's checked square centres, no chords, ``_membrane``)
-    are the merged reconstruction's surface and what refutation casts against (``refutation``
-    module doc: the outline membranes' chords refuted true rims of concave plates). The square
-    centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
+    One membrane per pose, ``surfaces``: its row-matched outline points and checked square centres
+    triangulated in its image, without chords or depth steps (``_membrane``). They are the merged
+    reconstruction's surface, what refutation casts against, and the planner's surface model
+    (``model``). The planner's model once had a membrane of its own per pose, the whole outline
+    triangulated in the image: its chords ran through the inside of a curl and hid, in the model,
+    the very gap ends the poses had measured, so that no candidate was predicted to see past them
+    and the loop stopped with cures to spare (``planner`` module doc, measured). The
+    square centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
     the sheet neither confirms nor is confirmed."""
 
     def __init__(self, first: FirstStages, rays_for, active_views: bool = True):
         v = replace(first.view2, active=stage3_active(first, rays_for))
-        rec = first.rec
         self.rays_for = rays_for if active_views else None
         self.views: list[PassiveView] = [v]
-        self.membranes = [view_membrane(v.outline, None if rec is None else rec.uv_left,
-                                        None if rec is None else rec.points)]
         self.surfaces = [_membrane(v)]
         self.meshes = [membrane_mesh(self.surfaces[0])]  # for refutation, one per pose, built once
         self.model: SurfaceModel | None = None
@@ -244,7 +243,6 @@ class Measurements:
     def add(self, view: PassiveView) -> None:
         if view.outline is not None:
             self.views.append(view)
-            self.membranes.append(view_membrane(view.outline))
             self.surfaces.append(_membrane(view))
             self.meshes.append(membrane_mesh(self.surfaces[-1]))
 
@@ -257,7 +255,7 @@ class Measurements:
         """Rebuild the surface model and the verdict from every pose measured so far (points a pose
         sees from behind the sheet left out, ``sides``; confirmations that other poses see as the
         inside of the plate refuted, ``refutation``)."""
-        self.model = SurfaceModel.build(self.membranes)
+        self.model = SurfaceModel.build(self.surfaces)
         self.front = self.front_side()
         confirmed = confirm(self.outlines, front=[self.front.side(o.points, o.eye) >= 0 for o in self.outlines])
         self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
