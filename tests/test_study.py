@@ -53,10 +53,19 @@ def test_targets_and_detector_scores_count_against_ground_truth():
             _row("dome", None, False, True, "clean", counting_test=False),
             _row("dome", None, False, True, "false_alarm", counting_test=True),
             {"family": "fold", "bend_deg": 170.0, "outcome": "error", "error": "x"}]
+    rows[0]["gt_verifiable"] = True  # a pair of reachable poses could verify the cured one
     t = targets(rows)
     assert (t["silent"], t["errors"], t["curable"], t["cured_of_curable"]) == (0, 1, 2, 1)
     assert t["cured_frac"] == 0.5 and t["false_alarm_frac"] == 0.5
-    assert t["met"] == {"silent = 0": True, "errors = 0": False, "cured >= 90 %": False, "false alarms <= 2 %": False}
+    assert (t["seen_all_of_curable"], t["seen_all_frac"]) == (2, 1.0)  # cured as the issue counts it
+    assert (t["verifiable"], t["cured_of_verifiable"]) == (1, 1)
+    assert t["met"] == {"silent = 0": True, "errors = 0": False, "cured >= 90 %": True,
+                        "verified >= 90 % of the verifiable": True, "false alarms <= 2 %": False}
+    rows[0]["gt_verifiable"], rows[1]["gt_verifiable"] = False, True
+    rows[1]["outcome"] = "honest"  # still hidden at the end: cured by neither count
+    t = targets(rows)
+    assert (t["seen_all_of_curable"], t["verifiable"], t["cured_of_verifiable"]) == (1, 1, 0)
+    assert t["met"]["cured >= 90 %"] is False and t["met"]["verified >= 90 % of the verifiable"] is False
     s = detector_scores(rows)
     ct = s["all"]["counting_test"]
     assert (ct["true_positive"], ct["false_positive"], ct["false_negative"], ct["true_negative"]) == (2, 1, 1, 1)

@@ -148,6 +148,10 @@ def _f(v, spec=".2f"):
     return "-" if v is None else format(v, spec)
 
 
+def _pct(frac):
+    return _f(None if frac is None else frac * 100, ".0f")
+
+
 def _yn(v):
     return "-" if v is None else ("Y" if v else ".")
 
@@ -179,15 +183,14 @@ def table_lines(doc: dict) -> list[str]:
         out.append(f"detector {d:22s} precision {_f(s['precision'])}, recall {_f(s['recall'])} (TP {s['true_positive']}, "
                    f"FP {s['false_positive']}, FN {s['false_negative']}, TN {s['true_negative']})")
     t = doc["targets"]
-    out.append(f"targets: silent {t['silent']}, errors {t['errors']}, cured {t['cured_of_curable']}/{t['curable']} "
-               f"({_f(None if t['cured_frac'] is None else t['cured_frac'] * 100, '.0f')} %), false alarms "
-               f"{t['false_alarms']}/{t['nothing_hidden']} "
-               f"({_f(None if t['false_alarm_frac'] is None else t['false_alarm_frac'] * 100, '.0f')} %); "
+    out.append(f"targets: silent {t['silent']}, errors {t['errors']}, cured {t['seen_all_of_curable']}/{t['curable']} "
+               f"({_pct(t['seen_all_frac'])} %: the final poses see it all), verified {t['cured_of_verifiable']} of the "
+               f"{t['verifiable']} verifiable ({_pct(t['cured_of_verifiable_frac'])} %), false alarms "
+               f"{t['false_alarms']}/{t['nothing_hidden']} ({_pct(t['false_alarm_frac'])} %); "
                + ", ".join(f"{k}: {'n/a' if v is None else ('met' if v else 'NOT met')}" for k, v in t["met"].items()))
-    if t.get("seen_all_of_curable") is not None:
-        out.append(f"  of the {t['curable']} curable plates: the final poses see it all on {t['seen_all_of_curable']} "
-                   f"(cured or unconfirmed); {t['verifiable']} are verifiable by pairs of reachable poses (GT), of "
-                   f"which {t['cured_of_verifiable']} cured")
+    out.append(f"  the loop verified the boundary on {t['cured_of_curable']} of the {t['curable']} curable plates "
+               f"({_pct(t['cured_frac'])} %); the others it names as unverified (outcome unconfirmed or honest); "
+               f"{t['verifiable']} of the {t['curable']} are verifiable by pairs of reachable poses (GT)")
     n = len(doc["rows"])
     ran = doc.get("plates_run", n)  # the plates this run measured (the others came from a journal)
     w = doc.get("settings", {}).get("workers", 1)

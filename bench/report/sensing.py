@@ -234,11 +234,11 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
     met = t.get("met") or {}
     summary = ("Targets: " + ", ".join(f"{k} {'n/a' if v is None else ('met' if v else 'NOT met')}"
                                        for k, v in met.items())
-               + (f". Cured {t.get('cured_of_curable')} of {t.get('curable')} plates whose stage-2 pose hides part "
-                  f"of the boundary and whose reachable poses see it (the final poses see it all on "
-                  f"{t.get('seen_all_of_curable')}; {t.get('cured_of_verifiable')} of the {t.get('verifiable')} that "
-                  f"pairs of reachable poses could also confirm); false alarms {t.get('false_alarms')} of "
-                  f"{t.get('nothing_hidden')} plates with nothing hidden." if t else ""))
+               + (f". Cured {t.get('seen_all_of_curable')} of {t.get('curable')} plates whose stage-2 pose hides "
+                  f"part of the boundary and whose reachable poses see it (the final poses see it all); the loop "
+                  f"verified {t.get('cured_of_curable')} of them, {t.get('cured_of_verifiable')} of the "
+                  f"{t.get('verifiable')} that pairs of reachable poses could confirm; false alarms "
+                  f"{t.get('false_alarms')} of {t.get('nothing_hidden')} plates with nothing hidden." if t else ""))
     det = doc.get("detectors") or {}
     keys = ("true_positive", "false_positive", "false_negative", "true_negative", "precision", "recall")
     tables = [{"title": "Outcomes per family", "columns": ["family", *OUTCOME_COLORS],

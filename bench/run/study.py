@@ -325,12 +325,14 @@ def targets(rows: list[dict]) -> dict:
     hides part of the boundary and whose reachable poses see all of it ("curable"), false alarms
     <= 2 % of the plates where nothing is hidden.
 
-    "Cured" is the strict class: the final poses see the whole boundary *and* the loop verified
-    it. Beside it: ``seen_all_of_curable`` (cured or unconfirmed: the final poses see it all,
-    whether or not the loop could confirm it, the issue's own wording of "cured"), and the cured
-    share of the curable plates whose boundary pairs of reachable poses could also confirm
-    (``gt_verifiable``: no stretch longer than the verdict links over is seen from too narrow a
-    window of viewpoints to be confirmed, ``scoring.verifiable_visibility``)."""
+    "Cured" is the issue's: the final poses see the whole boundary (outcome "cured" or
+    "unconfirmed", ``seen_all_of_curable``). The loop's own verdict is stricter, and is scored
+    beside it: the outcome "cured" asks that the loop also *verified* the boundary
+    (``cured_of_curable``, ``cured_frac``). A verification needs a pair of poses turned about
+    each stretch of the boundary (``multiview.confirm``), which no reachable pair offers along the
+    tips of a 300-degree curl (ground truth: ``gt_verifiable``, ``scoring.verifiable_visibility``);
+    so the second target asks for verified cures on >= 90 % of the curable plates that pairs of
+    reachable poses could verify (``cured_of_verifiable``)."""
     c = outcome_counts(rows)
     curable = [r for r in rows if r.get("gt_hidden_first") and r.get("gt_reachable")]
     verifiable = [r for r in curable if r.get("gt_verifiable")]
@@ -342,14 +344,18 @@ def targets(rows: list[dict]) -> dict:
 
     def frac(a, b):
         return a / len(b) if b else None
-    cured_frac, fa_frac = frac(cured, curable), frac(fa, clean)
+
+    def at_least(f, bound):
+        return None if f is None else f >= bound
+    cured_frac, seen_frac, fa_frac = frac(cured, curable), frac(seen_all, curable), frac(fa, clean)
+    cured_v_frac = frac(cured_v, verifiable)
     return {"silent": c["silent"], "errors": c["error"], "curable": len(curable), "cured_of_curable": cured,
-            "cured_frac": cured_frac, "seen_all_of_curable": seen_all, "seen_all_frac": frac(seen_all, curable),
-            "verifiable": len(verifiable), "cured_of_verifiable": cured_v,
-            "cured_of_verifiable_frac": frac(cured_v, verifiable),
+            "cured_frac": cured_frac, "seen_all_of_curable": seen_all, "seen_all_frac": seen_frac,
+            "verifiable": len(verifiable), "cured_of_verifiable": cured_v, "cured_of_verifiable_frac": cured_v_frac,
             "nothing_hidden": len(clean), "false_alarms": fa, "false_alarm_frac": fa_frac,
             "met": {"silent = 0": c["silent"] == 0, "errors = 0": c["error"] == 0,
-                    "cured >= 90 %": None if cured_frac is None else cured_frac >= 0.9,
+                    "cured >= 90 %": at_least(seen_frac, 0.9),
+                    "verified >= 90 % of the verifiable": at_least(cured_v_frac, 0.9),
                     "false alarms <= 2 %": None if fa_frac is None else fa_frac <= 0.02}}
 
 
