@@ -74,10 +74,10 @@ the chord-free model (dev harness, the study's renders, outcome for outcome as t
 cures 20 -> 21 of 28 (of the 22 that pairs of reachable poses can verify, 19 -> 21), moved plates
 (axes -1 degree, distances -5 mm) 18 -> 21 of 27 (of the 21 verifiable, 18 -> 21); the study with
 axes +1 degree and distances +5 mm: verified 15 -> 19 of 27, the final poses seeing it all 24 -> 25;
-false alarms 0 and silent 0 throughout. (A fallback tried first, exploring when nothing is predicted: a pose seeing
-the gaps' ends from a new direction, cured two plates of each set, and on the 170-degree fold
-moved -5 mm closed the loop over the flap's edges seen only from behind the sheet, whose front
-the loop could not tell there: a silent verdict. Left out.)
+false alarms 0 and silent 0 throughout. (A fallback tried first, exploring when nothing is
+predicted, a pose seeing the gaps' ends from a new direction, cured two plates of each set, and on
+the convex 170-degree fold moved -5 mm closed the loop over the flap's edges seen only from behind
+the sheet, whose front the loop could not tell there: a silent verdict. Left out.)
 
 Known limits: a gap at a corner sharper than about 45 degrees in 3D cannot be linked
 (``multiview._leads_on`` asks that the next edge's points lie off the end, which the wedge of an

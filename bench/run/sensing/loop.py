@@ -208,7 +208,7 @@ class Measurements:
         self.model: SurfaceModel | None = None
         self.front: FrontSide | None = None
         self.verdict: BoundaryVerdict | None = None
-        self._merged = None  # (state, MergedReconstruction): merged()'s last result
+        self._merged = None  # merged()'s result for the current verdict (dropped by update)
 
     @property
     def outlines(self) -> list[ViewOutline]:
@@ -232,13 +232,12 @@ class Measurements:
         """Every pose's measurements in one reconstruction (``active_views.merge``); of each
         pose's surface, the faces no two other poses saw as background (``refutation.free_space_faces``:
         a mismatched stretch of outline off the plate)."""
-        state = (len(self.views), id(self.verdict))  # computed once per state (scored, then written)
-        if self._merged is None or self._merged[0] != state:
+        if self._merged is None:  # once per verdict (scored, then written)
             keep = free_space_faces(self.surfaces, self.outlines)
             surfaces = [replace(s, faces=np.asarray(s.faces, int).reshape(-1, 3)[k])
                         for s, k in zip(self.surfaces, keep)]
-            self._merged = (state, merge(self.verdict.merged, self.actives, surfaces))
-        return self._merged[1]
+            self._merged = merge(self.verdict.merged, self.actives, surfaces)
+        return self._merged
 
     def add(self, view: PassiveView) -> None:
         if view.outline is not None:
@@ -255,6 +254,7 @@ class Measurements:
         """Rebuild the surface model and the verdict from every pose measured so far (points a pose
         sees from behind the sheet left out, ``sides``; confirmations that other poses see as the
         inside of the plate refuted, ``refutation``)."""
+        self._merged = None
         self.model = SurfaceModel.build(self.surfaces)
         self.front = self.front_side()
         confirmed = confirm(self.outlines, front=[self.front.side(o.points, o.eye) >= 0 for o in self.outlines])
