@@ -110,6 +110,7 @@ def run(args) -> int:
             ran += 1
             pbar.update(1)
             pbar.write(f"{row['case']:38s} {row['outcome']:12s} {row['time_s']:6.1f} s")
+            sys.stdout.flush()  # a plate's line as it finishes, also through a pipe (tee, a log, a test)
         try:
             doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
                               args.resume)
