@@ -359,3 +359,28 @@ def test_merged_boundary_coverage_is_a_fraction_of_the_true_boundarys_length():
     perimeter = float(np.linalg.norm(np.roll(B, -1, axis=0) - B, axis=1).sum())
     assert m["boundary_covered_frac"] == pytest.approx(0.5 + 2 * 2e-3 / perimeter, abs=2e-3)
     assert m["boundary_est_to_gt_mean_mm"] < 1e-3  # the merged points lie on the true boundary
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("distance_mm", [0.0, 5.0])
+def test_with_the_papers_grid_a_fold_seen_from_behind_is_never_called_verified(distance_mm):
+    """The paper's 16 squares leave too few square centres to orient a fold's flap: the convex
+    170-degree fold at 640 x 480 (study --grid 4x4@40) once closed its loop over flap edges that
+    every pose saw only from behind, and called the boundary verified (silent). Now, with a grid
+    that sparse, the front is oriented again from the centres at their own spacing
+    (``Measurements.front_checked``): where their normals turn too far across the crease it does
+    not orient the sheet, and otherwise the flap's edges are confirmed only where a pose sees its
+    known front, and the loop says it could not verify. Ground truth decides the first assertion:
+    whatever the loop calls verified, its poses saw. Without the front check both runs are silent:
+    the loop's own verdict closes the loop (the reason says so) while the flap stays hidden."""
+    from platebench.bench.config.sample_config import parse_grid
+    from platebench.bench.run.study import perturbed_cases, study_cases
+    case = perturbed_cases([c for c in study_cases() if c.name == "fold 170 down"], 0.0, distance_mm)[0]
+    base = SampleConfig(scene=SceneParams(width=640, height=480, pattern=parse_grid("4x4@40")),
+                        render=RenderSettings(spp=2))
+    f = run_sensing(case.config(base), None, SensingOptions()).final
+    assert f.outcome != "silent" and (not f.boundary_verified or not f.hidden_final), f.verdict_reason
+    # the loop's own verdict closed the loop over a hidden flap; the front check is what says it is not verified
+    assert f.hidden_final and f.outcome == "honest"
+    from platebench.bench.run.sensing.loop import SPARSE_FRONT_NOTE
+    assert not f.boundary_verified and SPARSE_FRONT_NOTE in f.verdict_reason, f.verdict_reason

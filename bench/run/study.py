@@ -277,7 +277,7 @@ def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = Sen
                gt_reachable=f.gt_reachable, gt_verifiable=f.gt_verifiable,
                gt_verifiable_fraction=_min_visible(f.gt_verifiable_visibility) if f.gt_verifiable_visibility else None,
                gt_unconfirmable_max_mm=None if f.gt_unconfirmable_max_m is None else f.gt_unconfirmable_max_m * 1e3,
-               false_boundary_gt=f.hidden_first)
+               false_boundary_gt=f.hidden_first, front_oriented=f.front_oriented)
     row.update({f"det_{d.name}": d.fired for d in r.detectors})
     m = f.merged
     row.update(merged_boundary_mean_mm=m.get("boundary_mean_mm"), merged_boundary_covered=m.get("boundary_covered_frac"),

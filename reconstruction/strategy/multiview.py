@@ -258,7 +258,7 @@ def slide_angles(normals: np.ndarray, points: np.ndarray, eyes: np.ndarray) -> n
 
 def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_rad: float = CONFIRM_ANGLE_RAD,
             min_slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD, same_side: bool = True,
-            front: list[np.ndarray] | None = None) -> list[np.ndarray]:
+            front: list[np.ndarray] | None = None, front_known: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Per pose, (N,) bool: the row-matched points that another pose confirms (see module doc).
     A pair confirms a point when their points agree within ``tol_m`` (both averaged,
     ``smoothed_points``), their rays differ by ``min_angle_rad`` and each pose's camera lies
@@ -266,10 +266,14 @@ def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_ra
     so neither outline can be a contour the other slid along). ``same_side``: the pair must walk
     the edge the same way (``outline_sense``; off only to show what the rule refuses). ``front``:
     per pose, (N,) False where it sees the point from behind the sheet (``sides``); such points
-    neither confirm nor are confirmed."""
+    neither confirm nor are confirmed. ``front_known``: per pose, (N,) True where it sees the point
+    from the plate's front as the measured surface orients it (``sides``: known, not grazing); a
+    pair then confirms a point only if one of the two does (where neither knows the front, two
+    poses that both see the sheet from behind would agree on its edge)."""
     smooth = [smoothed_points(v) for v in views]
     usable = [v.matched if front is None else v.matched & np.asarray(f, bool)
               for v, f in zip(views, front if front is not None else [None] * len(views))]
+    known = None if front_known is None else [np.asarray(f, bool) for f in front_known]
     matched_idx = [np.nonzero(u)[0] for u in usable]
     trees = [cKDTree(S[i]) if len(i) else None for S, i in zip(smooth, matched_idx)]
     sense = [outline_sense(v) for v in views] if same_side else None
@@ -293,6 +297,8 @@ def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_ra
             if same_side:  # both poses see the edge from the same side of the sheet
                 ok &= np.einsum("ij,ij->i", tangents[k][idx], tangents[j][jdx]) * sense[k] * sense[j] \
                     >= SAME_SIDE_MIN_COS
+            if known is not None:  # one of the pair sees the point from the known front
+                ok &= known[k][idx] | known[j][jdx]
             conf[idx[ok]] = True
         out.append(conf)
     return out

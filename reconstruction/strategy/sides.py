@@ -37,20 +37,30 @@ SEED_VERTICAL_COS = 0.95
 GRAZING_RAD = float(np.radians(10.0))  # a side is called only this far from grazing
 GRAZING_SIN = float(np.sin(GRAZING_RAD))  # normals this near the vertical vote on which way is up
 SIDE_RADIUS_M = 15e-3  # a point's side is read from the nearest measured surface point this close
+SPARSE_GRID_MAX_SQUARES = 24  # a projected grid of at most this many squares is sparse (the paper's: 16; the bench's: 72)
+SPARSE_FIT_M = 20e-3  # ``sparse_front_side``: normals fitted over this radius; sides read ...
+SPARSE_JOIN_M = 25e-3  # ... centres joined this far apart (a pose's squares lie about 16 mm apart) ...
+SPARSE_RADIUS_M = 40e-3  # ... this far from an oriented centre ...
+SPARSE_SHEET_M = 6e-3  # ... whose tangent plane passes this close (a boundary triangulated to a few mm)
+SPARSE_MAX_TURN_RAD = float(np.radians(30.0))  # sparse centres orient a sheet only if joined normals turn less
 
 
 @dataclass(frozen=True)
 class FrontSide:
     """Measured surface points (S,3) with unit normals (S,3) toward the plate's front; ``known``
-    (S,) False where the point's normal could not be oriented (not joined to the seed)."""
+    (S,) False where the point's normal could not be oriented (not joined to the seed); the
+    distances (metres) within which ``normals_at`` reads a side."""
 
     points: np.ndarray
     normals: np.ndarray
     known: np.ndarray
+    radius_m: float = SIDE_RADIUS_M  # ``normals_at``: how far from a point its side is read
+    same_sheet_m: float = SAME_SHEET_M  # ``normals_at``: how close to the point the tangent plane passes
+    max_turn_rad: float = 0.0  # the largest angle between the normals of neighbours joined in the oriented part
 
     def normals_at(self, points: np.ndarray) -> np.ndarray:
         """(N,3) the front's unit normal at ``points`` (N,3): that of the nearest oriented surface
-        point within ``SIDE_RADIUS_M`` whose tangent plane passes within ``SAME_SHEET_M`` of the
+        point within ``radius_m`` whose tangent plane passes within ``same_sheet_m`` of the
         point (on a tight fold the nearest measured point can lie on the other face); NaN where
         there is none."""
         P = np.atleast_2d(np.asarray(points, float))
@@ -59,14 +69,20 @@ class FrontSide:
             return out
         S, N = self.points[self.known], self.normals[self.known]
         k = min(SIDE_CANDIDATES, len(S))
-        d, i = cKDTree(S).query(P, k=k, distance_upper_bound=SIDE_RADIUS_M)
+        d, i = cKDTree(S).query(P, k=k, distance_upper_bound=self.radius_m)
         d, i = d.reshape(len(P), k), i.reshape(len(P), k)
         ok = np.isfinite(d)
         ii = np.where(ok, i, 0)
-        on_sheet = ok & (np.abs(np.einsum("nkj,nkj->nk", N[ii], P[:, None, :] - S[ii])) <= SAME_SHEET_M)
+        on_sheet = ok & (np.abs(np.einsum("nkj,nkj->nk", N[ii], P[:, None, :] - S[ii])) <= self.same_sheet_m)
         has = on_sheet.any(axis=1)
         out[has] = N[ii[np.arange(len(P)), np.argmax(on_sheet, axis=1)]][has]
         return out
+
+    def oriented_share(self, points: np.ndarray) -> float:
+        """The share of ``points`` (N,3) (a boundary, evenly spaced) where ``normals_at`` knows the
+        front; 0.0 for none."""
+        P = np.atleast_2d(np.asarray(points, float))
+        return float(np.mean(np.all(np.isfinite(self.normals_at(P)), axis=1))) if len(P) else 0.0
 
     def side(self, points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
         """(N,) +1 where a camera at ``eyes`` ((3,) or (N,3)) sees ``points`` (N,3) from the front,
@@ -83,7 +99,8 @@ class FrontSide:
         return out
 
 
-def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
+def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, radius_m: float = SIDE_RADIUS_M,
+               same_sheet_m: float = SAME_SHEET_M, fit_radius_m: float | None = None) -> FrontSide:
     """Orient the normals of the measured surface ``points`` (S,3) toward the plate's front (module
     doc). Each connected part (points within ``JOIN_M`` of one another) is made consistent from
     its point whose normal is nearest ``up`` (the table's normal, world +Z); in the largest part,
@@ -94,15 +111,21 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
     P = np.asarray(points, float)
     S = len(P)
     if S < NEIGHBOURS:
-        return FrontSide(P, np.zeros((S, 3)), np.zeros(S, bool))
+        return FrontSide(P, np.zeros((S, 3)), np.zeros(S, bool), radius_m, same_sheet_m)
     kd = cKDTree(P)
     _, nn = kd.query(P, k=min(NEIGHBOURS, S))
     W = P[nn] - P[nn].mean(axis=1, keepdims=True)
-    normals = np.linalg.eigh(np.einsum("ski,skj->sij", W, W))[1][:, :, 0]
-    pairs = kd.query_pairs(JOIN_M, output_type="ndarray")
+    cov = np.einsum("ski,skj->sij", W, W)
+    if fit_radius_m is not None:  # sparse, clustered points: every neighbour within the radius (at least NEIGHBOURS)
+        for i, near in enumerate(kd.query_ball_point(P, fit_radius_m)):
+            if len(near) > NEIGHBOURS:
+                Q = P[near] - P[near].mean(axis=0)
+                cov[i] = Q.T @ Q
+    normals = np.linalg.eigh(cov)[1][:, :, 0]
+    pairs = kd.query_pairs(join_m, output_type="ndarray")
     known = np.zeros(S, bool)
     if not len(pairs):
-        return FrontSide(P, normals, known)
+        return FrontSide(P, normals, known, radius_m, same_sheet_m)
     rows, cols = pairs[:, 0], pairs[:, 1]
     off = P[cols] - P[rows]
     off /= np.linalg.norm(off, axis=1, keepdims=True)
@@ -126,11 +149,29 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
         parts.append(order)
     main = max(parts, key=len)  # the plate's middle: its level points vote which way is up
     level = main[np.abs(normals[main] @ u) >= SEED_VERTICAL_COS]
+    turn = 0.0
     if len(main) >= NEIGHBOURS and len(level):
         if np.sum(np.sign(normals[level] @ u)) < 0:
             normals[main] = -normals[main]
         known[main] = True
-    return FrontSide(P, normals, known)
+        _, pred = breadth_first_order(sym, int(main[0]), directed=False, return_predecessors=True)
+        child = main[1:]
+        turn = float(np.arccos(np.clip(np.einsum("ij,ij->i", normals[child], normals[pred[child]]), -1.0, 1.0)).max(
+            initial=0.0))
+    return FrontSide(P, normals, known, radius_m, same_sheet_m, turn)
 
 
-__all__ = ["FrontSide", "front_side", "NEIGHBOURS", "JOIN_M", "SIDE_RADIUS_M", "SEED_VERTICAL_COS"]
+def sparse_front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
+    """``front_side`` for square centres too sparse for its fixed distances (the paper's 4x4 grid:
+    16 squares about 16 mm apart from each pose, the poses' centres clustered and ending up to
+    15 mm inside the plate's edges): each normal fitted to every centre within ``SPARSE_FIT_M``
+    (ten nearest neighbours from a cluster give a plane of noise), centres joined within
+    ``SPARSE_JOIN_M``, and a side read within
+    ``SPARSE_RADIUS_M`` of a centre whose tangent plane passes within ``SPARSE_SHEET_M``."""
+    return front_side(points, up, join_m=SPARSE_JOIN_M, radius_m=SPARSE_RADIUS_M, same_sheet_m=SPARSE_SHEET_M,
+                      fit_radius_m=SPARSE_FIT_M)
+
+
+__all__ = ["FrontSide", "front_side", "NEIGHBOURS", "JOIN_M", "SIDE_RADIUS_M", "SEED_VERTICAL_COS",
+           "SPARSE_GRID_MAX_SQUARES", "SPARSE_MAX_TURN_RAD",
+           "sparse_front_side"]

@@ -92,7 +92,13 @@ from platebench.reconstruction.strategy.poses import (
     validate_pose,
 )
 from platebench.reconstruction.strategy.refutation import free_space_faces, membrane_mesh, refute
-from platebench.reconstruction.strategy.sides import FrontSide, front_side
+from platebench.reconstruction.strategy.sides import (
+    SPARSE_GRID_MAX_SQUARES,
+    SPARSE_MAX_TURN_RAD,
+    FrontSide,
+    front_side,
+    sparse_front_side,
+)
 from platebench.reconstruction.strategy.surface_model import (
     SURFACE_EDGE_ROWS,
     SURFACE_MAX_EDGE_M,
@@ -200,6 +206,7 @@ class Measurements:
     the sheet neither confirms nor is confirmed."""
 
     def __init__(self, first: FirstStages, rays_for, active_views: bool = True):
+        self.squares = len(first.sample3.scene.projector.pattern.features)  # of the projected grid
         v = replace(first.view2, active=stage3_active(first, rays_for))
         self.rays_for = rays_for if active_views else None
         self.views: list[PassiveView] = [v]
@@ -260,6 +267,53 @@ class Measurements:
         confirmed = confirm(self.outlines, front=[self.front.side(o.points, o.eye) >= 0 for o in self.outlines])
         self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
         return self.verdict
+
+    def front_checked(self) -> tuple[bool, str, float, tuple]:
+        """(verified, reason, the share of the merged boundary where the front is known, the parts
+        to name as unverified) of the current verdict, checked for the plate's front (``sides``).
+        With a projected grid of more than ``SPARSE_GRID_MAX_SQUARES`` squares (the bench's 6x12)
+        the verdict stands: its centres orient the front over the plate (``update`` already leaves
+        out points seen from behind). With fewer (the paper's 4x4), the centres are too sparse for
+        that, and two poses that both see a sheet from behind where its front is unknown confirm
+        its edge as two that see its front do (a fold's flap: study --grid 4x4@40 was silent on 3
+        plates of 61). So the front is oriented again from the centres at their own spacing
+        (``sparse_front_side``); where their normals turn by more than ``SPARSE_MAX_TURN_RAD``
+        between neighbours (a crease, a tight curl) it is not trusted and the boundary is not
+        verified; otherwise the boundary is confirmed again, now only where one pose of a pair
+        sees the known front."""
+        v = self.verdict
+        if self.squares > SPARSE_GRID_MAX_SQUARES:
+            return v.verified, v.reason, self.front.oriented_share(v.merged), ()
+        front = sparse_front_side(np.vstack([a.points for a in self.actives]))
+        share = front.oriented_share(v.merged)
+        if not v.verified:
+            return False, v.reason, share, ()
+        n = sum(len(a.points) for a in self.actives)
+        if front.max_turn_rad > SPARSE_MAX_TURN_RAD:  # a crease or a tight curl between centres: no orientation
+            return False, (f"{v.reason} {SPARSE_FRONT_NOTE}, but the {n} square centres are too sparse "
+                           f"to orient this sheet: the normals of neighbouring centres turn by up to "
+                           f"{np.degrees(front.max_turn_rad):.0f} deg (allowed <= "
+                           f"{np.degrees(SPARSE_MAX_TURN_RAD):.0f}), so an edge seen only from behind the sheet "
+                           "cannot be told from one seen from the front: not verified"), share, (
+                {"what": "the whole boundary: the plate's front could not be oriented from the square centres "
+                         f"(normals turn by {np.degrees(front.max_turn_rad):.0f} deg between neighbouring centres)",
+                 "front_oriented": round(share, 3)},)
+        sides = [front.side(o.points, o.eye) for o in self.outlines]
+        confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides], front_known=[sd > 0 for sd in sides])
+        again = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
+        if again.verified:
+            return True, (f"{again.reason}, each piece seen from the plate's front (oriented from the {n} sparse "
+                          f"square centres, known at {share:.0%} of the boundary)"), share, ()
+        return False, (f"{v.reason} {SPARSE_FRONT_NOTE}, but the {n} square centres orient the front "
+                       f"at only {share:.0%} of the boundary, and confirmed only where a pose sees that front: "
+                       f"{again.reason}: not verified (an edge seen only from behind the sheet confirms "
+                       "like one seen from the front)"), share, tuple(
+            [g_.to_dict() for g_ in again.gaps]
+            + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline not confirmed from the plate's known front",
+                **u.to_dict()} for u in again.unconfirmed if not u.covered])
+
+
+SPARSE_FRONT_NOTE = "when the front is not asked for"  # in a verdict the sparse front check overturned
 
 
 def _true_rays(scene):
@@ -361,18 +415,18 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
                  options: SensingOptions) -> FinalRecord:
     """The loop's verdict and its scores against ground truth (``scoring``)."""
     verdict, rec = m.verdict, first.rec
+    verified, reason, oriented, front_parts = m.front_checked()
     P = np.asarray(sensor.plate.boundary, float)
     gt_final = gt_visibility_dict(final_visibility(P, m.views))
     gt_first = gt_visibility_dict(first.view2.gt_visibility)
     # Not verified: the gaps, and the outline stretches no confirmed piece runs along. Verified: none
     # (outline stretches no other pose confirmed are then occluding contours; sensing.json's
     # verdict lists them all under "unconfirmed_outline").
-    unverified = () if verdict.verified else tuple(
+    unverified = front_parts if verdict.verified else tuple(
         [g_.to_dict() for g_ in verdict.gaps]
         + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline no other pose confirmed", **u.to_dict()}
            for u in verdict.unconfirmed if not u.covered])
-    outcome = outcome_class(hidden(gt_first), hidden(gt_final), verdict.verified,
-                            bool(cures) or not verdict.verified)
+    outcome = outcome_class(hidden(gt_first), hidden(gt_final), verified, bool(cures) or not verified)
     reach_vis = verif_vis = unconfirmable = None
     if options.ground_truth_reach:
         reach, verif = reach_visibility(P, reach_poses, sensor.baseline_m, sensor.boundary_visibility_masks(reach_poses))
@@ -382,9 +436,9 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
     merged = merged_accuracy(sensor.plate, m.merged())
     merged["poses"] = len(m.views)
     return FinalRecord(first.pose2, "stage3", None if rec is None else rec.false_boundary,
-                       0 if rec is None else len(rec.points), verdict.verified, verdict.reason, unverified,
+                       0 if rec is None else len(rec.points), verified, reason, unverified,
                        tuple(v.name for v in m.views), gt_final, gt_first, accuracy, merged, outcome, reach_vis,
-                       verif_vis, unconfirmable)
+                       verif_vis, unconfirmable, oriented)
 
 
 def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = SensingOptions(),

@@ -154,6 +154,7 @@ class FinalRecord:
     # and the longest stretch of boundary no pair could (metres)
     gt_verifiable_visibility: dict | None = None
     gt_unconfirmable_max_m: float | None = None
+    front_oriented: float | None = None  # share of the merged boundary where the square centres orient the front
 
     @property
     def hidden_first(self) -> bool:
@@ -191,7 +192,8 @@ class FinalRecord:
                 "gt_reachable_visibility": self.gt_reachable_visibility, "gt_reachable": self.gt_reachable,
                 "gt_verifiable_visibility": self.gt_verifiable_visibility, "gt_verifiable": self.gt_verifiable,
                 "gt_unconfirmable_max_mm": None if self.gt_unconfirmable_max_m is None
-                else round(self.gt_unconfirmable_max_m * 1e3, 1)}
+                else round(self.gt_unconfirmable_max_m * 1e3, 1),
+                "front_oriented": None if self.front_oriented is None else round(self.front_oriented, 3)}
 
 
 @dataclass(frozen=True)
