@@ -165,16 +165,16 @@ def _paper_grid_centres(spec: PlateSpec, rng, poses: int = 8, pitch_m: float = 2
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_sparse_square_centres_orient_a_smooth_plate_out_to_its_edges(deformation, seed):
     """The paper's grid leaves centres too sparse and clustered for the dense orientation (ten
-    nearest neighbours, 12 mm joins, sides read within 15 mm): it knows the front at under 85 %
-    of the boundary. Fitted over 20 mm, joined over 25 mm and read within 40 mm
+    nearest neighbours, 12 mm joins, sides read within 15 mm): it knows the front at less of the
+    boundary (19-80 % here). Fitted over 20 mm, joined over 25 mm and read within 40 mm
     (``sparse_front_side``), the same centres orient the front at three quarters of the boundary
     or more (all of it but the far ends of the 120-degree bends, which drop 40 mm away from the
     middle), never the wrong way, and their normals turn little between neighbours."""
     P, plate = _paper_grid_centres(PlateSpec(0.1165, 0.0735, deformation=deformation), np.random.default_rng(seed))
     B = np.asarray(plate.boundary)
     exact = np.asarray(plate.surface_normal(plate.boundary_uv))
-    assert front_side(P).oriented_share(B) < 0.85
     fs = sparse_front_side(P)
+    assert front_side(P).oriented_share(B) < fs.oriented_share(B)
     n = fs.normals_at(B)
     known = np.all(np.isfinite(n), axis=1)
     assert known.mean() >= 0.75 and fs.oriented_share(B) == known.mean()

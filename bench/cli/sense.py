@@ -74,7 +74,6 @@ def step_lines(s: SensingResult) -> list[str]:
 def summary_lines(s: SensingResult) -> list[str]:
     """The verdict, the detectors, the outcome, the counts and the time."""
     from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
-    from platebench.bench.run.sensing.loop import SPARSE_FRONT_NOTE  # noqa: PLC0415
 
     f = s.final
     lines = [f"verdict: boundary_verified = {str(f.boundary_verified).lower()}: {f.verdict_reason}"]
@@ -82,7 +81,7 @@ def summary_lines(s: SensingResult) -> list[str]:
         lines.append(f"  unverified: {u.get('what', u)}")
     if len(f.unverified_parts) > 6:
         lines.append(f"  ... {len(f.unverified_parts) - 6} more unverified parts (sensing.json)")
-    if not f.boundary_verified and SPARSE_FRONT_NOTE in f.verdict_reason:
+    if s.verdict.verified and not f.boundary_verified:  # the loop closed, the front check overturned it
         lines.append("  hint: the projected grid is too sparse to tell the plate's front from its back near the "
                      "boundary; --grid 6x12@12 measures enough square centres (README: false-boundary study)")
     lines.append("detectors at stage 2: " + ", ".join(

@@ -102,7 +102,8 @@ class FrontSide:
 def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, radius_m: float = SIDE_RADIUS_M,
                same_sheet_m: float = SAME_SHEET_M, fit_radius_m: float | None = None) -> FrontSide:
     """Orient the normals of the measured surface ``points`` (S,3) toward the plate's front (module
-    doc). Each connected part (points within ``JOIN_M`` of one another) is made consistent from
+    doc). Each connected part (points within ``join_m`` of one another, normals fitted to the
+    ``NEIGHBOURS`` nearest or, given ``fit_radius_m``, to all within it) is made consistent from
     its point whose normal is nearest ``up`` (the table's normal, world +Z); in the largest part,
     which holds the plate's middle, the points whose normals are within ``SEED_VERTICAL_COS`` of
     the vertical vote which way is up (the level middle against the few that a neighbourhood
@@ -146,16 +147,15 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, r
             if normals[i] @ normals[pred[i]] < 0:
                 normals[i] = -normals[i]
         todo[order] = False
-        parts.append(order)
-    main = max(parts, key=len)  # the plate's middle: its level points vote which way is up
+        parts.append((order, pred))
+    main, pred = max(parts, key=lambda p: len(p[0]))  # the plate's middle: its level points vote which way is up
     level = main[np.abs(normals[main] @ u) >= SEED_VERTICAL_COS]
     turn = 0.0
     if len(main) >= NEIGHBOURS and len(level):
         if np.sum(np.sign(normals[level] @ u)) < 0:
             normals[main] = -normals[main]
         known[main] = True
-        _, pred = breadth_first_order(sym, int(main[0]), directed=False, return_predecessors=True)
-        child = main[1:]
+        child = main[1:]  # each joined to its predecessor in the spanning tree
         turn = float(np.arccos(np.clip(np.einsum("ij,ij->i", normals[child], normals[pred[child]]), -1.0, 1.0)).max(
             initial=0.0))
     return FrontSide(P, normals, known, radius_m, same_sheet_m, turn)
