@@ -21,7 +21,7 @@ from pathlib import Path
 from platebench.errors import UserValueError
 
 __all__ = ["CONFIG_MAX_BYTES", "JSON_MAX_BYTES", "TABLE_MAX_BYTES", "IMAGE_MAX_BYTES", "InputFileError",
-           "file_kind", "open_regular", "read_capped", "regular_size", "is_regular"]
+           "file_kind", "open_regular", "read_capped", "regular_size", "is_regular", "require_dir"]
 
 MIB = 1 << 20
 CONFIG_MAX_BYTES = 4 * MIB  # a sweep spec lists axes and values: kilobytes; 4 MiB is far beyond any real one
@@ -113,3 +113,16 @@ def read_capped(path: Path, max_bytes: int, what: str = "file", error: type = In
         raise error(f"{path}: more than {max_bytes} bytes: too large for a {what}")
     return data
 
+
+
+def require_dir(path: Path, what: str = "directory", error: type = InputFileError) -> Path:
+    """``path`` if it is a directory (followed if a link); else a one-line ``error``: '{what} is missing',
+    or what it is instead ('is a regular file, not a {what}')."""
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        raise error(f"{path}: {what} is missing") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise error(f"{path}: is {file_kind(st.st_mode)}, not a {what}")
+    return path

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from platebench.bench.files import require_dir
 from platebench.bench.io.atomic import write_bytes, write_json
 from platebench.bench.io.outputs import output_dir
 from platebench.errors import UserValueError
@@ -140,8 +141,7 @@ def run(args) -> int:
     from platebench.bench.report.plots import compare_error_figure  # noqa: PLC0415
     from platebench.bench.run.compare import compare_sample, comparison_json  # noqa: PLC0415
 
-    if not Path(args.sample).is_dir():
-        raise FileNotFoundError(f"{args.sample}: sample directory is missing")
+    require_dir(Path(args.sample), "sample directory", UserValueError)
     if (args.min_depth_mm is None) != (args.max_depth_mm is None):
         raise UserValueError("--min-depth-mm and --max-depth-mm go together")
     depth_range = None

@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.files import require_dir
 from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import DatasetError, read_png
 from platebench.bench.io.layout import SAMPLE, SAMPLES
@@ -96,9 +97,7 @@ def _is_sample(d: Path) -> bool:
 
 def find_samples(root: Path) -> list[Path]:
     """Sample directories under ``root`` (``root`` itself if it is one), sorted by path."""
-    root = Path(root)
-    if not root.is_dir():
-        raise DatasetError(f"{root}: dataset directory is missing")
+    root = require_dir(Path(root), "dataset directory", DatasetError)
     refuse_links(root)
     if _is_sample(root):
         return [root]

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from platebench.bench.files import regular_size
+from platebench.bench.files import IMAGE_MAX_BYTES, regular_size
 from platebench.bench.io.atomic import write_bytes
 from platebench.bench.io.images import (
     DatasetError,
@@ -54,7 +54,9 @@ OUTPUT_FILES = {"disparity": "disparity.pfm", "depth": "depth.exr", "points": "p
 
 def _check(path: Path, kind: str) -> str:
     path = Path(path)
-    regular_size(path, f"{kind} file", DatasetError, missing="file is missing")
+    size = regular_size(path, f"{kind} file", DatasetError, missing="file is missing")
+    if size > IMAGE_MAX_BYTES:
+        raise DatasetError(f"{path}: {size} bytes is too large for a {kind} file: allowed at most {IMAGE_MAX_BYTES}")
     ext = path.suffix.lower()
     if ext not in READ_FORMATS[kind]:
         raise DatasetError(f"{path}: unknown format {ext or '(no extension)'!r} for a {kind} file: allowed "

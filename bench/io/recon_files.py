@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from platebench.bench.files import TABLE_MAX_BYTES, read_capped
+from platebench.bench.files import TABLE_MAX_BYTES, read_capped, require_dir
 from platebench.bench.io.atomic import (
     staged_directory,
     write_bytes,
@@ -108,9 +108,7 @@ class ReconFiles:
 
 
 def load_reconstruction(recon_dir: Path) -> ReconFiles:
-    d = Path(recon_dir)
-    if not d.is_dir():
-        raise DatasetError(f"{d}: reconstruction directory is missing")
+    d = require_dir(Path(recon_dir), "reconstruction directory", DatasetError)
     meta = read_json(d / "recon.json")
     csv = d / "points.csv"
     data = read_capped(csv, TABLE_MAX_BYTES, "CSV table", DatasetError, missing="file is missing")

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from platebench.bench.files import JSON_MAX_BYTES, read_capped
+from platebench.bench.files import JSON_MAX_BYTES, read_capped, require_dir
 from platebench.bench.io.atomic import (
     staged_directory,
     write_bytes,
@@ -190,9 +190,7 @@ def load_pattern(sample_dir: Path) -> Pattern:
 
 def load_inputs(sample_dir: Path) -> ReconstructionInputs:
     """Read what reconstruction may see; never opens gt/, plate.ply, boundary.npy or sample.json."""
-    sample_dir = Path(sample_dir)
-    if not sample_dir.is_dir():
-        raise DatasetError(f"{sample_dir}: sample directory is missing")
+    sample_dir = require_dir(Path(sample_dir), "sample directory", DatasetError)
     calib = load_calibration(sample_dir)
     images = {}
     for name in IMAGE_NAMES:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import jinja2
 
+from platebench.bench.files import require_dir
 from platebench.bench.io.atomic import write_text
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.report.dataset import dataset_section
@@ -115,9 +116,7 @@ def write_report(input_dir, out_dir=None, overwrite: bool = False, warn=None) ->
     Raises ReportInputError (one line) when ``input_dir`` holds nothing to report or a damaged
     input; ``bench.io.outputs.OutputRefusedError`` when ``out_dir`` may not be written (module doc).
     ``warn(message)``: told of each part left out of the page (also in the page's notes)."""
-    root = Path(input_dir)
-    if not root.is_dir():
-        raise ReportInputError(f"{root}: directory is missing")
+    root = require_dir(Path(input_dir), "directory", ReportInputError)
     inp = detect_inputs(root)
     if inp.empty:
         raise ReportInputError(f"{root} holds neither a sweep dataset (manifest.json / results.csv) nor a "
