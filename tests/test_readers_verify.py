@@ -149,6 +149,19 @@ def test_report_warns_of_what_it_leaves_out_and_never_follows_a_link_out(small_s
     assert "right_active.png: truncated PNG" in err and err.count("\n") == 1
 
 
+def test_report_never_follows_a_linked_folder_out_of_its_input(small_sample_dir, tmp_path, capsys):
+    top = tmp_path / "top"
+    top.mkdir()
+    shutil.copytree(small_sample_dir, top / "a")
+    shutil.copytree(small_sample_dir, tmp_path / "outside")
+    os.symlink(tmp_path / "outside", top / "b")
+    assert main(["report", str(top)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "b is a symbolic link" in err and "not followed" in err, err
+    text = (top / "report" / "index.html").read_text()
+    assert "outside" not in text.replace(f"(to {tmp_path / 'outside'})", "") and 'href="../a/"' in text
+
+
 def test_sizes_come_from_headers_before_anything_is_allocated(tmp_path):
     cases = {"bomb.png": _png_declaring(30000, 30000), "big.npy": _npy_declaring((100000, 100000)),
              "big.pfm": b"Pf\n60000 60000\n-1\n" + b"\0" * 64, "huge.ply": _PLY_HUGE, "lying.ply": _PLY_LYING,

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable
 
-from platebench.bench.files import JSON_MAX_BYTES, file_kind, read_capped
+from platebench.bench.files import JSON_MAX_BYTES, file_kind, open_regular, read_capped
 from platebench.bench.io.atomic import (
     OutputExistsError,
     is_temp_name,
@@ -75,9 +75,9 @@ def _dict_with(path: Path, *keys: str, **values) -> bool:
 
 def _report_index(path: Path) -> bool:
     try:
-        with open(path, "rb") as f:
-            head = f.read(4000).decode("utf-8", "replace") if stat.S_ISREG(os.fstat(f.fileno()).st_mode) else ""
-    except OSError:
+        with open_regular(path, 1 << 30, "report page") as f:  # a FIFO is refused, never read
+            head = f.read(4000).decode("utf-8", "replace")
+    except (OSError, ValueError):
         return False
     return f'<meta name="generator" content="{GENERATOR_REPORT}">' in head
 
@@ -228,7 +228,7 @@ def guard_output(target, *, inputs: Iterable = (), slots: Iterable = (), shown: 
     tr = _resolved(t)
     slot_set = {_resolved(s) for s in slots}
     for given in inputs:
-        if given is None:
+        if given is None or not os.path.lexists(given):  # nothing there to destroy (its reader says it is missing)
             continue
         i = _resolved(given)
         if _same(tr, i):
