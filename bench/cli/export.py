@@ -57,7 +57,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from platebench.bench.io.export import export_dataset  # noqa: PLC0415
-
     from platebench.bench.progress import bar  # noqa: PLC0415
 
     shift = _shift(args.shift)
