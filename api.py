@@ -46,29 +46,40 @@ def score(sample, reconstruction):
     return score_any(sample, reconstruction)
 
 
-def sense(config=None, out=None, **options):
+def sense(config=None, out=None, *, overwrite: bool = False, **options):
     """The paper's three sensing stages, detectors and cures on one plate (a simulated robot).
 
-    Returns the typed ``SensingResult``; with ``out`` also writes each stage and ``sensing.json``.
-    ``options``: fields of ``platebench.bench.run.sensing.SensingOptions``.
+    Returns the typed ``SensingResult``; with ``out`` also writes each stage and ``sensing.json``
+    there (the output rule of ``platebench sense``: a new folder, or with ``overwrite`` a sensing
+    run's). ``options``: fields of ``platebench.bench.run.sensing.SensingOptions``.
     """
     from platebench.bench.config import SampleConfig
+    from platebench.bench.io.outputs import output_dir
     from platebench.bench.run.sensing import SensingOptions, run_sensing
-    return run_sensing(config or SampleConfig(), None if out is None else Path(out), SensingOptions(**options))
+    opts = SensingOptions(**options)
+    if out is None:
+        return run_sensing(config or SampleConfig(), None, opts)
+    with output_dir(Path(out), "sensing run", overwrite=overwrite) as stage:
+        return run_sensing(config or SampleConfig(), stage, opts)
 
 
 def sweep(spec, out, *, workers: int = 1, scheduler: str | None = None, resume: bool = False,
           overwrite: bool = False):
     """Run a sweep spec (TOML path) into dataset directory ``out`` on ``workers`` local processes
     or a Dask ``scheduler`` (``tcp://HOST:PORT``). Returns the ``SweepSummary``."""
+    from platebench.bench.io.outputs import guard_output
     from platebench.bench.sweep.executors import DaskExecutor, LocalExecutor, run_sweep
     from platebench.bench.sweep.spec import load_spec
+    loaded = load_spec(Path(spec))
+    if not resume:
+        guard_output(out, inputs=[spec])
     executor = DaskExecutor(scheduler) if scheduler else LocalExecutor(workers)
-    return run_sweep(load_spec(Path(spec)), Path(out), executor, resume=resume, overwrite=overwrite)
+    return run_sweep(loaded, Path(out), executor, resume=resume, overwrite=overwrite)
 
 
-def report(path, out=None) -> Path:
+def report(path, out=None, *, overwrite: bool = False) -> Path:
     """Write the self-contained HTML report of a dataset, study, sensing run, sample or
-    reconstruction; returns the path of ``index.html``."""
+    reconstruction (``out``: default ``path/report``; ``overwrite``: replace an earlier report);
+    returns the path of ``index.html``."""
     from platebench.bench.report.html import write_report
-    return write_report(Path(path), None if out is None else Path(out))
+    return write_report(Path(path), None if out is None else Path(out), overwrite=overwrite)

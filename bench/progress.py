@@ -7,7 +7,7 @@ import sys
 from tqdm import tqdm
 
 
-def bar(total: int, desc: str, unit: str = "step", enabled: bool | None = None):
+def bar(total: int | None, desc: str, unit: str = "step", enabled: bool | None = None):
     """A tqdm bar with counts and ETA; disabled when stderr is not a TTY (CI logs stay clean)
     unless PLATEBENCH_PROGRESS=1."""
     if enabled is None:

@@ -60,7 +60,7 @@ def test_reference_figures_stay_in_their_golden_bands(reference):
 
 def test_mismatched_sample_and_reconstruction_is_refused(reference, small_sample_dir):
     _, recon = reference
-    p = run_cli("evaluate", small_sample_dir, recon)
+    p = run_cli("evaluate", small_sample_dir, recon, "--overwrite")  # recon/score.json is there: ours to replace
     assert p.returncode == 2 and "was not made from" in p.stderr
 
 
@@ -73,7 +73,7 @@ def test_reconstruction_with_nan_is_refused(reference, tmp_path):
     cells[-1] = "nan"
     lines[3] = ",".join(cells)
     (bad / "points.csv").write_text("\n".join(lines) + "\n")
-    p = run_cli("evaluate", sample, bad)
+    p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
     assert p.returncode == 2 and "points.csv: line 4 holds NaN" in p.stderr
 
 
@@ -82,7 +82,7 @@ def test_reconstruction_with_malformed_boundary_is_refused(reference, tmp_path):
     bad = tmp_path / "recon"
     shutil.copytree(recon, bad)
     np.save(bad / "boundary.npy", np.zeros((3, 2)))
-    p = run_cli("evaluate", sample, bad)
+    p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
     assert p.returncode == 2 and "boundary.npy: must be a finite (N,3) array" in p.stderr
 
 
@@ -92,5 +92,5 @@ def test_missing_reconstruction_file_is_a_clear_error(reference, tmp_path, missi
     bad = tmp_path / "recon"
     shutil.copytree(recon, bad)
     (bad / missing).unlink()
-    p = run_cli("evaluate", sample, bad)
+    p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
     assert p.returncode == 2 and f"{missing}: file is missing" in p.stderr

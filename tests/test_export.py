@@ -139,11 +139,13 @@ def test_kitti_export_reads_back_within_its_quantisation(small_sample_dir, tmp_p
 
 
 def test_bad_export_requests_are_one_line_errors(small_sample_dir, tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
     for args, needle in [((small_sample_dir, "--format", "middlebury", "--out", tmp_path / "a", "--shift", "-3"),
                           "--shift = '-3'"),
                          ((tmp_path / "nothing", "--format", "middlebury", "--out", tmp_path / "b"),
                           "dataset directory is missing"),
-                         ((tmp_path, "--format", "kitti", "--out", tmp_path / "c"), "holds no PlateBench sample")]:
+                         ((tmp_path / "empty", "--format", "kitti", "--out", tmp_path / "c"), "holds no PlateBench sample"),
+                         ((tmp_path, "--format", "kitti", "--out", tmp_path / "c"), "is inside the input")]:
         code, _, err = export(capsys, *args)
         assert code == 2 and len(err.strip().splitlines()) == 1 and needle in err, err
     (tmp_path / "taken").mkdir()

@@ -130,7 +130,7 @@ def test_reconstruct_needs_no_ground_truth(inputs_only, tmp_path):
     p = run_cli("reconstruct", inputs_only, "--out", tmp_path / "r")
     assert p.returncode == 0, p.stderr
     assert {x.name for x in (tmp_path / "r").iterdir()} == {"points.ply", "points.csv", "boundary.npy",
-                                                             "surface.ply", "recon.json"}
+                                                             "surface.ply", "recon.json", ".platebench-output.json"}
 
 
 @pytest.mark.parametrize("damage, message", [

@@ -265,12 +265,19 @@ def test_demo_is_staged(tmp_path):
     (out / "keep.txt").write_text("old")
     r = cli("demo", "--quick", "--out", out)
     assert r.returncode == 2 and "already exists" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = cli("demo", "--quick", "--out", out, "--overwrite")  # not a demo output: never replaced
+    assert r.returncode == 2 and "keep.txt, not a PlateBench demo output" in r.stderr, r.stderr
+    shutil.rmtree(out)
+    from platebench.bench.io.outputs import STAMP, output_dir
+    with output_dir(out, "demo output") as d:  # an earlier demo's output (its marker and stamp)
+        (d / "demo.json").write_text(json.dumps({"generator": "platebench demo"}))
+        (d / "keep.txt").write_text("old")
     p = subprocess.Popen(cli_cmd("demo", "--quick", "--out", out, "--overwrite"), cwd=REPO,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     wait_for(lambda: any(x.name.startswith(".tmp-demo~") for x in tmp_path.iterdir()), proc=p)
     p.terminate()
     assert p.wait(timeout=60) == 143
-    assert sorted(x.name for x in out.iterdir()) == ["keep.txt"]
+    assert sorted(x.name for x in out.iterdir()) == [STAMP, "demo.json", "keep.txt"]
     assert sorted(x.name for x in tmp_path.iterdir()) == ["demo"]
 
 
@@ -322,5 +329,5 @@ def test_compare_is_staged(tmp_path):
     assert mtimes(out) == first
     r = cli("compare", sample, "--methods", "sgbm", "--out", out, "--overwrite")
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["compare.json", "compare.png"]
+    assert sorted(p.name for p in out.iterdir()) == [".platebench-output.json", "compare.json", "compare.png"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cmp", "s"]

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from platebench.bench.io.outputs import STAMP, OutputRefusedError
 from platebench.bench.report import plots as P
 from platebench.bench.report import summary as S
 from platebench.bench.report.html import GENERATOR, ReportInputError, write_report
@@ -208,9 +209,11 @@ def test_dataset_report(tmp_path):
     assert len(srcs) == len(names)
     for p in (ds / "report" / "plots").rglob("*.png"):
         _check_png(p)
-    # a second run replaces the report (it is ours), leaving no temporary files behind
-    write_report(ds)
-    assert not [p for p in (ds / "report").rglob("*") if p.name.startswith(".")]
+    # a second run replaces the report (it is ours) only with overwrite, leaving no temporary files behind
+    with pytest.raises(OutputRefusedError, match="already exists"):
+        write_report(ds)
+    write_report(ds, overwrite=True)
+    assert not [p for p in (ds / "report").rglob("*") if p.name.startswith(".") and p.name != STAMP]
     assert not [p for p in ds.iterdir() if p.name.startswith(".")]
 
 
@@ -323,8 +326,10 @@ def test_nothing_to_report_and_foreign_out_dir(tmp_path, capsys):
     other = tmp_path / "other"
     other.mkdir()
     (other / "keep.txt").write_text("mine")
-    with pytest.raises(ReportInputError, match="refusing"):
+    with pytest.raises(OutputRefusedError, match="already exists"):
         write_report(ds, other)
+    with pytest.raises(OutputRefusedError, match="keep.txt, not a PlateBench report: refusing"):
+        write_report(ds, other, overwrite=True)
     assert sorted(p.name for p in other.iterdir()) == ["keep.txt"]
 
 

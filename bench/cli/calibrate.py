@@ -5,7 +5,8 @@ import math
 from pathlib import Path
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
-from platebench.bench.io.atomic import check_target, staged_output, write_json
+from platebench.bench.io.atomic import write_json
+from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
 
@@ -24,7 +25,8 @@ def add_parser(sub) -> None:
                                    "and score both. Writes DIR/calibration.json (units in the keys) and prints "
                                    "a table.")
     p.add_argument("--out", type=Path, required=True, help="output directory to create (holds calibration.json)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
+    p.add_argument("--overwrite", action="store_true", help="replace a calibration directory 'platebench "
+                   "calibrate' wrote (nothing else is replaced)")
     add_sample_flags(p)
     p.add_argument("--target-z-mm", type=float, nargs="+", metavar="Z",
                    help="heights of the white target plane in MILLIMETRES, world z (default -30 0 30; at least 2)")
@@ -35,7 +37,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    check_target(args.out, args.overwrite, "calibration")
+    check_output(args.out, "calibration", overwrite=args.overwrite, inputs=[args.config])
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
     from platebench.bench.run.calibration import (  # noqa: PLC0415
         DEFAULT_TARGET_Z_M,
@@ -55,7 +57,7 @@ def run(args) -> int:
     board = BoardSpec()
     n_poses = len(calibration_poses(cfg.scene.build().rig, board))
     steps = 2 * n_poses + 2 * len(target_z) + (0 if args.no_reconstruction else 6 + 3)
-    with staged_output(args.out, overwrite=args.overwrite, what="calibration") as stage, \
+    with output_dir(args.out, "calibration", overwrite=args.overwrite, inputs=[args.config]) as stage, \
             bar(steps, "calibrate") as pbar:
         step = step_callback(pbar)
         result, renderer = run_calibration(cfg, board, target_z, progress=step)

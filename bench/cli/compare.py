@@ -28,12 +28,13 @@ and ``compare.png`` (signed depth-error map per method).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from platebench.bench.io.atomic import staged_output, write_bytes, write_json
+from platebench.bench.files import require_dir
+from platebench.bench.io.atomic import write_bytes, write_json
+from platebench.bench.io.outputs import output_dir
 from platebench.errors import UserValueError
 
 if TYPE_CHECKING:
@@ -92,6 +93,15 @@ def _num(x) -> str:
 
 
 # ----------------------------------------------------------------------------- CLI
+def _recon_inputs(sample: Path, recon: Path | None) -> list[Path]:
+    """What compare reads of the paper's reconstruction (``bench.run.compare.find_paper_reconstruction``):
+    the --recon folder, else the points.csv and recon.json beside the sample or in its recon/."""
+    if recon is not None:
+        return [Path(recon)]
+    return [d / n for d in (Path(sample).resolve().parent, Path(sample) / "recon") for n in ("points.csv", "recon.json")
+            if (d / n).exists()]
+
+
 def _method_list(text: str) -> tuple:
     """Names as given; unknown ones are refused by ``compare_sample`` (plug-ins resolve there)."""
     from platebench.bench.run.compare import ALL_METHODS  # noqa: PLC0415
@@ -116,7 +126,8 @@ def add_parser(sub) -> None:
                    help=f"comma-separated list from {', '.join(ALL_METHODS)}, installed plug-ins (entry points "
                         f"of platebench.methods) and module:function plug-ins (default: {','.join(METHODS)})")
     p.add_argument("--out", type=Path, help="output directory (default SAMPLE_DIR/compare)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
+    p.add_argument("--overwrite", action="store_true", help="replace a comparison directory 'platebench compare' "
+                   "wrote (nothing else is replaced)")
     p.add_argument("--recon", type=Path, help="directory with the paper pipeline's points.csv / recon.json "
                    "(default: the sample's parent directory)")
     p.add_argument("--spp", type=int, help="samples per pixel for the pattern sequences (default: the sample's)")
@@ -126,11 +137,11 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.report.plots import compare_error_figure  # noqa: PLC0415
     from platebench.bench.run.compare import compare_sample, comparison_json  # noqa: PLC0415
 
-    if not Path(args.sample).is_dir():
-        raise FileNotFoundError(f"{args.sample}: sample directory is missing")
+    require_dir(Path(args.sample), "sample directory", UserValueError)
     if (args.min_depth_mm is None) != (args.max_depth_mm is None):
         raise UserValueError("--min-depth-mm and --max-depth-mm go together")
     depth_range = None
@@ -142,13 +153,16 @@ def run(args) -> int:
     if args.spp is not None and not 1 <= args.spp <= 65536:
         raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 65536")
     t0 = time.perf_counter()
-
-    def say(msg):
-        print(f"  {msg}", file=sys.stderr, flush=True)
-
     out = Path(args.out) if args.out is not None else Path(args.sample) / "compare"
-    # staged (bench.io.atomic): --out checked before the renders, replaced only with --overwrite and complete
-    with staged_output(out, overwrite=args.overwrite, what="comparison") as stage:
+    # the output rule (bench.io.outputs): never into the sample or the reconstruction it reads, except the
+    # sample's own compare/; checked before the renders, staged, replaced only with --overwrite and complete
+    rule = {"overwrite": args.overwrite, "inputs": [args.sample, *_recon_inputs(args.sample, args.recon)],
+            "slots": [Path(args.sample) / "compare"]}
+    with output_dir(out, "comparison", **rule) as stage, bar(len(args.methods) + 1, "compare", unit="method") as pbar:
+        def say(msg):  # progress on a terminal only: a failure's one line stands alone on stderr
+            if pbar.n < pbar.total - 1:
+                pbar.update(1)
+            pbar.set_postfix_str(str(msg)[:60])
         cmp = compare_sample(args.sample, args.methods, args.recon, args.spp, depth_range, progress=say)
         doc = comparison_json(cmp)
         doc["total_s"] = time.perf_counter() - t0

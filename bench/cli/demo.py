@@ -14,8 +14,10 @@ import time
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.atomic import staged_output, write_json
+from platebench.bench.io.atomic import write_json
+from platebench.bench.io.outputs import output_dir
 from platebench.errors import PlateBenchError
+from platebench.version import __version__
 
 # the work's modules (renderer, pipeline, scores) are imported in _run(), once --out is checked
 HELP = "the main job: the paper's reference experiment end to end, a bend sweep, a false-boundary study and the report"
@@ -31,17 +33,21 @@ def add_parser(sub) -> None:
                                    "runs the three sensing stages; a bend sweep; a small false-boundary study; "
                                    "a realism sweep; and writes DIR/report/index.html. About 3 minutes on 2 cores.")
     p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
+    p.add_argument("--overwrite", action="store_true", help="replace a demo output 'platebench demo' wrote "
+                   "(nothing else is replaced)")
     p.add_argument("--quick", action="store_true", help="reference experiment only (no sensing, sweep, study)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    # staged: DIR is checked before any work and replaced (with --overwrite) only by a finished demo
-    with staged_output(args.out, overwrite=args.overwrite, what="demo output") as stage:
+    # the output rule (bench.io.outputs) before any work; staged: DIR is replaced (with --overwrite, only a
+    # demo output) only by a finished demo, which demo.json marks as one
+    with output_dir(args.out, "demo output", overwrite=args.overwrite) as stage:
         rc = _run(args, stage, Path(args.out))
         if rc:
             raise DemoFailed(f"demo step failed (exit status {rc}): {args.out} is left as it was")
+        write_json(stage / "demo.json", {"generator": "platebench demo", "quick": bool(args.quick),
+                                         "version": __version__})
     print(f"output          {args.out}")
     return 0
 

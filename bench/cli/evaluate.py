@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 from platebench.bench.io.atomic import write_json
+from platebench.bench.io.outputs import check_output
 from platebench.errors import UserValueError
 
 # the readers and scores (trimesh, SciPy, OpenCV, the pipeline's types) are imported where they are used
@@ -53,7 +54,9 @@ def add_parser(sub) -> None:
     p.add_argument("--radius-mm", type=float, default=None,
                    help=f"--points: coverage radius on the plate, MILLIMETRES (default {COVERAGE_RADIUS_M * 1e3:g})")
     p.add_argument("--out", type=Path, help="score JSON path (default RECON_DIR/score.json, or F's name with "
-                   ".score.json)")
+                   ".score.json); never an input, nor inside SAMPLE_DIR or RECON_DIR elsewhere than there")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing score JSON 'platebench evaluate' "
+                   "wrote (nothing else is replaced)")
     p.set_defaults(run=run)
 
 
@@ -153,6 +156,14 @@ def format_field_table(score) -> str:
     return "\n".join(lines)
 
 
+def _out(args, kind: str, path: Path) -> Path:
+    """The score JSON's path after the output rule (``bench.io.outputs``), checked before any scoring."""
+    slot = path / "score.json" if kind == "recon" else path.with_name(f"{path.stem}.score.json")
+    out = args.out or slot
+    check_output(out, "score", overwrite=args.overwrite, inputs=[args.sample_dir, path], slots=[slot])
+    return out
+
+
 def run(args) -> int:
     kind, path = _kind(args)
     if kind == "recon":
@@ -163,11 +174,11 @@ def run(args) -> int:
             raise UserValueError(f"{path / 'recon.json'}: file is missing (RECON_DIR comes from 'platebench "
                                  "reconstruct'; score another program's output with --disparity, --depth, --points "
                                  "or --mesh F)")
+        out = _out(args, kind, path)
         from platebench.bench.run.score import score_files  # noqa: PLC0415
         from platebench.evaluation.score import format_table  # noqa: PLC0415
 
         score = score_files(args.sample_dir, args.recon_dir)
-        out = args.out or (args.recon_dir / "score.json")
         write_json(out, score.to_dict())
         print(format_table(score))
         print(f"{'written':16s} {out}")
@@ -176,6 +187,7 @@ def run(args) -> int:
     from platebench.bench.run.plugins import score_document, score_output  # noqa: PLC0415
     from platebench.evaluation.field_scores import COVERAGE_RADIUS_M, OUTLIER_M, score_point_cloud  # noqa: PLC0415
 
+    out = _out(args, kind, path)
     truth = load_field_truth(args.sample_dir)
     output = _read(kind, path, args)
     what = f"{path}"
@@ -187,7 +199,6 @@ def run(args) -> int:
     else:
         score = score_output(output, truth, what)
     name = args.name or path.stem
-    out = args.out or path.with_name(f"{path.stem}.score.json")
     doc = score_document(name, kind, score, args.sample_dir)
     doc["input"] = str(path)
     write_json(out, doc)

@@ -6,7 +6,6 @@ printing.
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from platebench.errors import UserValueError
@@ -51,16 +50,22 @@ def add_parser(sub) -> None:
                    help="shift disparities down by PX (crop the left image's first PX columns and the right's last "
                         f"PX), or 'auto': per sample, so the smallest true disparity is {MIN_DISPARITY_PX} to "
                         f"{MIN_DISPARITY_PX + 1} px (default 0)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing DIR")
+    p.add_argument("--overwrite", action="store_true", help="replace a DIR 'platebench export' wrote (nothing else "
+                   "is replaced)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     from platebench.bench.io.export import export_dataset  # noqa: PLC0415
+    from platebench.bench.progress import bar  # noqa: PLC0415
 
     shift = _shift(args.shift)
-    summary = export_dataset(args.dataset, args.out, args.fmt, images=args.images, shift=shift,
-                             overwrite=args.overwrite, progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
+    with bar(None, "export", unit="sample") as pbar:  # on a terminal only: a failure's one line stands alone
+        def step(msg: str) -> None:
+            pbar.update(1)
+            pbar.set_postfix_str(msg)
+        summary = export_dataset(args.dataset, args.out, args.fmt, images=args.images, shift=shift,
+                                 overwrite=args.overwrite, progress=step)
     for s in summary.samples:
         print(f"{s['id']:24s} {s['width']}x{s['height']}  shift {s['shift_px']} px, disparity {s['vmin']} to "
               f"{s['vmax']} px, doffs {s['doffs_px']:g} px")

@@ -13,8 +13,9 @@ import argparse
 import importlib
 import os
 import sys
+from pathlib import Path
 
-from platebench.bench.io.atomic import Terminated, install_sigterm_handler
+from platebench.bench.io.atomic import Terminated, install_sigterm_handler, target_of_temp
 from platebench.errors import PlateBenchError
 from platebench.version import __version__
 
@@ -53,7 +54,8 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 def _one_line(e: BaseException) -> str:
     if isinstance(e, OSError) and e.filename is not None and e.strerror:
-        return f"{e.filename}: {e.strerror[0].lower() + e.strerror[1:]}"
+        name = target_of_temp(Path(os.fsdecode(e.filename)))  # the user's path, never a staging name
+        return f"{name}: {e.strerror[0].lower() + e.strerror[1:]}"
     text = str(e).strip()
     return text.splitlines()[0] if text else type(e).__name__
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.files import regular_size
 from platebench.bench.io.atomic import write_json
+from platebench.bench.io.outputs import check_output
 from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
@@ -32,18 +34,38 @@ def add_parser(sub) -> None:
     p.add_argument("--height", type=int, default=960)
     p.add_argument("--spp", type=int, default=16)
     p.add_argument("--repeat", type=int, default=2, help="timed repetitions (best is reported)")
-    p.add_argument("--json", type=Path, help="also write the figures as JSON here")
+    p.add_argument("--json", type=Path, help="also write the figures as JSON here (a new file, or with --overwrite "
+                   "one 'platebench perf' wrote)")
+    p.add_argument("--overwrite", action="store_true", help="replace the --json or --save file of an earlier run "
+                   "(nothing else is replaced)")
     p.add_argument("--variants", default="cuda_ad_rgb,llvm_ad_rgb",
                    help="perf variants: comma-separated Mitsuba variants, the first is the baseline "
                         "(default cuda_ad_rgb,llvm_ad_rgb: a GPU machine)")
-    p.add_argument("--save", type=Path, help="perf variants: save the first variant's images (.npz)")
+    p.add_argument("--save", type=Path, help="perf variants: save the first variant's images (a new .npz file, or "
+                   "with --overwrite one --save wrote)")
     p.add_argument("--against", type=Path, help="perf variants: compare the first variant's images with these "
                                                 "(.npz from --save on another machine)")
     p.set_defaults(run=run)
 
 
+def perf_document(target: str, figures) -> dict:
+    """What ``--json`` holds: the figures, marked as perf's own (``bench.io.outputs``: what --overwrite may replace)."""
+    return {"generator": "platebench perf", "target": target, "figures": figures}
+
+
+def _check_outputs(args) -> None:
+    """The output rule (``bench.io.outputs``) for --json and --save, before any benchmark runs."""
+    if args.json is not None:
+        check_output(args.json, "perf figures", overwrite=args.overwrite, inputs=[args.against])
+    if args.save is not None:
+        if args.save.suffix != ".npz":
+            raise UserValueError(f"--save = {args.save}: allowed a file name ending in .npz")
+        check_output(args.save, "perf images", overwrite=args.overwrite, inputs=[args.against, args.json])
+
+
 def run(args) -> int:
     from platebench.bench.perf.benchmarks import perf_reconstruct, perf_render  # noqa: PLC0415
+    _check_outputs(args)
     if args.targets and args.targets[0] in EXTRA:
         if len(args.targets) != 1:
             raise UserValueError(f"perf {args.targets[0]} runs alone: got {' '.join(args.targets)}")
@@ -72,7 +94,7 @@ def run(args) -> int:
         else:
             out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
     if args.json:
-        write_json(args.json, out)
+        write_json(args.json, perf_document(",".join(args.targets or TARGETS), out))
     return 0
 
 
@@ -81,12 +103,13 @@ def _variants(args) -> int:
     variants = [v.strip() for v in args.variants.split(",") if v.strip()]
     if not variants:
         raise UserValueError(f"--variants = {args.variants!r}: give at least one Mitsuba variant")
-    if args.against is not None and not args.against.is_file():
-        raise UserValueError(f"--against = {args.against}: no such file (an .npz written by --save)")
+    if args.against is not None:  # a regular file (a FIFO would block the reader)
+        regular_size(args.against, "an .npz written by --save", UserValueError,
+                     missing="no such file (an .npz written by --save)")
     if args.repeat < 1:
         raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
     print(f"== perf variants ({args.width}x{args.height}, spp {args.spp}): {', '.join(variants)}")
     out = perf_variants(variants, args.width, args.height, args.spp, args.repeat, args.save, args.against)
     if args.json:
-        write_json(args.json, out)
+        write_json(args.json, perf_document("variants", out))
     return 0

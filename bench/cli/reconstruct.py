@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from platebench.bench.io.atomic import staged_output
+from platebench.bench.io.outputs import output_dir
 from platebench.errors import UserValueError
 from platebench.scenes.naming import IMAGE_NAMES
 
@@ -19,7 +19,8 @@ def add_parser(sub) -> None:
                                    "to --out. Prints a summary.")
     p.add_argument("sample_dir", type=Path, help="sample directory written by 'platebench render'")
     p.add_argument("--out", type=Path, required=True, help="reconstruction directory to create")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing reconstruction directory")
+    p.add_argument("--overwrite", action="store_true", help="replace a reconstruction directory 'platebench "
+                   "reconstruct' wrote (nothing else is replaced)")
     p.add_argument("--grid-mm", type=float, default=2.0, help="surface grid spacing in MILLIMETRES (default 2)")
     p.add_argument("--calibration", type=Path,
                    help="calibration.json from 'platebench calibrate': run on the ESTIMATED stereo rig and "
@@ -31,7 +32,8 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     if not (0.1 <= args.grid_mm <= 20):
         raise UserValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
-    with staged_output(args.out, overwrite=args.overwrite, what="reconstruction") as stage:
+    with output_dir(args.out, "reconstruction", overwrite=args.overwrite,
+                    inputs=[args.sample_dir, args.calibration]) as stage:
         r = _reconstruct(args, stage)
     print_summary(r, args.out)
     return 0

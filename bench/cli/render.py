@@ -5,7 +5,7 @@ import argparse
 from pathlib import Path
 
 from platebench.bench.config import load_config, with_camera_preset, with_overrides
-from platebench.bench.io.atomic import staged_output
+from platebench.bench.io.outputs import output_dir
 
 HELP = "render one sample of a bent plate with exact ground truth"
 
@@ -51,16 +51,17 @@ def add_parser(sub) -> None:
                                    "(layout v1, see README). Default: the paper's reference experiment "
                                    "(116.5 x 73.5 mm plate bent 10 degrees, cameras 0.40 m above).")
     p.add_argument("--out", type=Path, required=True, help="sample directory to create")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing sample directory")
+    p.add_argument("--overwrite", action="store_true", help="replace a sample directory 'platebench render' wrote "
+                   "(nothing else is replaced)")
     add_sample_flags(p)
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    # staged: --out checked (exists? locked by another writer? writable?) before the render; replaced
-    # only with --overwrite, and only once the new sample is complete
-    with staged_output(args.out, overwrite=args.overwrite, what="sample") as stage:
+    # the output rule (bench.io.outputs) before the render: --out new, or with --overwrite a sample this
+    # command wrote; staged, so it is replaced only once the new sample is complete
+    with output_dir(args.out, "sample", overwrite=args.overwrite, inputs=[args.config]) as stage:
         # imported once the configuration and --out are checked: a bad one is refused at once
         from platebench.bench.io.sample_files import write_sample  # noqa: PLC0415
         from platebench.bench.progress import bar, step_callback  # noqa: PLC0415

@@ -3,6 +3,7 @@ a reconstruction, a sample, compare.json files, or a folder holding some of them
 ``bench/report/html.py``)."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 HELP = "HTML report (headline, tables, plots, thumbnails) of a dataset, study, sensing run, reconstruction or sample"
@@ -26,11 +27,17 @@ def add_parser(sub) -> None:
     p.add_argument("input", type=Path, metavar="PATH", help="dataset, study, sensing run, reconstruction or sample "
                                                            "directory, or a folder holding some of them")
     p.add_argument("--out", type=Path, metavar="DIR",
-                   help="output directory (default PATH/report); must be new, empty or an earlier report")
+                   help="output directory (default PATH/report); new, or with --overwrite an earlier report; never "
+                        "PATH itself or another folder inside it")
+    p.add_argument("--overwrite", action="store_true", help="replace a report 'platebench report' wrote (nothing "
+                   "else is replaced)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     from platebench.bench.report.html import write_report  # noqa: PLC0415
-    print(write_report(args.input, args.out))
+
+    def warn(message: str) -> None:  # a part left out of the page, and why
+        print(f"platebench: warning: {message}", file=sys.stderr)
+    print(write_report(args.input, args.out, overwrite=args.overwrite, warn=warn))
     return 0

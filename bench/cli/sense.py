@@ -5,7 +5,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args
-from platebench.bench.io.atomic import staged_output
+from platebench.bench.io.outputs import output_dir
 from platebench.errors import UserValueError
 
 if TYPE_CHECKING:
@@ -27,7 +27,8 @@ def add_parser(sub) -> None:
                                    "until the boundary is verified without ground truth, or a stop with the reason. "
                                    "Writes sensing.json, multiview.npz and stage 3's sample and reconstruction.")
     p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--overwrite", action="store_true")
+    p.add_argument("--overwrite", action="store_true", help="replace a sensing run 'platebench sense' wrote "
+                   "(nothing else is replaced)")
     p.add_argument("--max-cures", type=int, default=SensingOptions.max_cures,
                    help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to 20)")
     p.add_argument("--workspace-mm", type=float, default=150.0,
@@ -114,8 +115,8 @@ def run(args) -> int:
     if not (0 <= args.max_cures <= 20):
         raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
     opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures)
-    # staged: --out checked (exists? locked? writable?) before the first render, replaced only once complete
-    with staged_output(args.out, overwrite=args.overwrite, what="sensing run") as stage:
+    # the output rule (bench.io.outputs) before the first render; staged, replaced only once complete
+    with output_dir(args.out, "sensing run", overwrite=args.overwrite, inputs=[args.config]) as stage:
         with bar(4 + opts.max_views, "sense") as pbar:
             s = run_sensing(cfg, stage, opts, progress=step_callback(pbar))
     for line in step_lines(s) + summary_lines(s):

@@ -39,7 +39,8 @@ def add_parser(sub) -> None:
     p.add_argument("--methods", help="comma-separated reconstruction methods, overriding the spec's")
     p.add_argument("--resume", action="store_true", help="continue DATASET: skip samples whose result is done")
     p.add_argument("--retry-failed", action="store_true", help="with --resume, run failed samples again")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing sweep DATASET")
+    p.add_argument("--overwrite", action="store_true", help="replace a sweep DATASET 'platebench sweep' wrote "
+                   "(nothing else is replaced: a file no sample lists in it is refused)")
     p.add_argument("--dry-run", action="store_true", help="validate and list the samples; render nothing")
     p.add_argument("--progress", dest="progress", action="store_true", default=None,
                    help="show the progress bar even when stderr is not a terminal")
@@ -54,6 +55,7 @@ def _methods(text: str | None):
 
 
 def run(args) -> int:
+    from platebench.bench.io.outputs import guard_output  # noqa: PLC0415
     from platebench.bench.sweep.executors import DaskExecutor, LocalExecutor, run_sweep  # noqa: PLC0415
     from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
 
@@ -73,6 +75,8 @@ def run(args) -> int:
         for k, n in spec.ignored.items():
             print(f"note: axis {k} does not apply to {n} samples (ignored there)")
         return 0
+    if not args.resume:  # the output rule (bench.io.outputs): a new or replaced dataset never holds its spec
+        guard_output(args.out, inputs=[args.spec])
     for flag, v in (("--connect-timeout-s", args.connect_timeout_s), ("--worker-timeout-s", args.worker_timeout_s)):
         if not math.isfinite(v) or not 1.0 <= v <= 86400.0:
             raise UserValueError(f"{flag} = {v} is out of range: allowed 1 to 86400 s")

@@ -36,6 +36,7 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from platebench.bench.files import CONFIG_MAX_BYTES, read_capped
 from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
 from platebench.scenes.pattern import square_grid
@@ -50,7 +51,7 @@ from platebench.scenes.scene_spec import (
 from platebench.scenes.sensor_model import SensorModel
 
 __all__ = ["ConfigError", "SceneParams", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid",
-           "with_overrides", "read_toml", "check_types", "check_value_type"]
+           "with_overrides", "read_toml", "read_toml_text", "check_types", "check_value_type"]
 
 
 class ConfigError(UserValueError):
@@ -253,21 +254,23 @@ def load_config(path: Path | None) -> SampleConfig:
 
 
 def read_toml(path: Path, what: str = "TOML") -> dict:
-    """A TOML file as a dict; one-line errors naming the file (missing, a directory, unreadable: the
-    OSError; not UTF-8; bad syntax: ConfigError)."""
+    """A TOML file as a dict; one-line errors naming the file (missing, a directory, a FIFO or a
+    device, larger than ``CONFIG_MAX_BYTES``, unreadable: the OSError; not UTF-8; bad syntax:
+    ConfigError)."""
+    return read_toml_text(path, what)[0]
+
+
+def read_toml_text(path: Path, what: str = "TOML") -> tuple[dict, str]:
+    """(the parsed TOML file, its text), read once (``read_toml``)."""
     path = Path(path)
-    if not path.exists():
-        raise ConfigError(f"{path}: {what} file is missing")
-    if path.is_dir():
-        raise ConfigError(f"{path}: is a directory: allowed a {what} file (TOML)")
-    data = path.read_bytes()  # PermissionError names the file
+    data = read_capped(path, CONFIG_MAX_BYTES, f"{what} file (TOML)", ConfigError, missing=f"{what} file is missing")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise ConfigError(f"{path}: not UTF-8 text (byte 0x{data[e.start]:02x} at offset {e.start}): allowed a "
                           f"UTF-8 {what} file (TOML)") from None
     try:
-        return tomllib.loads(text)
+        return tomllib.loads(text), text
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: invalid TOML ({str(e).splitlines()[0]})") from None
 

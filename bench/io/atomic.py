@@ -32,6 +32,7 @@ import secrets
 import shutil
 import signal
 import socket
+import stat
 import sys
 from pathlib import Path
 
@@ -42,7 +43,7 @@ from platebench.errors import PlateBenchError
 __all__ = ["write_bytes", "write_text", "write_json", "staged_output", "staged_directory", "sweep_stale",
            "OutputLock", "OutputLockedError", "OutputExistsError", "Terminated", "install_sigterm_handler",
            "owner_alive", "temp_owner", "is_temp_name", "check_target", "temp_path", "pid_alive", "swap_in",
-           "rename_noreplace", "HOST"]
+           "rename_noreplace", "target_of_temp", "HOST"]
 
 HOST = socket.gethostname()
 _SEP = "~"
@@ -86,6 +87,20 @@ def temp_owner(name: str) -> tuple[str, int] | None:
     return parts[1], int(parts[2])
 
 
+def target_of_temp(path: Path) -> Path:
+    """``path`` with every temporary name in it replaced by the output it stands for (``.tmp-NAME~...``
+    and ``.NAME~....tmp`` -> ``NAME``): a file inside a staging directory is named where it will be.
+    Messages name the target, never the temporary name."""
+    def target(name: str) -> str:
+        if name.startswith(".tmp-") and _SEP in name:
+            return name[len(".tmp-"):].split(_SEP, 1)[0]
+        if name.startswith(".") and name.endswith(".tmp") and _SEP in name:
+            return name[1:].split(_SEP, 1)[0]
+        return name
+    path = Path(path)
+    return Path(*(target(part) for part in path.parts)) if path.parts else path
+
+
 def is_temp_name(name: str) -> bool:
     return name.startswith((".tmp-", ".old-")) or (name.startswith(".") and name.endswith(".tmp"))
 
@@ -116,21 +131,35 @@ def _umask() -> int:
 
 
 def write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temporary file in the same directory, then rename)."""
+    """Write ``data`` to ``path`` atomically (temporary file in the same directory, then rename).
+    An OSError (a full disk, no permission, ``path`` a directory) names ``path``, never the
+    temporary file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.parent / f".{path.name}{_tag()}.tmp"
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666 & ~_umask())
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666 & ~_umask())
+    except OSError as e:
+        raise _naming(e, path) from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise _naming(e, path) from None
         raise
+
+
+def _naming(e: OSError, path: Path) -> OSError:
+    """``e`` as the same kind of OSError naming ``path`` (its errno and words kept)."""
+    if e.errno is None:
+        return e
+    return type(e)(e.errno, e.strerror or os.strerror(e.errno), str(path))
 
 
 def write_text(path: Path, text: str) -> None:
@@ -233,7 +262,7 @@ class OutputLock:
         if not self.path.exists():
             return None
         try:
-            fd = os.open(self.path, os.O_RDONLY)
+            fd = os.open(self.path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
         except OSError:
             return None
         try:
@@ -247,7 +276,17 @@ class OutputLock:
     def acquire(self) -> "OutputLock":
         self.target.parent.mkdir(parents=True, exist_ok=True)
         for _ in range(20):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+            try:  # never through a link, never a file that is not a lock: it would be written over
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666 & ~_umask())
+            except OSError as e:
+                if e.errno == errno.ELOOP or os.path.islink(self.path):
+                    raise OutputLockedError(f"{self.path}: is a symbolic link where {self.target.name}'s lock file "
+                                            "goes: refusing to write through it (remove it)") from None
+                raise
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                os.close(fd)
+                raise OutputLockedError(f"{self.path}: is not a regular file where {self.target.name}'s lock file "
+                                        "goes: refusing to use it (remove it)")
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -266,9 +305,16 @@ class OutputLock:
                 continue
             old = os.read(fd, 1 << 16)
             if old.strip():
-                with contextlib.suppress(ValueError):
+                try:
                     prev = json.loads(old)
-                    self.stale = prev if isinstance(prev, dict) else {}
+                except ValueError:
+                    prev = None
+                if not (isinstance(prev, dict) and "pid" in prev):
+                    os.close(fd)
+                    raise OutputLockedError(f"{self.path}: holds something that is not a platebench lock record, where "
+                                            f"{self.target.name}'s lock file goes: refusing to write over it (move "
+                                            "it away)")
+                self.stale = prev
             rec = {"pid": os.getpid(), "host": HOST, "since": _dt.datetime.now().isoformat(timespec="seconds"),
                    "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])[:300] if sys.argv else "python"}
             os.lseek(fd, 0, os.SEEK_SET)
@@ -312,7 +358,10 @@ def _note(msg: str) -> None:
 # ----------------------------------------------------------------------------- staged outputs
 def _make_stage(target: Path) -> Path:
     stage = target.parent / f".tmp-{target.name}{_tag()}"
-    os.mkdir(stage, 0o777 & ~_umask())
+    try:
+        os.mkdir(stage, 0o777 & ~_umask())
+    except OSError as e:
+        raise _naming(e, target) from None
     return stage
 
 
@@ -338,12 +387,14 @@ def check_target(target: Path, overwrite: bool, what: str = "output") -> Path:
 
 
 @contextlib.contextmanager
-def staged_output(target: Path, overwrite: bool = False, what: str = "output", note=_note, lock: bool = True):
+def staged_output(target: Path, overwrite: bool = False, what: str = "output", note=_note, lock: bool = True,
+                  check=None):
     """Yield a staging directory that replaces ``target`` once the block finishes (see module doc).
 
     Checked before any work: ``target`` does not exist (or ``overwrite``), nobody else writes it
     (its ``OutputLock``), and its parent is writable (the staging directory is created there).
-    ``note(msg)`` is told when a stale lock of a killed writer is taken over."""
+    ``check(target)``: the caller's own rule (``bench.io.outputs``), run again under the lock and
+    just before the swap. ``note(msg)`` is told when a stale lock of a killed writer is taken over."""
     target = check_target(Path(target).absolute(), overwrite, what)
     target.parent.mkdir(parents=True, exist_ok=True)
     guard = OutputLock(target, what) if lock else None
@@ -354,10 +405,14 @@ def staged_output(target: Path, overwrite: bool = False, what: str = "output", n
     stage = None
     try:
         check_target(target, overwrite, what)  # again, under the lock
+        if check is not None:
+            check(target)
         sweep_stale(target.parent, only=target.name)
         stage = _make_stage(target)
         yield stage
         check_target(target, overwrite, what)
+        if check is not None:
+            check(target)
         swap_in(stage, target)
         _remove(stage)  # the old output, if there was one
     except BaseException:

@@ -17,6 +17,13 @@ and numbers only) from a thin wrapper, or pass ``collate_fn=list``.
 its ``samples/<id>/sample``) or any folder holding sample directories; samples are found by their
 ``sample.json`` and ordered by path. Each item is read from disk when asked for (nothing cached).
 
+Nothing is read on trust (``bench.io.verify``): a symbolic link anywhere under ``root`` is refused
+when the dataset is opened, as is a sample the sweep manifest lists as done whose folder is gone;
+each item's files are checked against the checksums recorded when they were written (the sweep
+manifest, the sample's result.json or its stamp) and its images against ``sample.json``'s pixel
+checksums before they are used (``check()`` checks every sample at once). A file changed,
+truncated or swapped with another sample's is refused, naming the sample.
+
 Ground truth is derived from the sample's own maps when read (``evaluation.stereo_truth``),
 nothing is added to the sample layout: the left disparity f B / Z - doffs, the right view's
 disparity from the right depth, the non-occlusion mask (a left/right consistency check).
@@ -31,15 +38,20 @@ off the plate (the ground) have no true disparity; after a shift theirs may be n
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.files import require_dir
 from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import DatasetError, read_png
+from platebench.bench.io.layout import SAMPLE, SAMPLES
 from platebench.bench.io.middlebury import MiddleburyCalib
+from platebench.bench.io.sample_files import read_json
+from platebench.bench.io.verify import dataset_manifest, refuse_links, sample_checksums, verify_sample
 from platebench.scenes.naming import LIGHTINGS
 
 __all__ = ["PlateBenchDataset", "StereoPair", "find_samples", "MIN_DISPARITY_PX"]
@@ -85,12 +97,21 @@ def _is_sample(d: Path) -> bool:
 
 def find_samples(root: Path) -> list[Path]:
     """Sample directories under ``root`` (``root`` itself if it is one), sorted by path."""
-    root = Path(root)
-    if not root.is_dir():
-        raise DatasetError(f"{root}: dataset directory is missing")
+    root = require_dir(Path(root), "dataset directory", DatasetError)
+    refuse_links(root)
     if _is_sample(root):
         return [root]
     return sorted(p.parent for p in root.rglob("sample.json") if _is_sample(p.parent))
+
+
+def _check_pixels(d: Path, meta: dict, images: dict) -> None:
+    """Each image's pixels against the sha256 ``sample.json`` recorded for them when rendered."""
+    recorded = meta.get("images") if isinstance(meta.get("images"), dict) else {}
+    for name, img in images.items():
+        want = recorded.get(name)
+        if want is not None and hashlib.sha256(np.ascontiguousarray(img).tobytes()).hexdigest() != want:
+            raise DatasetError(f"{d / 'images' / (name + '.png')}: its pixels differ from those sample.json records "
+                               f"for sample {d.name} (changed or swapped with another sample's): refusing the sample")
 
 
 def _sample_id(root: Path, d: Path) -> str:
@@ -133,6 +154,26 @@ class PlateBenchDataset:
         self.sample_dirs = find_samples(self.root)
         if not self.sample_dirs:
             raise DatasetError(f"{self.root}: holds no PlateBench sample (no sample.json with images/)")
+        self._manifest = dataset_manifest(self.root)
+        found = {d.resolve() for d in self.sample_dirs}
+        for e in (self._manifest or {}).get("samples", []):
+            d = self.root / SAMPLES / str(e.get("id")) / SAMPLE if isinstance(e, dict) else None
+            if d is not None and e.get("status") == "ok" and d.resolve() not in found:
+                raise DatasetError(f"{d}: sample {e.get('id')} is done in {self.root / 'manifest.json'} but its folder "
+                                   "is missing or holds no sample: refusing the dataset")
+
+    def _verify(self, d: Path) -> None:
+        """``d``'s files that an item is made of against their recorded checksums (``bench.io.verify``):
+        every recorded file but the camera images of the other lighting and the linear-radiance EXRs."""
+        checks = sample_checksums(d, self._manifest)
+        if checks is not None:
+            keep = {f"images/left_{self.images}.png", f"images/right_{self.images}.png"}
+            verify_sample(d, checks, [n for n in checks.files if not n.startswith("images/") or n in keep])
+
+    def check(self) -> None:
+        """Check every sample's files against their recorded checksums (module doc), before any is read."""
+        for d in self.sample_dirs:
+            self._verify(d)
 
     def __len__(self) -> int:
         return len(self.sample_dirs)
@@ -151,9 +192,11 @@ class PlateBenchDataset:
         if not -n <= i < n:
             raise IndexError(f"index {i} is out of range: the dataset has {n} samples")
         d = self.sample_dirs[int(i) % n]
+        self._verify(d)
         truth = load_field_truth(d)
         left = read_png(d / "images" / f"left_{self.images}.png")
         right = read_png(d / "images" / f"right_{self.images}.png")
+        _check_pixels(d, read_json(d / "sample.json"), {f"left_{self.images}": left, f"right_{self.images}": right})
         H, W = truth.shape
         if left.shape != (H, W) or right.shape != (H, W):
             raise DatasetError(f"{d}: images are {left.shape[1]}x{left.shape[0]}, ground truth {W}x{H}")

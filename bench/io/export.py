@@ -22,7 +22,10 @@ KITTI 2015 (``--format kitti``), ``OUT/training/``::
     KITTI's 16-bit disparities hold 0 < d < 256 px: a larger true disparity is refused (use --shift auto).
 
 ``OUT/export.json`` lists every exported sample with its source directory and shift. The output
-directory is staged and renamed into place: it appears complete or not at all.
+follows the output rule (``bench.io.outputs``: never the dataset itself nor inside it; an existing
+``OUT`` is replaced only with ``overwrite`` and only when it is an export), is staged and renamed
+into place: it appears complete or not at all. Every sample is checked against its recorded
+checksums (``PlateBenchDataset.check``) before the first is written or ``progress`` is told.
 """
 from __future__ import annotations
 
@@ -31,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from platebench.bench.io.atomic import staged_directory, write_json, write_text
+from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX, PlateBenchDataset, StereoPair
 from platebench.bench.io.images import DatasetError, write_pfm, write_png
 from platebench.bench.io.middlebury import write_calib
+from platebench.bench.io.outputs import check_output, output_dir
 
 __all__ = ["FORMATS", "ExportSummary", "export_dataset", "KITTI_SCALE", "nocc_mask_png"]
 
@@ -102,10 +106,12 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
     """Write every sample under ``root`` to ``out`` in ``fmt`` ("middlebury" or "kitti"; module doc)."""
     if fmt not in FORMATS:
         raise DatasetError(f"format {fmt!r} is not known: choose {' or '.join(FORMATS)}")
+    check_output(out, "export", overwrite=overwrite, inputs=[root])
     ds = PlateBenchDataset(root, images=images, shift=shift, min_disparity_px=min_disparity_px)
+    ds.check()
     say = progress or (lambda msg: None)
     rows = []
-    with staged_directory(Path(out), overwrite=overwrite) as d:
+    with output_dir(out, "export", overwrite=overwrite, inputs=[root]) as d:
         for k in range(len(ds)):
             pair = ds[k]
             say(f"{pair.sample_id} ({k + 1}/{len(ds)})")

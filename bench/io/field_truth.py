@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.files import require_dir
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.sample_files import load_calibration, load_ground_truth
 from platebench.evaluation.field_scores import FieldTruth
@@ -33,9 +34,7 @@ def top_faces(n_faces: int, n_vertices: int, n_boundary: int, thickness_m: float
 
 def load_field_truth(sample_dir: Path) -> FieldTruth:
     """The ground truth every output kind is scored against (left view; world frame, metres)."""
-    sample_dir = Path(sample_dir)
-    if not sample_dir.is_dir():
-        raise DatasetError(f"{sample_dir}: sample directory is missing")
+    sample_dir = require_dir(Path(sample_dir), "sample directory", DatasetError)
     gt = load_ground_truth(sample_dir)
     rig = load_calibration(sample_dir).rig
     thickness = float(gt.meta.get("config", {}).get("plate", {}).get("thickness_m", 0.0) or 0.0)

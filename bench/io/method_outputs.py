@@ -14,19 +14,30 @@ points     ``.ply``, ``.csv`` (x, y, z columns, see    world frame, metres
 mesh       ``.ply`` (also ``.obj``, ``.stl``)          world frame, metres
 =========  ==========================================  ======================================
 
-Readers raise ``DatasetError`` with one line naming the file: missing, unknown format,
-unreadable, wrong shape. Writers are atomic (``bench.io.atomic``).
+Readers raise ``DatasetError`` with one line naming the file: missing, not a regular file (a FIFO,
+a device), unknown format, larger than its header allows (sizes are read from PNG, EXR, PFM, NPY
+and PLY headers before anything is allocated, ``bench.io.images``), unreadable, wrong shape.
+Writers are atomic (``bench.io.atomic``).
 """
 from __future__ import annotations
 
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
+from platebench.bench.files import IMAGE_MAX_BYTES, regular_size
 from platebench.bench.io.atomic import write_bytes
-from platebench.bench.io.images import DatasetError, read_pfm, write_exr, write_pfm
+from platebench.bench.io.images import (
+    DatasetError,
+    check_ply,
+    exr_size,
+    load_npy,
+    read_pfm,
+    read_png,
+    write_exr,
+    write_pfm,
+)
 from platebench.bench.io.points import read_points_csv
 
 if TYPE_CHECKING:
@@ -43,8 +54,9 @@ OUTPUT_FILES = {"disparity": "disparity.pfm", "depth": "depth.exr", "points": "p
 
 def _check(path: Path, kind: str) -> str:
     path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"{path}: file is missing")
+    size = regular_size(path, f"{kind} file", DatasetError, missing="file is missing")
+    if size > IMAGE_MAX_BYTES:
+        raise DatasetError(f"{path}: {size} bytes is too large for a {kind} file: allowed at most {IMAGE_MAX_BYTES}")
     ext = path.suffix.lower()
     if ext not in READ_FORMATS[kind]:
         raise DatasetError(f"{path}: unknown format {ext or '(no extension)'!r} for a {kind} file: allowed "
@@ -53,10 +65,7 @@ def _check(path: Path, kind: str) -> str:
 
 
 def _npy(path: Path) -> np.ndarray:
-    try:
-        a = np.load(path, allow_pickle=False)
-    except (ValueError, OSError) as e:
-        raise DatasetError(f"{path}: not a readable .npy array ({str(e).splitlines()[0]})") from None
+    a = load_npy(path)
     if not np.issubdtype(a.dtype, np.number):
         raise DatasetError(f"{path}: holds {a.dtype} values, not numbers")
     return a.astype(np.float64)
@@ -78,9 +87,7 @@ def read_disparity(path: Path, scale: float | None = None) -> np.ndarray:
         raise DatasetError(f"{path}: a PNG disparity needs --disparity-scale (PNG value / scale = px; KITTI: 256)")
     if not (np.isfinite(scale) and scale > 0):
         raise DatasetError(f"--disparity-scale = {scale}: allowed a number > 0")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise DatasetError(f"{path}: not a readable PNG image")
+    img = read_png(path, grey=False)  # its size from the header, before it is decoded
     if img.dtype != np.uint16 or img.ndim != 2:
         raise DatasetError(f"{path}: a disparity PNG must be single-channel 16-bit, got {img.dtype} with shape "
                            f"{img.shape}")
@@ -94,6 +101,7 @@ def _read_exr_depth(path: Path) -> np.ndarray:
     """The depth channel of an EXR: its only channel, else the first of ``EXR_DEPTH_CHANNELS`` present."""
     import OpenEXR  # noqa: PLC0415  (EXR only where an EXR file is read)
 
+    exr_size(path)  # a data window larger than an image of the bench: refused before OpenEXR allocates it
     try:
         ch = OpenEXR.File(str(path)).channels()
     except Exception as e:  # noqa: BLE001  (OpenEXR raises plain exceptions)
@@ -136,6 +144,7 @@ def read_points(path: Path) -> np.ndarray:
     else:
         import trimesh  # noqa: PLC0415
 
+        check_ply(path)
         try:
             geom = trimesh.load(path, process=False)
         except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a bad file)
@@ -152,7 +161,8 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
     import trimesh  # noqa: PLC0415
 
     path = Path(path)
-    _check(path, "mesh")
+    if _check(path, "mesh") == ".ply":
+        check_ply(path)
     try:
         mesh = trimesh.load(path, process=False, force="mesh")
     except Exception as e:  # noqa: BLE001

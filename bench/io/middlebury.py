@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.files import JSON_MAX_BYTES, read_capped
 from platebench.bench.io.atomic import write_text
 from platebench.bench.io.images import DatasetError
 from platebench.evaluation.stereo_truth import RectifiedPair, rectified_pair, vertical_disparity
@@ -111,10 +112,9 @@ _NUM = r"[-+0-9.eE]+"
 def read_calib(path: Path) -> MiddleburyCalib:
     """Parse a Middlebury ``calib.txt`` (ours or the benchmark's; dyavg/dymax default to 0)."""
     path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"{path}: file is missing")
+    text = read_capped(path, JSON_MAX_BYTES, "Middlebury calib.txt", DatasetError, missing="file is missing")
     fields = {}
-    for line in path.read_text().splitlines():
+    for line in text.decode("utf-8", "replace").splitlines():
         if "=" in line:
             k, _, v = line.partition("=")
             fields[k.strip()] = v.strip()

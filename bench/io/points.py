@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.files import TABLE_MAX_BYTES, read_capped
 from platebench.bench.io.images import DatasetError
 
 __all__ = ["read_points_csv", "read_points_table"]
@@ -21,10 +22,9 @@ _AXIS_NAMES = {name: (name, f"{name}_m", f"{name}_world_m", f"world_{name}", f"{
 
 def _rows(path: Path) -> list[list[str]]:
     path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"{path}: file is missing")
+    data = read_capped(path, TABLE_MAX_BYTES, "CSV table", DatasetError, missing="file is missing")
     try:
-        text = path.read_text()
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise DatasetError(f"{path}: not a text CSV file") from None
     rows = list(csv.reader(text.splitlines()))

@@ -12,20 +12,22 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from platebench.bench.files import TABLE_MAX_BYTES, read_capped, require_dir
 from platebench.bench.io.atomic import (
     staged_directory,
     write_bytes,
     write_json,
     write_text,
 )
-from platebench.bench.io.images import DatasetError, read_npy
+from platebench.bench.io.images import DatasetError, check_ply, read_npy
+from platebench.bench.io.outputs import write_stamp
+from platebench.bench.io.sample_files import read_json
 
 if TYPE_CHECKING:  # trimesh is imported where a mesh is written or read; the pipeline is not needed here
     import trimesh
@@ -87,6 +89,8 @@ def write_reconstruction(out: Path, r: Reconstruction, sample_dir: Path, checksu
         surf = trimesh.Trimesh(r.surface_vertices, r.surface_faces, process=False)
         write_bytes(d / "surface.ply", surf.export(file_type="ply", encoding="binary"))
         write_json(d / "recon.json", recon_summary(r, sample_dir, checksums))
+        if not into:  # a command's staged output gets its stamp when the whole output is complete
+            write_stamp(d, "reconstruction")
     return Path(out)
 
 
@@ -104,25 +108,12 @@ class ReconFiles:
 
 
 def load_reconstruction(recon_dir: Path) -> ReconFiles:
-    d = Path(recon_dir)
-    if not d.is_dir():
-        raise DatasetError(f"{d}: reconstruction directory is missing")
-    meta_path = d / "recon.json"
-    if not meta_path.is_file():
-        raise DatasetError(f"{meta_path}: file is missing")
-    try:
-        meta = json.loads(meta_path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError:
-        raise DatasetError(f"{meta_path}: not a UTF-8 JSON file") from None
-    except json.JSONDecodeError as e:
-        raise DatasetError(f"{meta_path}: invalid JSON ({e.msg})") from None
-    if not isinstance(meta, dict):
-        raise DatasetError(f"{meta_path}: the top level is a {type(meta).__name__}: allowed a JSON object")
+    d = require_dir(Path(recon_dir), "reconstruction directory", DatasetError)
+    meta = read_json(d / "recon.json")
     csv = d / "points.csv"
-    if not csv.is_file():
-        raise DatasetError(f"{csv}: file is missing")
+    data = read_capped(csv, TABLE_MAX_BYTES, "CSV table", DatasetError, missing="file is missing")
     try:
-        text = csv.read_bytes().decode("utf-8")
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise DatasetError(f"{csv}: not a UTF-8 text CSV file") from None
     rows = [line.split(",") for line in text.splitlines()[1:] if line.strip()]
@@ -136,9 +127,10 @@ def load_reconstruction(recon_dir: Path) -> ReconFiles:
     boundary = read_npy(d / "boundary.npy", (None, 3))
     spath = d / "surface.ply"
     surface = None
-    if spath.is_file():
+    if spath.exists():
         import trimesh  # noqa: PLC0415
 
+        check_ply(spath)
         try:
             surface = trimesh.load(spath, process=False, force="mesh")
         except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a damaged file)

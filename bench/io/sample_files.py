@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from platebench.bench.files import JSON_MAX_BYTES, read_capped, require_dir
 from platebench.bench.io.atomic import (
     staged_directory,
     write_bytes,
@@ -36,6 +37,7 @@ from platebench.bench.io.atomic import (
 )
 from platebench.bench.io.images import (
     DatasetError,
+    check_ply,
     read_exr,
     read_npy,
     read_pfm,
@@ -45,6 +47,7 @@ from platebench.bench.io.images import (
     write_png,
 )
 from platebench.bench.io.middlebury import calib_txt
+from platebench.bench.io.outputs import write_stamp
 from platebench.bench.io.versions import package_versions
 from platebench.scenes.camera import Camera
 from platebench.scenes.naming import CAMERAS, IMAGE_NAMES
@@ -72,7 +75,8 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
     """Write a rendered sample (``bench.run.render.RenderedSample``) atomically; returns the sample
     directory. ``into``: ``out`` is an empty directory of an output that is already staged (a command
     stages its whole output first with ``staged_output``, so that a bad ``--out`` fails before the
-    render): the files are written straight into it."""
+    render): the files are written straight into it. Otherwise the sample gets its stamp
+    (``bench.io.outputs.write_stamp``: the sha256 of its files, which readers check)."""
     out = Path(out)
     rig = s.scene.rig
     with (contextlib.nullcontext(out) if into else staged_directory(out, overwrite=overwrite)) as d:
@@ -104,6 +108,8 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
                 "false_boundary_gt": any(v.false_boundary for v in s.visibility.values()),
                 "images": {n: hashlib.sha256(s.digital[n].tobytes()).hexdigest() for n in IMAGE_NAMES}}
         write_json(d / "sample.json", meta)
+        if not into:  # a command's staged output gets its stamp when the whole output is complete
+            write_stamp(d, "sample")
     return out
 
 
@@ -128,12 +134,13 @@ class ReconstructionInputs:
     sample_dir: Path
 
 
-def _read_json(path: Path, kind: type = dict) -> dict:
-    """A JSON file whose top level must be a ``kind`` (one-line DatasetError naming the file otherwise)."""
-    if not path.is_file():
-        raise DatasetError(f"{path}: file is missing")
+def read_json(path: Path, kind: type = dict) -> dict:
+    """A JSON file whose top level must be a ``kind`` (one-line DatasetError naming the file otherwise:
+    missing, not a regular file, larger than ``JSON_MAX_BYTES``, not UTF-8, not JSON)."""
+    path = Path(path)
+    data = read_capped(path, JSON_MAX_BYTES, "JSON file", DatasetError, missing="file is missing")
     try:
-        d = json.loads(path.read_bytes().decode("utf-8"))
+        d = json.loads(data.decode("utf-8"))
     except UnicodeDecodeError:
         raise DatasetError(f"{path}: not a UTF-8 JSON file") from None
     except json.JSONDecodeError as e:
@@ -151,7 +158,7 @@ def _bad(path: Path, e: Exception, what: str) -> DatasetError:
 
 def load_calibration(sample_dir: Path) -> Calibration:
     path = Path(sample_dir) / "calib.json"
-    d = _read_json(path)
+    d = read_json(path)
     try:
         left, right = Camera.from_dict(d["left"]), Camera.from_dict(d["right"])
         rig = StereoRig(left, right, float(d["baseline_m"]))
@@ -164,7 +171,7 @@ def load_calibration(sample_dir: Path) -> Calibration:
 def load_pattern(sample_dir: Path) -> Pattern:
     sample_dir = Path(sample_dir)
     path = sample_dir / "pattern.json"
-    d = _read_json(path)
+    d = read_json(path)
     img = read_png(sample_dir / "pattern.png").astype(np.float32) / 255.0
     try:
         if not isinstance(d.get("features"), list):
@@ -183,9 +190,7 @@ def load_pattern(sample_dir: Path) -> Pattern:
 
 def load_inputs(sample_dir: Path) -> ReconstructionInputs:
     """Read what reconstruction may see; never opens gt/, plate.ply, boundary.npy or sample.json."""
-    sample_dir = Path(sample_dir)
-    if not sample_dir.is_dir():
-        raise DatasetError(f"{sample_dir}: sample directory is missing")
+    sample_dir = require_dir(Path(sample_dir), "sample directory", DatasetError)
     calib = load_calibration(sample_dir)
     images = {}
     for name in IMAGE_NAMES:
@@ -216,7 +221,7 @@ class GroundTruthFiles:
 
 def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:
     d = Path(sample_dir)
-    meta = _read_json(d / "sample.json")
+    meta = read_json(d / "sample.json")
     if meta.get("layout_version") != LAYOUT_VERSION:
         raise DatasetError(f"{d / 'sample.json'}: layout_version {meta.get('layout_version')!r} "
                            f"is not supported (expected {LAYOUT_VERSION})")
@@ -233,7 +238,7 @@ def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:
         {c: read_png(g / f"{c}_feature.png").astype(np.int32) - 1 for c in CAMERAS},
         {c: read_exr(g / f"{c}_proj.exr") for c in CAMERAS},
         read_pfm(g / "disp0GT.pfm"),
-        _read_json(g / "visibility.json"), meta)
+        read_json(g / "visibility.json"), meta)
 
 
 def read_mesh(path: Path) -> trimesh.Trimesh:
@@ -241,8 +246,7 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
     import trimesh  # noqa: PLC0415
 
     path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"{path}: file is missing")
+    check_ply(path)  # missing, not a regular file, more declared than it holds: refused before trimesh reads it
     try:
         mesh = trimesh.load(path, process=False, force="mesh")
     except Exception as e:  # noqa: BLE001  (trimesh raises many kinds on a damaged file)

@@ -1,21 +1,36 @@
 """Bad-input harness: every input a user can get wrong, tried as a new user would, and scored.
 
 ``python -m platebench.bench.perf.bad_inputs [--json FILE] [-k SUBSTRING]`` (or
-``platebench perf bad-input``) makes a scratch directory with one small rendered sample and its
-reconstruction, then runs ``platebench`` in a fresh process for each case: bad TOML values and
-types, damaged files (truncated PNG/EXR/PFM/NPY, corrupt PLY, malformed JSON structure, non-UTF-8
-text), unreadable or unwritable paths (run as user ``nobody`` where this runs as root), bad flags,
-bad scheduler addresses, huge ranges. A case is *clean* when the command exits 2 with exactly one
-stderr line ``platebench: error: ...`` that names what the case expects (the file, key or value);
-a *traceback* is any "Traceback" or "Exception ignored" on stderr; *leftovers* are files the
-failed command left behind (a new output, a staging directory, a lock). The table it prints is the
-one in the issue's note; goal: every case clean, no traceback, no leftover.
+``platebench perf bad-input``) makes a scratch directory with two small rendered samples, a
+reconstruction and a two-sample sweep dataset, then runs ``platebench`` in a fresh process for
+each case: bad TOML values and types, damaged files (truncated PNG/EXR/PFM/NPY, corrupt PLY,
+malformed JSON structure, non-UTF-8 text), unreadable or unwritable paths (run as user
+``nobody`` where this runs as root), bad flags, bad scheduler addresses, huge ranges; and, from
+the modules ``bad_inputs_*`` beside this one, further classes (outputs that would destroy data,
+damaged or linked datasets, sizes declared by file headers, files that are not regular files).
+
+A case is *clean* when the command exits 2 with exactly one stderr line ``platebench: error:
+...`` that names what the case expects (the file, key or value), or, for a case that expects
+success with warnings (``expect_rc=0``), exits 0 with only ``platebench: warning: ...`` lines on
+stderr naming what it expects. Scored across all cases: *data lost* (a file that was there
+before the command is changed or gone afterwards), *tracebacks* ("Traceback" or "Exception
+ignored" on stderr), *exit 0 on failure* (a case that expects a refusal exited 0), *leftovers*
+(a new output, a staging directory, a lock left by a failed command). A case with ``scratch``
+runs in a directory of its own (a copy of the material, the working directory set there), so a
+destructive command can destroy nothing else. Goal: every case clean, and 0 of each.
+
+Other modules add cases without editing this one: a module ``bench/perf/bad_inputs_<name>.py``
+is imported by ``cases()`` and appends a function returning ``[Case, ...]`` to ``CASE_SOURCES``
+(``@register_cases``). Its cases share the material ``_prepare`` makes (``{W}/good``,
+``{W}/good2``, ``{W}/good_recon``, ``{W}/ds``).
 """
 from __future__ import annotations
 
 import argparse
-import json
+import hashlib
+import importlib
 import os
+import pkgutil
 import resource
 import shutil
 import socket
@@ -33,12 +48,26 @@ NOBODY = 65534
 @dataclass
 class Case:
     name: str
-    args: list  # platebench arguments ({W} = the scratch directory)
-    expect: tuple  # substrings the one error line must contain
+    args: list  # platebench arguments ({W} = the case's directory: the shared one, or its own with scratch)
+    expect: tuple  # substrings the one error line must contain (expect_rc 0: the warning lines)
     setup: object = None  # callable(work: Path) -> None
     as_nobody: bool = False
     watch: tuple = ()  # paths (relative to W) that must not exist afterwards
     memory_gb: float = 4.0  # address-space limit of the command (a range that expands must not take the host)
+    scratch: bool = False  # run in a directory of its own (a copy of the material), the working directory there
+    cwd: str = ""  # the command's working directory, relative to W
+    expect_rc: int = 2  # 0: the command succeeds, saying what it left out in warning lines
+    teardown: object = None  # callable(work: Path) -> None, run after the command whatever happened
+    timeout_s: float = 120.0
+
+
+CASE_SOURCES: list = []  # functions returning [Case, ...], added by the bad_inputs_* modules (register_cases)
+
+
+def register_cases(source):
+    """Add ``source`` (a function returning a list of ``Case``) to the harness; usable as a decorator."""
+    CASE_SOURCES.append(source)
+    return source
 
 
 @dataclass
@@ -50,6 +79,8 @@ class Outcome:
     traceback: bool
     leftovers: list = field(default_factory=list)
     seconds: float = 0.0
+    lost: list = field(default_factory=list)  # files there before, changed or gone after
+    exit0_on_failure: bool = False
 
 
 def _write(rel: str, data):
@@ -100,6 +131,15 @@ TOML_BASE = "[scene]\nwidth = 64\nheight = 48\n"
 
 
 def cases() -> list[Case]:
+    """Every case: this module's, then those the ``bad_inputs_*`` modules register (module doc)."""
+    here = Path(__file__).resolve().parent
+    for info in sorted(pkgutil.iter_modules([str(here)]), key=lambda m: m.name):
+        if info.name.startswith("bad_inputs_"):
+            importlib.import_module(f"{__package__}.{info.name}")
+    return base_cases() + [c for source in CASE_SOURCES for c in source()]
+
+
+def base_cases() -> list[Case]:
     tiny = ["--width", "64", "--height", "48", "--spp", "1"]
     c = []
     # --- configuration values and types (render --config)
@@ -234,13 +274,21 @@ def cases() -> list[Case]:
     return c
 
 
+MATERIAL = ("good", "good2", "good_recon", "ds", "small.toml", "ds.toml")  # what _prepare makes, scratch copies
+
+
 def _prepare(work: Path) -> None:
-    """One small sample (160 x 120, spp 2) and its reconstruction: the material the damage cases copy.
+    """Two small samples (160 x 120, spp 2; bends 10 and 30 degrees), the first one's reconstruction and a
+    two-sample sweep dataset (160 x 120, spp 1, paper's method): the material the cases copy and damage.
     Made through the CLI in a subprocess, as a user would (perf sits below the CLI's layer)."""
     cfg = work / "small.toml"
     cfg.write_text("[scene]\nwidth = 160\nheight = 120\n[render]\nspp = 2\n")
+    (work / "ds.toml").write_text("[sweep]\nname = \"bad-input\"\n[base.scene]\nwidth = 160\nheight = 120\n"
+                                  "[base.render]\nspp = 1\n[grid]\nbend_deg = [0, 20]\n")
     for argv in (["render", "--config", str(cfg), "--out", str(work / "good")],
-                 ["reconstruct", str(work / "good"), "--out", str(work / "good_recon")]):
+                 ["render", "--config", str(cfg), "--bend-deg", "30", "--out", str(work / "good2")],
+                 ["reconstruct", str(work / "good"), "--out", str(work / "good_recon")],
+                 ["sweep", str(work / "ds.toml"), "--out", str(work / "ds"), "--workers", "0", "--no-progress"]):
         p = subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *argv], capture_output=True, text=True)
         if p.returncode != 0:
             raise SystemExit(f"bad_inputs: could not prepare {argv}: {p.stderr.strip()[-500:]}")
@@ -250,14 +298,61 @@ def _snapshot(work: Path) -> set:
     return {str(p.relative_to(work)) for p in work.rglob("*")}
 
 
+def _contents(work: Path) -> dict:
+    """relative path -> sha256 of every file under ``work`` (a link: its target text), for data loss."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(work):
+        for name in filenames + [d for d in dirnames if os.path.islink(os.path.join(dirpath, d))]:
+            p = Path(dirpath) / name
+            rel = str(p.relative_to(work))
+            if p.is_symlink():
+                out[rel] = "link:" + os.readlink(p)
+                continue
+            if not p.is_file():  # a FIFO or a device a case made: not read
+                out[rel] = "special"
+                continue
+            try:
+                out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
+            except OSError:
+                out[rel] = "unreadable"
+    return out
+
+
+def _scratch(work: Path, name: str) -> Path:
+    """A directory of its own for a destructive case: copies of the material, nothing else."""
+    d = work / "scratch" / "".join(ch if ch.isalnum() else "_" for ch in name)
+    shutil.rmtree(d, ignore_errors=True)
+    d.mkdir(parents=True)
+    for m in MATERIAL:
+        src = work / m
+        if src.is_dir():
+            shutil.copytree(src, d / m, symlinks=True)
+        elif src.is_file():
+            shutil.copy2(src, d / m)
+    return d
+
+
 def _as_nobody() -> bool:
     return os.geteuid() == 0 and shutil.which("setpriv") is not None
 
 
-def run_case(case: Case, work: Path, port: int, timeout: float = 120.0) -> Outcome:
-    if case.setup is not None:
-        case.setup(work)
+def run_case(case: Case, work: Path, port: int, timeout: float | None = None) -> Outcome:
+    if case.scratch:
+        work = _scratch(work, case.name)
+    try:
+        if case.setup is not None:
+            case.setup(work)
+        return _run(case, work, port, timeout or case.timeout_s)
+    finally:
+        if case.teardown is not None:
+            case.teardown(work)
+        if case.scratch:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def _run(case: Case, work: Path, port: int, timeout: float) -> Outcome:
     before = _snapshot(work)
+    held = _contents(work)
     args = [a.replace("{W}", str(work)).replace("{PORT}", str(port)) for a in case.args]
     cmd = [sys.executable, "-m", "platebench.bench.cli.main", *args]
     env = dict(os.environ)
@@ -270,7 +365,7 @@ def run_case(case: Case, work: Path, port: int, timeout: float = 120.0) -> Outco
     limit = int(case.memory_gb * 2**30)
     t0 = time.monotonic()
     try:
-        r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=timeout,
+        r = subprocess.run(cmd, cwd=work / case.cwd, env=env, capture_output=True, text=True, timeout=timeout,
                            preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
         rc, err = r.returncode, r.stderr
     except subprocess.TimeoutExpired as e:
@@ -278,14 +373,23 @@ def run_case(case: Case, work: Path, port: int, timeout: float = 120.0) -> Outco
     seconds = time.monotonic() - t0
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
     tb = "Traceback" in err or "Exception ignored" in err
-    named = all(x in (lines[0] if lines else "") for x in case.expect)
-    clean = rc == 2 and len(lines) == 1 and lines[0].startswith("platebench: error:") and named
+    if case.expect_rc == 0:  # success, saying in warning lines what it left out
+        named = all(any(x in ln for ln in lines) for x in case.expect)
+        clean = rc == 0 and bool(lines) and all(ln.startswith("platebench: warning:") for ln in lines) and named
+    else:
+        named = all(x in (lines[0] if lines else "") for x in case.expect)
+        clean = rc == case.expect_rc and len(lines) == 1 and lines[0].startswith("platebench: error:") and named
+    after = _contents(work)
+    lost = sorted(p for p, h in held.items() if after.get(p) != h)
     new = sorted(_snapshot(work) - before)
     from platebench.bench.io.atomic import is_temp_name  # noqa: PLC0415
     left = [p for p in new if is_temp_name(Path(p).name) or p.endswith(".lock")
             or any(p == w or p.startswith(w + "/") for w in case.watch)]
     left += [w for w in case.watch if (work / w).exists() and w not in left]
-    return Outcome(case.name, rc, lines, clean, tb, sorted(set(left)), seconds)
+    if case.expect_rc == 0:  # a successful command's own output is no leftover
+        left = [p for p in left if is_temp_name(Path(p).name) or p.endswith(".lock")]
+    return Outcome(case.name, rc, lines, clean, tb, sorted(set(left)), seconds, lost,
+                   exit0_on_failure=case.expect_rc != 0 and rc == 0)
 
 
 def run_all(select: str | None = None, work: Path | None = None) -> list[Outcome]:
@@ -315,14 +419,20 @@ def run_all(select: str | None = None, work: Path | None = None) -> list[Outcome
 
 
 def table(outcomes: list[Outcome]) -> str:
-    rows = [f"{'case':40s} {'exit':>4s} {'clean':>5s} {'tb':>3s} {'left':>4s}  first line of stderr"]
+    rows = [f"{'case':44s} {'exit':>4s} {'clean':>5s} {'tb':>3s} {'lost':>4s} {'left':>4s}  first line of stderr"]
     for o in outcomes:
-        rows.append(f"{o.case[:40]:40s} {o.rc:4d} {'yes' if o.clean else 'NO':>5s} {'YES' if o.traceback else '-':>3s} "
-                    f"{len(o.leftovers):4d}  {(o.lines[0] if o.lines else '')[:150]}")
+        rows.append(f"{o.case[:44]:44s} {o.rc:4d} {'yes' if o.clean else 'NO':>5s} {'YES' if o.traceback else '-':>3s} "
+                    f"{len(o.lost):4d} {len(o.leftovers):4d}  {(o.lines[0] if o.lines else '')[:150]}")
     n = len(outcomes)
-    rows.append(f"bad inputs tried {n}, handled with one clean line {sum(o.clean for o in outcomes)}, "
-                f"tracebacks {sum(o.traceback for o in outcomes)}, leftovers {sum(bool(o.leftovers) for o in outcomes)}")
+    rows.append(f"bad inputs tried {n}, handled cleanly {sum(o.clean for o in outcomes)}, data lost "
+                f"{sum(bool(o.lost) for o in outcomes)}, tracebacks {sum(o.traceback for o in outcomes)}, exit 0 on "
+                f"failure {sum(o.exit0_on_failure for o in outcomes)}, leftovers {sum(bool(o.leftovers) for o in outcomes)}")
     return "\n".join(rows)
+
+
+def failed(o: Outcome) -> bool:
+    """Whether an outcome misses the goal (module doc)."""
+    return not o.clean or o.traceback or bool(o.leftovers) or bool(o.lost) or o.exit0_on_failure
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -333,8 +443,10 @@ def main(argv: list[str] | None = None) -> int:
     outcomes = run_all(args.select)
     print(table(outcomes))
     if args.json:
-        args.json.write_text(json.dumps([o.__dict__ for o in outcomes], indent=2))
-    return 0 if all(o.clean and not o.traceback and not o.leftovers for o in outcomes) else 1
+        from platebench.bench.io.atomic import write_json  # noqa: PLC0415
+        write_json(args.json, {"generator": "platebench perf", "target": "bad-input",
+                               "figures": [o.__dict__ for o in outcomes]})
+    return 0 if not any(failed(o) for o in outcomes) else 1
 
 
 if __name__ == "__main__":

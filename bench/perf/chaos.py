@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import os
 import random
 import signal
@@ -173,7 +172,8 @@ def main(argv: list[str] | None = None) -> int:
           f"corrupt files {s['corrupt_files']}, wrong \"complete\" {s['wrong_complete']}, tracebacks "
           f"{s['tracebacks']}, hung {s['hung']}, leftovers {s['leftovers']}")
     if args.json:
-        args.json.write_text(json.dumps(s, indent=2))
+        from platebench.bench.io.atomic import write_json  # noqa: PLC0415
+        write_json(args.json, {"generator": "platebench perf", "target": "chaos", "figures": s})
     bad = sum(s[k] for k in ("samples_lost", "samples_redone", "duplicated_rows", "corrupt_files", "wrong_complete",
                              "hung"))
     return 0 if bad == 0 and s["final_exit"] == 0 else 1

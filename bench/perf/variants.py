@@ -14,9 +14,13 @@ with them (``--against F.npz``): then the pixels are compared across machines, t
 """
 from __future__ import annotations
 
+import io
+from pathlib import Path
+
 import numpy as np
 
 from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.io.atomic import write_bytes
 from platebench.bench.run.render import render_sample
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.scenes.scene_spec import RenderSettings
@@ -79,7 +83,9 @@ def perf_variants(variants: list[str], width: int = 640, height: int = 480, spp:
         if i == 0:
             ref = (imgs, seed1)
             if save is not None:
-                np.savez_compressed(save, **imgs, **{f"seed1_{k}": a for k, a in seed1.items()})
+                buf = io.BytesIO()  # written whole and atomically (bench.io.atomic), never half a file
+                np.savez_compressed(buf, **imgs, **{f"seed1_{k}": a for k, a in seed1.items()})
+                write_bytes(Path(save), buf.getvalue())
             if against is not None:
                 with np.load(against) as z:
                     other = {k: z[k] for k in imgs}, {k: z[f"seed1_{k}"] for k in imgs}

@@ -291,6 +291,10 @@ def _error_maps(page: Page, ds: Path, frame: pd.DataFrame, prefix: str) -> list[
     out = []
     for r, recon in _pick_error_maps(ds, frame):
         sid, meth = r["sample_id"], r["method"]
+        problem = page.sample_problem(recon.parent.parent)
+        if problem:
+            page.leave_out(f"{problem}: the error map of sample {sid} is not shown")
+            continue
         desc = ", ".join(_describe(k, r.get(k)) for k in _DESCRIBE if r.get(k) is not None)
         out.append(page.plot(f"{prefix}error_map_{_safe(sid)}_{_safe(meth)}", P.plot_error_map,
                              recon.parent.parent / "sample", recon, title=f"sample {sid}, {meth}: {desc}",
@@ -316,7 +320,11 @@ def _samples(page: Page, ds: Path, frame: pd.DataFrame, prefix: str, manifest: d
         by_method = {r["method"]: r for r in records(rows)}
         sample = folder / "sample"
         thumbs = []
-        if i < MAX_THUMB_SAMPLES and sample.is_dir():
+        if not folder.is_dir():
+            page.leave_out(f"{folder}: the folder of sample {sid} is missing (the results table lists it)")
+        elif not sample.is_dir() and any(r.get("status") == "ok" for r in by_method.values()):
+            page.leave_out(f"{sample}: sample {sid} is done in the results table, but its sample folder is missing")
+        elif i < MAX_THUMB_SAMPLES and sample.is_dir():
             thumbs = page.thumbnails(sample, f"{prefix}{_safe(sid)}_", _THUMB_IMAGES)
         out.append({"id": sid, "href": page.link(folder) if folder.is_dir() else None,
                     "values": [(parameter_label(c), first.get(c)) for c in shown],

@@ -10,23 +10,29 @@ a sensing run's outcome), then one section per input. It comes from the Jinja2 t
 ``OUT/plots/`` and embedded as data URIs; thumbnails of the samples' images go to
 ``OUT/thumbs/``; links to sample and reconstruction folders are relative to ``OUT``.
 
-The report is staged and renamed into place: it appears complete or not at all. ``OUT`` must
-be new, empty, or an earlier report (its ``index.html`` carries ``<meta name="generator"
-content="platebench report">``). Damaged inputs (a truncated JSON file, a results table that
-is not one, a sample_id leading out of its dataset) raise ``ReportInputError`` (one line)
-before anything is written.
+The report follows the output rule (``bench.io.outputs``): ``OUT`` is new, or, with
+``overwrite``, an earlier report (its ``index.html`` carries ``<meta name="generator"
+content="platebench report">``) or an empty folder; it is never the input, a folder holding it,
+or a folder inside it other than ``input_dir/report``. It is staged and renamed into place: it
+appears complete or not at all. Damaged inputs (a truncated JSON file, a results table that is
+not one, a sample_id leading out of its dataset) raise ``ReportInputError`` (one line) before
+anything is written. What the report cannot show faithfully (a sample folder that is gone, a
+truncated or unreadable image, a file that differs from its recorded checksum, a link leading
+out of the input) is left out and said: in the page's notes and to ``warn(message)``.
 """
 from __future__ import annotations
 
 import datetime as _dt
 import functools
-import shutil
+import os
 from importlib import metadata
 from pathlib import Path
 
 import jinja2
 
-from platebench.bench.io.atomic import staged_directory, write_text
+from platebench.bench.files import require_dir
+from platebench.bench.io.atomic import write_text
+from platebench.bench.io.outputs import output_dir
 from platebench.bench.report.dataset import dataset_section
 from platebench.bench.report.experiment import compare_section, recon_section, sample_section
 from platebench.bench.report.inputs import GENERATOR, Inputs, ReportInputError, detect_inputs, recon_sample_dir
@@ -51,25 +57,6 @@ def _environment() -> jinja2.Environment:
 def render_page(template: str, **context) -> str:
     """Render one of ``templates/`` with ``context`` (every value escaped)."""
     return _environment().get_template(template).render(**context)
-
-
-def _check_out_dir(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise ReportInputError(f"{out} exists and is not a directory")
-    if out.is_dir() and any(not p.name.startswith(".") for p in out.iterdir()):
-        idx = out / "index.html"
-        head = idx.read_text(errors="replace")[:2000] if idx.is_file() else ""
-        if f'content="{GENERATOR}"' not in head:
-            raise ReportInputError(f"{out} is not empty and holds no PlateBench report: refusing to write into it "
-                                   "(choose another --out)")
-
-
-def _sweep_own_leftovers(out: Path) -> None:
-    """Remove what an interrupted report left beside ``out`` (its own staging folders only)."""
-    for pattern in (f".tmp-{out.name}-*", f".old-{out.name}-*"):
-        for p in out.parent.glob(pattern):
-            if p.is_dir():
-                shutil.rmtree(p, ignore_errors=True)
 
 
 def _numbered(paths: list, kind: str) -> list[tuple[Path, str]]:
@@ -123,14 +110,13 @@ def _version() -> str:
         return "?"
 
 
-def write_report(input_dir, out_dir=None) -> Path:
+def write_report(input_dir, out_dir=None, overwrite: bool = False, warn=None) -> Path:
     """Write the HTML report of whatever ``input_dir`` holds (see module doc); returns index.html's path.
 
     Raises ReportInputError (one line) when ``input_dir`` holds nothing to report or a damaged
-    input, or when ``out_dir`` is a non-empty directory that is not a report."""
-    root = Path(input_dir)
-    if not root.is_dir():
-        raise ReportInputError(f"{root}: directory is missing")
+    input; ``bench.io.outputs.OutputRefusedError`` when ``out_dir`` may not be written (module doc).
+    ``warn(message)``: told of each part left out of the page (also in the page's notes)."""
+    root = require_dir(Path(input_dir), "directory", ReportInputError)
     inp = detect_inputs(root)
     if inp.empty:
         raise ReportInputError(f"{root} holds neither a sweep dataset (manifest.json / results.csv) nor a "
@@ -138,10 +124,10 @@ def write_report(input_dir, out_dir=None) -> Path:
                                "a reconstruction (recon.json) nor a sample (sample.json) nor a compare.json: "
                                "nothing to report")
     out = Path(out_dir) if out_dir is not None else root / "report"
-    _check_out_dir(out)
-    _sweep_own_leftovers(out)
-    with staged_directory(out, overwrite=True) as stage:
-        page = Page(stage, out, root)
+    with output_dir(out, "report", overwrite=overwrite, inputs=[root], slots=[root / "report"]) as stage:
+        page = Page(stage, out, root, warn=warn)
+        for link in inp.links:
+            page.leave_out(f"{link} is a symbolic link (to {os.readlink(link)}): not followed, not reported")
         sections = _sections(page, inp)
         text = render_page("report.html", generator=GENERATOR, name=root.resolve().name, input=str(root.resolve()),
                            found=_found(inp), version=_version(), notes=page.notes, sections=sections,

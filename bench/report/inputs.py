@@ -37,14 +37,16 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from platebench.bench.config.axes import PARAMETERS
+from platebench.bench.files import JSON_MAX_BYTES, read_capped
 from platebench.bench.io.layout import FORMAT, MANIFEST, RESULTS_CSV, RESULTS_PARQUET, SAMPLES
+from platebench.bench.io.outputs import GENERATOR_REPORT, KINDS
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS
 
 __all__ = ["ReportInputError", "Inputs", "detect_inputs", "read_json", "read_manifest", "load_results",
            "load_study", "sample_folder", "records", "GENERATOR", "DATASET_FORMAT"]
 
-GENERATOR = "platebench report"
+GENERATOR = GENERATOR_REPORT  # index.html's <meta name="generator">: what marks a folder as a report
 DATASET_FORMAT = FORMAT  # the sweep dataset's names come from bench/io/layout.py
 MAX_DEPTH = 2  # subdirectory levels looked into
 MAX_DIRS = 400  # directories looked at, at most
@@ -74,6 +76,7 @@ class Inputs:
     recons: list = field(default_factory=list)
     samples: list = field(default_factory=list)
     compares: list = field(default_factory=list)
+    links: list = field(default_factory=list)  # symbolic links under root: not followed (the report says so)
 
     @property
     def empty(self) -> bool:
@@ -84,8 +87,9 @@ class Inputs:
 def read_json(path: Path, what: str = "file"):
     """Parsed JSON of ``path``; a damaged file is a ReportInputError naming it (OSError passes)."""
     path = Path(path)
+    data = read_capped(path, JSON_MAX_BYTES, what, ReportInputError, missing=f"{what} is missing")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise ReportInputError(f"{path}: not a UTF-8 text file (a damaged {what}?)") from None
     try:
@@ -115,11 +119,7 @@ def read_manifest(dataset: Path) -> dict:
 
 # ----------------------------------------------------------------------------- detection
 def _is_report(d: Path) -> bool:
-    idx = d / "index.html"
-    try:
-        return idx.is_file() and f'content="{GENERATOR}"' in idx.read_text(errors="replace")[:2000]
-    except OSError:
-        return False
+    return KINDS["report"].recognised(d)
 
 
 def _kinds(d: Path) -> set:
@@ -141,12 +141,26 @@ def _kinds(d: Path) -> set:
     return kinds
 
 
-def _subdirs(d: Path) -> list[Path]:
+def _subdirs(d: Path, links: list | None = None) -> list[Path]:
+    """The folders of ``d`` to look into; links among them go to ``links`` (never followed)."""
     try:
-        return sorted(p for p in d.iterdir() if p.is_dir() and not p.name.startswith(".")
-                      and p.name not in _SKIP and not _is_report(p))
+        found = sorted(p for p in d.iterdir() if p.is_dir() and not p.name.startswith(".")
+                       and p.name not in _SKIP and not _is_report(p))
     except OSError:
         return []
+    if links is not None:
+        links += [p for p in found if p.is_symlink()]
+    return [p for p in found if not p.is_symlink()]
+
+
+def _through_link(root: Path, path: Path) -> bool:
+    """Whether ``path`` (under ``root``) passes through a symbolic link below ``root``."""
+    p = Path(root)
+    for part in Path(path).relative_to(root).parts:
+        p = p / part
+        if p.is_symlink():
+            return True
+    return False
 
 
 def recon_sample_dir(recon: Path, meta: dict | None = None) -> Path | None:
@@ -177,7 +191,7 @@ def detect_inputs(input_dir: Path) -> Inputs:
             if kind in kinds:
                 bucket.append(d)
         if not kinds - {"sample"} and depth < MAX_DEPTH:  # a sample may hold its reconstruction
-            queue += [(s, depth + 1) for s in _subdirs(d)]
+            queue += [(s, depth + 1) for s in _subdirs(d, inp.links)]
     inp.recons.sort(key=lambda r: (str(r.parent), r.name != "paper", r.name))  # the paper's pipeline first
     shown = {p.resolve() for r in inp.recons if (p := recon_sample_dir(r)) is not None}
     inp.samples = [s for s in inp.samples if s.resolve() not in shown]
@@ -194,6 +208,8 @@ def _find_compares(root: Path, datasets: list) -> list[Path]:
         found += sorted((ds / SAMPLES).glob("*/compare/compare.json"))
     out, seen = [], set()
     for p in found:
+        if _through_link(root, p):
+            continue  # never followed out of the input
         rp = p.resolve()
         inside = p.relative_to(root).parts[:-1]
         if rp in seen or any(_is_report(root.joinpath(*inside[:k + 1])) for k in range(len(inside))):

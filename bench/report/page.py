@@ -4,7 +4,9 @@ The report is staged as a whole (``index.html``, ``plots/``, ``thumbs/``) and re
 place. Plots are written into ``plots/`` and embedded in the page as data URIs (the page
 shows them even when copied alone); thumbnails go to ``thumbs/`` and links to sample and
 reconstruction folders are relative to the report's final place, so they work where the
-report sits beside its data.
+report sits beside its data. What cannot be shown faithfully (an image that is missing,
+truncated, differs from its recorded checksum, or is a link) is left out and said
+(``Page.leave_out``: the page's notes and the ``warn`` callback).
 
 Sections hand the templates plain dicts. A *generic section* (what
 ``bench.report.sensing.study_section`` / ``sensing_section`` return, and the interim adapters
@@ -32,6 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.config.axes import PARAMETER_NAMES, parameter_label
+from platebench.bench.io.images import DatasetError
+from platebench.bench.io.layout import SAMPLE, SAMPLES
+from platebench.bench.io.verify import dataset_manifest, find_links, sample_checksums, verify_sample
 from platebench.bench.report.thumbs import sample_thumbnails
 from platebench.bench.report.values import flag
 from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
@@ -48,6 +53,26 @@ class Page:
     out: Path
     root: Path
     notes: list = field(default_factory=list)
+    warn: object = None  # callable(message): told of each part left out (also a note)
+    _manifests: dict = field(default_factory=dict)
+
+    def leave_out(self, message: str) -> None:
+        """Say that a part is not shown, and why: a note on the page and a warning."""
+        if message not in self.notes:
+            self.notes.append(message)
+            if self.warn is not None:
+                self.warn(message)
+
+    def checksums(self, sample_dir: Path):
+        """The recorded checksums of a sample's files (``bench.io.verify``), the dataset manifest read once."""
+        d = Path(sample_dir)
+        manifest = {}
+        if d.name == SAMPLE and d.parent.parent.name == SAMPLES:
+            ds = d.parent.parent.parent.resolve()
+            if ds not in self._manifests:
+                self._manifests[ds] = dataset_manifest(ds) or {}
+            manifest = self._manifests[ds]
+        return sample_checksums(d, manifest)
 
     @property
     def plot_dir(self) -> Path:
@@ -88,12 +113,45 @@ class Page:
         except ValueError:
             return str(path)
 
+    def sample_problem(self, folder: Path) -> str | None:
+        """Why a dataset sample's files may not be read for the page (a link inside its folder, a file
+        that differs from its recorded checksum), or None."""
+        links = find_links(folder)
+        if links:
+            return f"{links[0]} is a symbolic link (to {os.readlink(links[0])}): not followed"
+        sample = Path(folder) / SAMPLE
+        try:
+            verify_sample(sample, self.checksums(sample), then="")
+        except DatasetError as e:
+            return str(e)
+        return None
+
     def thumbnails(self, sample_dir: Path, prefix: str, names=IMAGE_NAMES) -> list[dict]:
-        """Thumbnails of a sample's camera images (default all four): [{"name", "src" (None when unreadable), "href"
-        (the full image, relative)}]."""
-        return [{"name": t["name"], "src": f"thumbs/{t['file']}" if t["file"] else None,
-                 "href": self.link(Path(sample_dir) / "images" / f"{t['name']}.png")}
-                for t in sample_thumbnails(sample_dir, self.thumb_dir, prefix, names)]
+        """Thumbnails of a sample's camera images (default all four): [{"name", "src" and "href" (the full
+        image, relative); both None when the image is not shown, which ``leave_out`` says}]."""
+        sample_dir = Path(sample_dir)
+        try:  # the folders from the input down to the sample (a link above the input is the user's own)
+            inside = [self.root.joinpath(*sample_dir.relative_to(self.root).parts[:k + 1])
+                      for k in range(len(sample_dir.relative_to(self.root).parts))]
+        except ValueError:
+            inside = [sample_dir]
+        link = next((p for p in inside if p.is_symlink()), None)
+        if link is not None:
+            self.leave_out(f"{sample_dir}: {link} is a symbolic link: its images are not shown (a link can lead "
+                           "out of the input)")
+            return [{"name": n, "src": None, "href": None} for n in names]
+        checks = self.checksums(sample_dir)
+
+        def check(image: Path) -> None:
+            verify_sample(sample_dir, checks, [image.relative_to(sample_dir).as_posix()], then="")
+        out = []
+        for t in sample_thumbnails(sample_dir, self.thumb_dir, prefix, names, check=check):
+            if t["problem"]:
+                self.leave_out(f"{t['problem']}: its thumbnail is not shown")
+            shown = t["file"] is not None
+            out.append({"name": t["name"], "src": f"thumbs/{t['file']}" if shown else None,
+                        "href": self.link(sample_dir / "images" / f"{t['name']}.png") if shown else None})
+        return out
 
 
 # ----------------------------------------------------------------------------- generic sections

@@ -678,15 +678,15 @@ def error_map_data(sample_dir, recon_dir) -> dict:
     3D error against the true centre (projector ray through the feature centre cut with the mesh;
     identity from the GT feature map at the left pixel), or, where the identity is unknown, their
     distance to the true surface (``centre_kind`` says which)."""
-    import trimesh  # noqa: PLC0415
-
-    from platebench.bench.io.images import read_png  # noqa: PLC0415
+    from platebench.bench.io.images import read_npy, read_png  # noqa: PLC0415
     from platebench.bench.io.recon_files import load_reconstruction  # noqa: PLC0415
+    from platebench.bench.io.sample_files import read_mesh  # noqa: PLC0415
     from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
 
     sample_dir, recon_dir = Path(sample_dir), Path(recon_dir)
-    mesh = trimesh.load(sample_dir / "plate.ply", process=False, force="mesh")
-    gt_boundary = np.load(sample_dir / "boundary.npy") if (sample_dir / "boundary.npy").is_file() else None
+    mesh = read_mesh(sample_dir / "plate.ply")
+    gt_boundary = read_npy(sample_dir / "boundary.npy", (None, 3)) if (sample_dir / "boundary.npy").is_file() \
+        else None
     rec = load_reconstruction(recon_dir)
     out = {"gt_boundary": gt_boundary, "rec_boundary": rec.boundary if len(rec.boundary) else None,
            "surface_vertices": None, "surface_faces": None, "surface_dist_mm": None,

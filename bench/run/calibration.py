@@ -40,6 +40,7 @@ import trimesh
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.images import DatasetError
+from platebench.bench.io.sample_files import read_json
 from platebench.bench.run.render import render_sample
 from platebench.bench.run.score import recon_data, truth_from_sample
 from platebench.evaluation.score import Score, score_reconstruction
@@ -336,10 +337,9 @@ def load_estimated_calibration(path: Path) -> tuple[StereoRig, FeatureRays]:
     """The estimated conventional rig and projector feature rays stored in a calibration.json
     written by ``platebench calibrate`` (so the pipeline can run on estimated calibration)."""
     path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"{path}: file is missing")
+    doc = read_json(path)  # missing, not a regular file, too large, not JSON: one line naming it
     try:
-        est = json.loads(path.read_text())["estimate"]
+        est = doc["estimate"]
         st, ry = est["stereo"], est["rays"]
         cal = StereoCalibration(np.array(st["K_left"]), np.array(st["K_right"]), np.array(st["dist_left"]),
                                 np.array(st["dist_right"]), np.array(st["R_right_from_left"]),

@@ -65,14 +65,14 @@ class StudyJournal:
         if not self.path.exists():
             return None, {}
         header, rows = None, {}
-        with open(self.path, encoding="utf-8") as f:
+        with open(self.path, encoding="utf-8", errors="replace") as f:
             for k, line in enumerate(f):
                 try:
                     rec = json.loads(line)
                 except json.JSONDecodeError:
                     continue  # the line a killed process was writing
                 if k == 0:
-                    header = rec.get("header")
+                    header = rec.get("header") if isinstance(rec, dict) else None
                 elif isinstance(rec, dict) and "key" in rec and "row" in rec:
                     rows[rec["key"]] = rec["row"]
         return header, rows
@@ -81,7 +81,13 @@ class StudyJournal:
         """Open the journal for this run and return the rows it may reuse (key -> row): those of an
         interrupted run of the same study with ``resume``, none otherwise. A journal left behind is
         refused unless ``resume`` (same settings only) or ``overwrite`` (started again)."""
+        if os.path.islink(self.path) or (os.path.lexists(self.path) and not self.path.is_file()):
+            raise UserValueError(f"{self.path}: is not a regular file where this study's journal goes: refusing to "
+                                 "use it (move it away, or choose another --out)")
         header, rows = self.read()
+        if header is None and not rows and self.path.exists() and self.path.stat().st_size:
+            raise UserValueError(f"{self.path}: is not a study journal (no header line), where this study's journal "
+                                 "goes: refusing to write over it (move it away, or choose another --out)")
         if header is not None or rows:
             if resume:
                 if header is not None and {k: v for k, v in header.items() if k != "code"} == \

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.atomic import staged_output, write_json, write_text
+from platebench.bench.io.atomic import write_json, write_text
+from platebench.bench.io.outputs import output_dir
 from platebench.bench.run.journal import StudyJournal, case_key, code_digest
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
@@ -468,7 +469,7 @@ def study_csv(rows: list[dict]) -> str:
 def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite: bool = False, progress=None,
                 settings: dict | None = None, l_bends_deg=(), workers: int = 1, resume: bool = False) -> dict:
     """Run the study (``run_study``) and write ``out/study.json`` and ``out/study.csv``; the folder
-    appears complete or not at all (``staged_output``: checked and locked before the first plate).
+    appears complete or not at all (``bench.io.outputs.output_dir``: checked and locked before the first plate).
     Each finished plate's row goes to the journal beside it (``bench.run.journal``) at once, so an
     interrupted study keeps them; ``resume``: reuse the journal's rows of plates still to run.
     Returns study.json's dict."""
@@ -477,7 +478,7 @@ def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite
               **{k: v for k, v in settings.items() if k != "workers"}}
     keys = [case_key(c, c.config(base)) for c in cases]
     journal = StudyJournal(out, header)
-    with staged_output(out, overwrite=overwrite, what="study") as stage:
+    with output_dir(out, "study", overwrite=overwrite) as stage:
         kept = journal.start(resume, overwrite)
         try:
             done = {i: kept[k] for i, k in enumerate(keys) if k in kept}

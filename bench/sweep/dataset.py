@@ -74,6 +74,7 @@ from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the datase
     SPEC_COPY,
     VERSION,
 )
+from platebench.bench.io.outputs import describe_path, file_sha256, foreign_entries, guard_output
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
 
@@ -101,14 +102,6 @@ def now_utc() -> str:
 
 def sample_dir(dataset: Path, sample_id: str) -> Path:
     return Path(dataset) / SAMPLES / sample_id
-
-
-def file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def text_sha256(text: str) -> str:
@@ -420,6 +413,8 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
     """Check that ``out`` can take this sweep, before anything is written; returns its manifest
     (None for a new dataset). Call it holding the dataset lock."""
     out = Path(out)
+    if overwrite:  # the output rule (bench.io.outputs): never the root, the working directory, a link
+        guard_output(out)
     if os.path.lexists(out) and not out.is_dir():
         raise DatasetLayoutError(f"{out} exists and is not a directory")
     if not (out.is_dir() and any(out.iterdir())):
@@ -427,7 +422,12 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
     manifest = read_manifest(out)
     if overwrite:
         if manifest is None:
-            raise DatasetLayoutError(f"{out} is not empty and holds no sweep manifest: refusing to replace it")
+            raise DatasetLayoutError(f"{out}: is {describe_path(out)}, with no sweep manifest: refusing to replace "
+                                     "it (--overwrite replaces only what 'platebench sweep' wrote)")
+        foreign = foreign_entries(out, "dataset") or []
+        if foreign:
+            raise DatasetLayoutError(f"{out}: holds {foreign[0]}, which PlateBench did not write: refusing to replace "
+                                     "it (move it out, or choose another --out)")
         return manifest
     if resume:
         if manifest is None and _started_skeleton(out, spec):

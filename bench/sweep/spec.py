@@ -133,7 +133,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml
+from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml_text
 from platebench.bench.config.axes import AXES as AXIS_INFO
 from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
@@ -723,10 +723,9 @@ def load_spec(path: Path, methods: tuple | None = None) -> SweepSpec:
     """Read, validate and expand a TOML sweep spec (raises SpecError with a one-line message)."""
     path = Path(path)
     try:
-        doc = read_toml(path, "sweep spec")
+        doc, text = read_toml_text(path, "sweep spec")
     except ConfigError as e:
         raise SpecError(str(e)) from None
-    text = path.read_bytes().decode("utf-8")
     try:
         return parse_spec(doc, text, methods)
     except SpecError as e:
