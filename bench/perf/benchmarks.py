@@ -3,7 +3,8 @@
 * ``render``: a whole sample (4 images + all ground truth) against raw ``mitsuba.render``
   of the same 4 images (target ratio <= 1.3); then a second sample with another bend
   and camera distance through the same renderer, which must reuse the compiled kernels
-  (kernel compiles counted with drjit's kernel history).
+  (kernel compiles counted with drjit's kernel history); then the same 4 images through
+  the bench's lens sensor (distortion and non-square pixels) against Mitsuba's perspective.
 * ``reconstruct``: the paper's pipeline on the reference sample against one OpenCV
   StereoSGBM call on the same passive pair (target ratio <= 0.5).
 * ``score``: exact point-to-mesh distance on a dent plate's mesh, by triangle radius classes
@@ -20,7 +21,7 @@ import cv2
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.run.render import render_sample
+from platebench.bench.run.render import ground_truth_at, render_sample
 from platebench.plates import CylindricalBend
 from platebench.scenes.naming import IMAGE_NAMES
 from platebench.scenes.render.runtime import KernelCounter
@@ -35,9 +36,8 @@ def _best(fn, repeat: int) -> float:
     return best
 
 
-def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:
-    """Whole sample vs raw renders; then a second sample reusing kernels."""
-    sample, renderer = render_sample(cfg)  # warm-up: compiles (or loads) kernels
+def _raw_renders(renderer, cfg: SampleConfig):
+    """The four images by ``mitsuba.render`` alone (after the renderer's lighting switch)."""
     mi = renderer.mi
 
     def raw():
@@ -48,7 +48,34 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
                             seed=cfg.render.seed)
             np.asarray(img)  # the pixels in host memory, as any caller needs them
 
-    t_raw = _best(raw, repeat)
+    return raw
+
+
+# The lens the lens-sensor figure renders through: the 1995 camera's (bench.config.hardware_camera),
+# with its pixel aspect, so that Mitsuba's perspective sensor cannot render it.
+LENS_BENCHMARK = {"distortion": {"k1": -0.228601, "k2": 0.190353}, "pixel_aspect": 1.25}
+
+
+def perf_lens_sensor(cfg: SampleConfig, t_raw_perspective: float, repeat: int = 2, log=print) -> dict:
+    """Raw renders of the same 4 images through the bench's lens sensor (Brown-Conrady distortion,
+    non-square pixels: rays generated through the model) against Mitsuba's perspective sensor
+    (``t_raw_perspective``, same size and spp, measured in the same run); and the ground truth."""
+    lens_cfg = replace(cfg, scene=replace(cfg.scene, fy_px=cfg.scene.focal_px * LENS_BENCHMARK["pixel_aspect"],
+                                          distortion=dict(LENS_BENCHMARK["distortion"])))
+    sample, renderer = render_sample(lens_cfg)  # warm-up: compiles the lens sensor's kernels
+    t_raw = _best(_raw_renders(renderer, lens_cfg), repeat)
+    t_gt = _best(lambda: ground_truth_at(renderer), repeat)
+    out = {"raw_mitsuba_render_4_images_lens_sensor_s": t_raw, "ratio_lens_sensor_over_perspective": t_raw /
+           t_raw_perspective, "lens_sensor_ground_truth_s": t_gt, "lens": LENS_BENCHMARK}
+    log(f"lens sensor, 4 images (raw)       {t_raw:7.2f} s   ratio {t_raw / t_raw_perspective:.2f} against the "
+        f"perspective sensor (k1 {LENS_BENCHMARK['distortion']['k1']}, fy/fx {LENS_BENCHMARK['pixel_aspect']})")
+    return out
+
+
+def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:
+    """Whole sample vs raw renders; then a second sample reusing kernels; then the lens sensor."""
+    sample, renderer = render_sample(cfg)  # warm-up: compiles (or loads) kernels
+    t_raw = _best(_raw_renders(renderer, cfg), repeat)
     t_sample = _best(lambda: render_sample(cfg, renderer), repeat)
     other = replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(np.radians(40.0), "up")),
                     scene=replace(cfg.scene, distance_m=cfg.scene.distance_m * 1.25))
@@ -68,6 +95,7 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
     log(f"whole sample (images + GT)        {t_sample:7.2f} s   ratio {t_sample / t_raw:.2f} (target <= 1.3)")
     log(f"second sample (40 deg, 0.5 m)     {t_second:7.2f} s   kernel compiles {kc.compiled} of "
         f"{kc.launches} launches, scene rebuilds {out['second_sample_scene_rebuilds']}")
+    out.update(perf_lens_sensor(cfg, t_raw, repeat, log))
     return out
 
 
