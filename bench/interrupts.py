@@ -24,7 +24,8 @@ Once the command has its exit status (``finish``), a signal is only recorded: it
 way out (threads joined, files closed), and the process still exits 130 / 143 (an ``atexit`` hook).
 A second SIGTERM after the first was raised ends the process at once (the default action).
 Nothing here runs unless ``install()`` was called (the library's own users keep Python's
-default handling).
+default handling); a command run from Python (``main([...])``) gets the caller's handlers back
+(``uninstall``).
 """
 from __future__ import annotations
 
@@ -36,7 +37,8 @@ import signal
 import sys
 import threading
 
-__all__ = ["Terminated", "install", "installed", "received", "check", "finish", "exit_status", "REDELIVER_S",
+__all__ = ["Terminated", "install", "uninstall", "installed", "received", "check", "finish", "exit_status",
+           "REDELIVER_S",
            "EXIT_STATUS", "CRITICAL"]
 
 REDELIVER_S = 0.02  # how often a signal held during an import is delivered again, seconds
@@ -119,13 +121,25 @@ def install() -> bool:
     if threading.current_thread() is not threading.main_thread():
         return False
     with contextlib.suppress(ValueError, OSError):
+        previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
         signal.signal(signal.SIGINT, _handler)
         signal.signal(signal.SIGTERM, _handler)
         _STATE["installed"] = True
+        _STATE["previous"] = previous
     if _STATE["installed"] and not _STATE["atexit"]:
         atexit.register(_exit_late)
         _STATE["atexit"] = True
     return _STATE["installed"]
+
+
+def uninstall() -> None:
+    """Put back the handlers ``install()`` replaced (a command run from Python, not as the process)."""
+    previous = _STATE.pop("previous", None)
+    if previous and threading.current_thread() is threading.main_thread():
+        for s, h in previous.items():
+            with contextlib.suppress(ValueError, OSError, TypeError):
+                signal.signal(s, h if h is not None else signal.SIG_DFL)
+    _STATE["installed"] = False
 
 
 def finish(status: int) -> int:

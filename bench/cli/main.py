@@ -70,23 +70,35 @@ def _interrupted(e: KeyboardInterrupt | None) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. ``argv`` None: this process's command line (the handlers of ``bench.interrupts`` stay
+    to its very end: ``finish``); a list: a call from Python, which gets its own handlers back."""
+    whole_process = argv is None
     interrupts.install()  # first: a signal at any later moment ends the command with 130 / 143
     try:
-        argv = sys.argv[1:] if argv is None else list(argv)
+        return _run(sys.argv[1:] if argv is None else list(argv),
+                    interrupts.finish if whole_process else (lambda status: status))
+    finally:
+        if not whole_process:
+            interrupts.uninstall()
+
+
+def _run(argv: list[str], done) -> int:
+    """The command's exit status, passed through ``done`` as soon as it is known."""
+    try:
         parser = build_parser(argv)
         args = parser.parse_args(argv)
         status = int(args.run(args) or 0)
         interrupts.check()  # a signal that a library swallowed on the way
-        return interrupts.finish(status)
+        return done(status)
     except KeyboardInterrupt as e:
-        return interrupts.finish(_interrupted(e))
+        return done(_interrupted(e))
     except BaseException as e:
         if interrupts.received() is not None:  # an error on the way out of an interrupt
-            return interrupts.finish(_interrupted(None))
+            return done(_interrupted(None))
         if not isinstance(e, (PlateBenchError, OSError)) or os.environ.get("PLATEBENCH_DEBUG"):
             raise  # argparse's exits (--help, a bad flag), and bugs: their traceback
         print(f"platebench: error: {_one_line(e)}", file=sys.stderr)
-        return interrupts.finish(2)
+        return done(2)
 
 
 if __name__ == "__main__":
