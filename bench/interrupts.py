@@ -5,14 +5,14 @@ The command line calls ``install()`` before anything else. A signal is then reco
 ``Terminated`` (a ``KeyboardInterrupt``) for SIGTERM, so staged outputs are removed
 (``bench.io.atomic``) and a sweep closes its manifest "interrupted".
 
-Two things could lose it; both are closed here:
+Three things could lose it, or cut a step in half; all are closed here:
 
 * A module being imported when the signal lands. Packages guard their optional imports with
   ``except BaseException`` (trimesh does, for shapely, networkx, scipy, ...): the exception
   would be swallowed and the package left half set up (later calls then fail in odd ways).
   While the main thread is inside an import, the signal is held and delivered again every
-  ``REDELIVER_S`` until the import has finished; a second signal while one is held is raised at
-  once, so a module that never finishes importing can still be interrupted.
+  ``REDELIVER_S`` (by SIGALRM) until the import has finished; a second signal while one is held
+  is raised at once, so a module that never finishes importing can still be interrupted.
 * Code whose exceptions Python ignores (``__del__``, a weak reference's callback run by the garbage
   collector) is held the same way, and so are the few steps that must not be cut in half
   (``CRITICAL``: taking an output's lock, swapping a finished output into place, committing a sample).
@@ -21,15 +21,16 @@ Two things could lose it; both are closed here:
   end into 130 / 143 all the same (its completed outputs are kept, as after any interrupt).
 
 Once the command has its exit status (``finish``), a signal is only recorded: it cannot break the
-way out (threads joined, files closed), and the process still exits 130 / 143 (an ``atexit`` hook).
-A second SIGTERM after the first was raised ends the process at once (the default action).
+way out (threads joined, files closed), and the process still exits 130 / 143 (an ``atexit`` hook);
+a second one ends the process at once, with the same status. So does a second signal while the
+first one's exception unwinds (cleanup that hangs can be cut short; what it left, the next run
+removes).
 Nothing here runs unless ``install()`` was called (the library's own users keep Python's
 default handling); a command run from Python (``main([...])``) gets the caller's handlers back
 (``uninstall``).
 """
 from __future__ import annotations
 
-import _thread
 import atexit
 import contextlib
 import os
@@ -38,6 +39,7 @@ import sys
 import threading
 
 __all__ = ["Terminated", "install", "uninstall", "installed", "received", "check", "finish", "exit_status",
+           "children_without_sigint",
            "REDELIVER_S",
            "EXIT_STATUS", "CRITICAL"]
 
@@ -50,7 +52,7 @@ class Terminated(KeyboardInterrupt):
 
 
 _STATE = {"installed": False, "signum": None, "held": False, "redelivery": False, "finishing": False,
-          "late": False, "atexit": False}
+          "late": False, "atexit": False, "raised": False, "whole_process": False}
 
 
 # Sections a signal must not cut, held until they end: taking and releasing an output's lock, writing a
@@ -89,18 +91,24 @@ def _exception(signum: int) -> KeyboardInterrupt:
 
 
 def _redeliver(signum: int) -> None:
-    def again():
+    """Deliver the held signal again in ``REDELIVER_S`` (a one-shot ITIMER_REAL: no thread is started from
+    the handler, which may have interrupted the main thread inside threading's own locks)."""
+    signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, REDELIVER_S)
+
+
+def _alarm(_signum, frame):
+    if _STATE["signum"] is not None and _STATE["held"]:
         _STATE["redelivery"] = True
-        _thread.interrupt_main(signum)  # runs the handler in the main thread again
-    t = threading.Timer(REDELIVER_S, again)
-    t.daemon = True
-    t.start()
+        _handler(_STATE["signum"], frame)
 
 
 def _handler(signum, frame):
     if _STATE["signum"] is None:
         _STATE["signum"] = signum
     if _STATE["finishing"]:  # the command is done: the exit status says it (``_exit_late``)
+        if _STATE["late"]:  # a second one while the process winds down (a thread that will not end): now
+            _exit_late(now=True)
         _STATE["late"] = True
         return
     redelivered, _STATE["redelivery"] = _STATE["redelivery"], False
@@ -109,19 +117,25 @@ def _handler(signum, frame):
         _redeliver(signum)
         return
     _STATE["held"] = False
-    if signum == signal.SIGTERM:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    if _STATE["raised"] and _STATE["whole_process"]:  # a second one while the first unwinds: stop now
+        with contextlib.suppress(Exception):
+            print("platebench: interrupted again: stopped at once (the next run removes what was left)",
+                  file=sys.stderr, flush=True)
+        os._exit(exit_status() or 130)
+    _STATE["raised"] = True
     raise _exception(signum)
 
 
-def install() -> bool:
+def install(whole_process: bool = False) -> bool:
     """Handle SIGINT and SIGTERM as the module doc says (main thread only; False elsewhere). Forgets
-    any signal recorded before."""
-    _STATE.update(signum=None, held=False, redelivery=False, finishing=False, late=False)
+    any signal recorded before. ``whole_process``: the command is the process (a second signal while the
+    first unwinds ends it at once); else a second signal is raised again, as Python does."""
+    _STATE.update(signum=None, held=False, redelivery=False, finishing=False, late=False, raised=False,
+                  whole_process=whole_process)
     if threading.current_thread() is not threading.main_thread():
         return False
     with contextlib.suppress(ValueError, OSError):
-        previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+        previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)}
         signal.signal(signal.SIGINT, _handler)
         signal.signal(signal.SIGTERM, _handler)
         _STATE["installed"] = True
@@ -133,9 +147,12 @@ def install() -> bool:
 
 
 def uninstall() -> None:
-    """Put back the handlers ``install()`` replaced (a command run from Python, not as the process)."""
+    """Put back the handlers ``install()`` replaced (SIGINT, SIGTERM, and SIGALRM, which re-delivers a held
+    signal), for a command run from Python rather than as the process."""
     previous = _STATE.pop("previous", None)
     if previous and threading.current_thread() is threading.main_thread():
+        with contextlib.suppress(OSError):
+            signal.setitimer(signal.ITIMER_REAL, 0)  # a re-delivery still pending
         for s, h in previous.items():
             with contextlib.suppress(ValueError, OSError, TypeError):
                 signal.signal(s, h if h is not None else signal.SIG_DFL)
@@ -150,15 +167,34 @@ def finish(status: int) -> int:
     return status
 
 
-def _exit_late() -> None:
-    """At exit: a signal that came after ``finish`` still makes the exit status 130 / 143."""
-    if not _STATE["late"] or _STATE.get("status") in EXIT_STATUS.values():
+def _exit_late(now: bool = False) -> None:
+    """At exit: a signal that came after ``finish`` still makes the exit status 130 / 143 (``now``: a second
+    one, which ends the process at once)."""
+    interrupted = _STATE.get("status") in EXIT_STATUS.values()
+    if not now and (not _STATE["late"] or interrupted):
         return
     with contextlib.suppress(Exception):
         sys.stdout.flush()
-        what = "terminated (SIGTERM)" if _STATE["signum"] == signal.SIGTERM else "interrupted"
-        print(f"platebench: {what} while finishing; its outputs are complete", file=sys.stderr, flush=True)
-    os._exit(exit_status() or 130)
+        if not interrupted:
+            what = "terminated (SIGTERM)" if _STATE["signum"] == signal.SIGTERM else "interrupted"
+            print(f"platebench: {what} while finishing; its outputs are complete", file=sys.stderr, flush=True)
+    os._exit(_STATE["status"] if interrupted else exit_status() or 130)
+
+
+@contextlib.contextmanager
+def children_without_sigint():
+    """Start child processes in this block with SIGINT blocked, which they inherit (across exec too): a
+    Ctrl-C at the terminal reaches every process of the group, and it is the command's to handle (it
+    stops its children), not a worker's half-way through its start-up. A SIGINT that comes meanwhile
+    reaches this process when the block ends."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def installed() -> bool:

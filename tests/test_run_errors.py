@@ -142,7 +142,8 @@ def test_a_read_only_output_stops_the_sweep_and_resume_finishes_it(on_tmpfs, tmp
         # the dataset's mount made read-only under the running sweep (between two of its writes)
         f"until mount -o remount,bind,ro {ds} 2>/dev/null; do sleep 0.01; done\n"
         f"rc=0; wait $pid || rc=$?\n"
-        f"{PY} -c \"import json; print(json.dumps({{'ro': {{'rc': $rc, 'stderr': open('{tmp_path}/ro.err').read()}}}}))\"\n"
+        f"{PY} -c \"import json; print(json.dumps({{'ro': {{'rc': $rc, "
+        f"'stderr': open('{tmp_path}/ro.err').read()}}}}))\"\n"
         + state_of(ds, "after_ro")
         + f"{PY} -c \"import json; from platebench.bench.sweep.dataset import RESULT; from pathlib import Path; "
           f"print(json.dumps({{'mtimes': {{p.parent.name: p.stat().st_mtime_ns for p in Path('{ds}/samples')."

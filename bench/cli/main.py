@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command. ``argv`` None: this process's command line (the handlers of ``bench.interrupts`` stay
     to its very end: ``finish``); a list: a call from Python, which gets its own handlers back."""
     whole_process = argv is None
-    interrupts.install()  # first: a signal at any later moment ends the command with 130 / 143
+    interrupts.install(whole_process)  # first: a signal at any later moment ends the command with 130 / 143
     try:
         return _run(sys.argv[1:] if argv is None else list(argv),
                     interrupts.finish if whole_process else (lambda status: status))

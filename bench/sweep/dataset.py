@@ -181,7 +181,9 @@ def commit_sample(dataset: Path, res: dict) -> dict:
     doc = _result_doc(res)
     write_json(stage / RESULT, doc)
     swap_in(stage, sample_dir(dataset, sid))
-    if stage.exists():  # the replaced older attempt
+    if stage.is_symlink():  # what stood at samples/<id> was a link: remove the link, never what it points to
+        stage.unlink()
+    elif stage.exists():  # the replaced older attempt
         shutil.rmtree(stage, ignore_errors=True)
     out = dict(doc)
     out["_result_sha256"] = file_sha256(sample_dir(dataset, sid) / RESULT)
@@ -217,6 +219,8 @@ def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = N
 
     ``manifest_files``: the checksums the manifest lists for the sample; they must agree too."""
     d = sample_dir(dataset, sample_id)
+    if d.is_symlink():  # a sample is a folder of the dataset, never a link to elsewhere
+        return None
     path = d / RESULT
     try:
         res = json.loads(path.read_text())

@@ -161,7 +161,8 @@ class LocalExecutor:
                                    initargs=(os.getpid(), queue, self.render_threads or
                                              max(1, (os.cpu_count() or 1) // self.workers)))
         self._pool = pool
-        futures = {pool.submit(_pool_task, t): t for t in tasks}
+        with interrupts.children_without_sigint():  # the workers start here; Ctrl-C is the sweep's to handle
+            futures = {pool.submit(_pool_task, t): t for t in tasks}
         started: dict = {}
         broken = aborted = False
         dataset = tasks[0].dataset if tasks else None

@@ -82,7 +82,8 @@ _LOCK = threading.Lock()
 
 def worker_init(parent_pid: int | None = None, render_threads: int | None = None) -> None:
     """Initializer of local pool workers: die with the parent (``workers.die_with_parent``), so a
-    sweep killed with -9 leaves no worker writing behind it; share the CPU cores between workers."""
+    sweep killed with -9 leaves no worker writing behind it; share the CPU cores between workers. (They
+    start with SIGINT blocked: ``interrupts.children_without_sigint``.)"""
     _STATE["parent"] = parent_pid
     _STATE["render_threads"] = render_threads if set_render_threads(render_threads) else None
     die_with_parent(parent_pid)
