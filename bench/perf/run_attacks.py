@@ -528,10 +528,21 @@ def attacks() -> list[Attack]:
     return out
 
 
-def run_attacks(select: str | None, work: Path) -> list:
-    """The attacks whose name contains ``select`` (all: None), each in ``work/attacks/<n>``, as the
-    harness's ``Outcome``s."""
-    from platebench.bench.perf.bad_inputs import Outcome  # noqa: PLC0415
+@dataclass
+class Outcome:
+    """An attack's outcome, in the fields of the bad-input harness's (its table and JSON read them)."""
+
+    case: str
+    rc: int
+    lines: list  # what went wrong, else the first line of stderr
+    clean: bool  # the command did what the attack expects of it (module doc)
+    traceback: bool
+    leftovers: list
+    seconds: float
+
+
+def run_attacks(select: str | None, work: Path) -> list[Outcome]:
+    """The attacks whose name contains ``select`` (all: None), each in ``work/attacks/<n>``."""
     root = Path(work) / "attacks"
     env = write_plugins(root / "plugins")
     outcomes = []

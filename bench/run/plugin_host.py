@@ -92,6 +92,9 @@ class PluginHost:
             ready = _read_frame(self.proc.stdout.fileno(), time.monotonic() + START_TIME_LIMIT_S)
         except _Timeout:
             ready = None
+        except BaseException:  # Ctrl-C while it starts: it goes with the command
+            self.stop()
+            raise
         if ready != _READY:
             self.stop()
             raise HostFailure(f"the plug-in process did not start within {START_TIME_LIMIT_S:g} s")

@@ -253,12 +253,11 @@ def describe(fn) -> str:
 def check_time_limit(seconds, what: str = "--method-time-limit-s") -> float:
     """A plug-in time limit in seconds, checked (``UserValueError`` naming ``what`` and the range)."""
     lo, hi = TIME_LIMIT_RANGE_S
-    try:
-        v = float(seconds)
-    except (TypeError, ValueError):
-        v = float("nan")
-    if isinstance(seconds, bool) or not lo <= v <= hi:
-        raise UserValueError(f"{what} = {seconds!r} is out of range: allowed {lo:g} to {hi:g} s")
+    number = isinstance(seconds, (int, float, np.integer, np.floating)) and not isinstance(seconds, bool)
+    v = float(seconds) if number else float("nan")
+    if not lo <= v <= hi:
+        raise UserValueError(f"{what} = {seconds!r} is {'out of range' if number else 'not a number'}: allowed "
+                             f"{lo:g} to {hi:g} s")
     return v
 
 
