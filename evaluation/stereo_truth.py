@@ -1,7 +1,7 @@
 """Two-view ground truth derived from a sample's per-camera maps: both disparity maps, the
 non-occlusion masks and the rectification figures of Middlebury's ``calib.txt``.
 
-Conventions (DESIGN.md): conventional stereo (both cameras share R, the right camera is the left
+Conventions (docs/architecture.md, "Stereo"): conventional stereo (both cameras share R, the right camera is the left
 one moved by the baseline B along the left camera's +x), OpenCV intrinsics, pixel centres at
 integers, z-depth in metres. Middlebury's disparity convention: a pixel at column u of one view
 matches column u - d (left view) or u + d (right view) of the other, with

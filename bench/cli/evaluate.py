@@ -35,7 +35,8 @@ def add_parser(sub) -> None:
                     "surface, outliers, coverage at a radius) or --mesh (accuracy and completeness both ways, "
                     "precision/recall/F-score at thresholds, as DTU and Tanks and Temples). Maps are the LEFT view "
                     "at the sample's resolution; points and meshes are in the world frame, metres.")
-    p.add_argument("sample_dir", type=Path, metavar="SAMPLE_DIR")
+    p.add_argument("sample_dir", type=Path, metavar="SAMPLE_DIR",
+                   help="sample directory with the exact ground truth (from 'platebench render' or a sweep)")
     p.add_argument("recon_dir", type=Path, nargs="?", metavar="RECON_DIR",
                    help="reconstruction directory from 'platebench reconstruct'")
     g = p.add_argument_group("another program's output (exactly one)")

@@ -41,8 +41,11 @@ def add_parser(sub) -> None:
                     "disp_noc_0 (uint16 = 256 d), calib_cam_to_cam. Disparities and masks are computed from the "
                     "samples' exact ground truth. --shift crops the right image's columns against the left's so "
                     "that disparities fall where learned stereo works; doffs records it (Z = f B / (d + doffs)).")
-    p.add_argument("dataset", type=Path, metavar="DATASET")
-    p.add_argument("--format", required=True, choices=FORMATS, dest="fmt")
+    p.add_argument("dataset", type=Path, metavar="DATASET",
+                   help="a sample directory, a sweep dataset or a folder of samples")
+    p.add_argument("--format", required=True, choices=FORMATS, dest="fmt",
+                   help="middlebury (v3 / 2014 layout, calib.txt with doffs) or kitti (2015 layout, "
+                        "calib_cam_to_cam with P_rect_02/03)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created; must not exist "
                    "unless --overwrite)")
     p.add_argument("--images", choices=("passive", "active"), default="passive",

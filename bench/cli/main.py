@@ -41,7 +41,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
                "Run 'platebench COMMAND --help' for each command. Exit status: 0 done, 2 a user error "
                "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     parser.add_argument("--version", action="version", version=f"platebench {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, help="what to do (below)")
     for name, modname in COMMANDS.items():
         module = importlib.import_module(modname)
         if argv is None or name in argv:

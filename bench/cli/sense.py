@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
                                    "until the boundary is verified without ground truth, or a stop with the reason. "
                                    "Writes sensing.json, multiview.npz and stage 3's sample and reconstruction.")
     p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--overwrite", action="store_true")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
     p.add_argument("--max-cures", type=int, default=SensingOptions.max_cures,
                    help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to 20)")
     p.add_argument("--workspace-mm", type=float, default=150.0,
@@ -98,7 +98,7 @@ def summary_lines(s: SensingResult) -> list[str]:
     def mm(v):
         return "-" if v is None else f"{v:.3f} mm"
     lines.append(f"ground truth: boundary visible L/R at stage 2 {_pct(f.gt_visibility_first)}, from the final poses "
-                 f"{_pct(f.gt_visibility)}; stage 3 depth RMS {mm(a.get('depth_rms_mm'))}")
+                 f"{_pct(f.gt_visibility)}; stage 3 depth RMS at the square centres {mm(a.get('centres_depth_rms_mm'))}")
     lines.append(f"outcome: {f.outcome} ({OUTCOME_TEXT[f.outcome]})")
     lines.append(f"time: {s.time_s:.1f} s")
     return lines

@@ -1,10 +1,11 @@
 """What every section builder shares: the staged report directory, plots, thumbnails and links.
 
-The report is staged as a whole (``index.html``, ``plots/``, ``thumbs/``) and renamed into
-place. Plots are written into ``plots/`` and embedded in the page as data URIs (the page
-shows them even when copied alone); thumbnails go to ``thumbs/`` and links to sample and
-reconstruction folders are relative to the report's final place, so they work where the
-report sits beside its data.
+The report is staged as a whole (``index.html`` and ``plots/``) and renamed into place. Every
+image the page shows is embedded in it as a data URI, so ``index.html`` alone is the report (it
+shows everything when copied alone): plots (also kept as PNG files in ``plots/``, for reuse) and
+thumbnails of the samples' images. Links to sample and reconstruction folders (and to the
+full-size images) are relative to the report's final place, so they work where the report sits
+beside its data.
 
 Sections hand the templates plain dicts. A *generic section* (what
 ``bench.report.sensing.study_section`` / ``sensing_section`` return, and the interim adapters
@@ -59,11 +60,6 @@ class Page:
         (self.plot_dir / anchor).mkdir(exist_ok=True)
         return self.plot_dir / anchor
 
-    @property
-    def thumb_dir(self) -> Path:
-        (self.stage / "thumbs").mkdir(exist_ok=True)
-        return self.stage / "thumbs"
-
     def figure(self, path: Path, caption: str, alt: str = "") -> dict:
         """A PNG already in ``plots/`` as a template figure (embedded as a data URI)."""
         data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
@@ -88,12 +84,13 @@ class Page:
         except ValueError:
             return str(path)
 
-    def thumbnails(self, sample_dir: Path, prefix: str, names=IMAGE_NAMES) -> list[dict]:
-        """Thumbnails of a sample's camera images (default all four): [{"name", "src" (None when unreadable), "href"
-        (the full image, relative)}]."""
-        return [{"name": t["name"], "src": f"thumbs/{t['file']}" if t["file"] else None,
+    def thumbnails(self, sample_dir: Path, names=IMAGE_NAMES) -> list[dict]:
+        """Thumbnails of a sample's camera images (default all four), embedded: [{"name", "src" (a PNG
+        data URI; None when unreadable), "href" (the full image, relative)}]."""
+        return [{"name": t["name"],
+                 "src": None if t["png"] is None else "data:image/png;base64," + base64.b64encode(t["png"]).decode(),
                  "href": self.link(Path(sample_dir) / "images" / f"{t['name']}.png")}
-                for t in sample_thumbnails(sample_dir, self.thumb_dir, prefix, names)]
+                for t in sample_thumbnails(sample_dir, names)]
 
 
 # ----------------------------------------------------------------------------- generic sections

@@ -26,6 +26,7 @@ import numpy as np
 from platebench.errors import UserValueError
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
+from platebench.tolerances import tol
 
 __all__ = ["MIN_CORNERS", "CalibrationError", "BoardDetection", "detect_charuco", "CameraCalibration", "calibrate_camera", "StereoCalibration", "stereo_calibrate"]
 
@@ -33,7 +34,7 @@ MIN_CORNERS = 6
 REFINE_SIGMA_PX = 1.5
 FIXED_DISTORTION_FLAGS = cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
 FREE_DISTORTION_FLAGS = cv2.CALIB_FIX_K3
-_CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, 1e-12)
+_CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, tol.solver_eps)
 
 
 class CalibrationError(UserValueError):
@@ -86,7 +87,7 @@ def detect_charuco(image: np.ndarray, board, refine: bool = True) -> BoardDetect
         win = max(3, int(np.median(d.min(axis=1)) // 12))
         blurred = cv2.GaussianBlur(full, (0, 0), REFINE_SIGMA_PX)
         uv = cv2.cornerSubPix(blurred, uv.astype(np.float32).reshape(-1, 1, 2), (win, win), (-1, -1),
-                              (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-5))
+                              (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, tol.subpixel_eps_px))
         uv = uv.reshape(-1, 2).astype(np.float64)
     obj = np.asarray(board.getChessboardCorners(), np.float64).reshape(-1, 3)[ids]
     return BoardDetection(ids, uv, obj)
