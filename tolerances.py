@@ -26,6 +26,7 @@ class Tolerances:
     step_count: float = 1e-9        # ceil(x - step_count): a count of steps not raised by rounding
     angle_rad: float = 1e-9         # slack of an angle compared with a limit it may equal (radians)
     pixel: float = 1e-9             # pixel-coordinate equality (principal point, K entries)
+    disparity_file_px: float = 1e-3  # a sample's disp0GT.pfm (float32) and its float32 depth map's disparity agree
     stereo_pose_m: float = 1e-12    # both cameras of a conventional rig share R, t differs by B only
     rebuilt_px: float = 1e-6        # K entries (px) of a rig re-created from sample.json against calib.json's
     rebuilt_pose: float = 1e-9      # R entries and t (m) of a re-created rig against calib.json's

@@ -1,5 +1,5 @@
 """README's code runs as written: its Python blocks are taken from README.md itself and run as a user
-runs them (``python script.py`` in a folder holding ``examples/``, the plug-in as a module on the
+runs them (``python my_script.py`` in a folder holding ``examples/``, the plug-in as a module on the
 path), its TOML parses, and every ``platebench`` command line of its shell blocks is accepted by
 the command's parser. So README and the product cannot drift apart.
 

@@ -616,3 +616,53 @@ def test_plot_metric_vs_axis_edge_cases(tmp_path):
     # an axis no row has: a note, not an exception
     assert P.plot_metric_vs_axis(frame, "distance_mm", tmp_path / "c.png").read_bytes()[:8] == PNG_SIG
     assert P.plot_metric_vs_axis(frame.iloc[:0], "noise", tmp_path / "d.png").read_bytes()[:8] == PNG_SIG
+
+
+def flat_cloud(inputs):
+    """A plug-in for the report test: a flat grid of points in z = 0 over the plate's size (no truth used)."""
+    from platebench.bench.run.plugins import Points
+    x, y = np.meshgrid(np.linspace(-0.05, 0.05, 30), np.linspace(-0.03, 0.03, 20))
+    return Points(np.c_[x.ravel(), y.ravel(), np.zeros(x.size)])
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_a_real_sweep_report_has_an_error_map_for_every_method(tmp_path):
+    """A real (tiny) sweep with the paper's pipeline, SGBM (a disparity map) and a plug-in's point
+    cloud: each method gets its error maps, labelled; the headline compares each depth figure only among
+    the methods that report it, and says which figure it is."""
+    from platebench.bench.sweep.executors import LocalExecutor, run_sweep
+    from platebench.bench.sweep.spec import load_spec
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nname = "maps"\nmethods = ["paper", "sgbm", "tests.test_report:flat_cloud"]\n'
+                    '[base.scene]\nwidth = 320\nheight = 240\n[base.render]\nspp = 2\n[grid]\nbend_deg = [0, 20]\n')
+    ds = tmp_path / "ds"
+    summary = run_sweep(load_spec(spec), ds, LocalExecutor(0), progress=False)
+    assert summary.ok == 2, summary.results
+    index = write_report(ds)
+    _check_self_contained(index)
+    text = index.read_text()
+    names = _plot_names(ds / "report")
+    for m in ("paper", "sgbm", "tests_test_report_flat_cloud"):
+        assert {f"dataset_error_map_0000_{m}", f"dataset_error_map_0001_{m}"} <= names, (m, sorted(names))
+    assert "method sgbm; a disparity or depth map: the left view" in text
+    head = text[text.index('id="headline"'):text.index("<nav>")]
+    assert re.search(r"median depth RMS at the square centres: paper [0-9.]+ mm", head), head
+    assert re.search(r"median depth RMS over the plate&#39;s pixels: sgbm [0-9.]+ mm", head), head
+    assert "paper" not in head.split("median depth RMS over the plate")[1].split(";")[0]
+
+
+def test_results_read_back_with_their_types(tmp_path):
+    """results.csv's sample_id "0000" is text: platebench.results() reads it as such (a plain pandas
+    read_csv would make it the number 0; README says so and gives the dtype to pass)."""
+    import pandas as pd
+
+    import platebench
+    from platebench.errors import PlateBenchError
+    ds = make_dataset(tmp_path / "ds")
+    frame = platebench.results(ds)
+    assert frame["sample_id"].tolist()[:2] == ["0000", "0000"] and frame["sample_id"].map(type).eq(str).all()
+    assert pd.read_csv(ds / "results.csv")["sample_id"].iloc[0] == 0  # the pitfall, as README states it
+    assert pd.read_csv(ds / "results.csv", dtype={"sample_id": str})["sample_id"].iloc[0] == "0000"
+    with pytest.raises(PlateBenchError, match="holds no results"):
+        platebench.results(tmp_path)

@@ -418,3 +418,38 @@ def test_a_sample_holding_its_reconstruction(tmp_path):
     inp = detect_inputs(sample)
     assert inp.recons == [inner] and inp.samples == []
     assert "reference experiment (V)" in _headline(write_report(sample).read_text())
+
+
+@pytest.mark.render
+def test_report_of_scores_that_evaluate_wrote_for_other_programs_outputs(small_sample_dir, tmp_path, capsys):
+    """A folder of a user's outputs, each scored with 'platebench evaluate' (F.score.json beside F): the
+    report shows each score with labelled figures, its plausibility hints and an error map of the file."""
+    import trimesh
+
+    from platebench.bench.io.field_truth import load_field_truth
+    from platebench.bench.io.images import write_pfm
+    from tests.test_report import _check_self_contained
+    t = load_field_truth(small_sample_dir)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    write_pfm(mine / "disp0.pfm", np.where(np.isfinite(t.disparity), t.disparity + 0.3, np.inf).astype(np.float32))
+    np.save(mine / "depth_mm.npy", np.where(t.mask, t.depth * 1e3, np.inf))
+    mesh = trimesh.load(small_sample_dir / "plate.ply", process=False, force="mesh")
+    np.save(mine / "cloud.npy", trimesh.sample.sample_surface(mesh, 2000, seed=1)[0])
+    for flag, name in (("disparity", "disp0.pfm"), ("depth", "depth_mm.npy"), ("points", "cloud.npy")):
+        assert main(["evaluate", str(small_sample_dir), f"--{flag}", str(mine / name)]) == 0
+    capsys.readouterr()
+    assert [p.name for p in detect_inputs(mine).scores] == ["cloud.score.json", "depth_mm.score.json",
+                                                            "disp0.score.json"]
+    index = write_report(mine)
+    _check_self_contained(index)
+    text = index.read_text()
+    for title in ("Score of disp0 (disparity output)", "Score of depth_mm (depth output)",
+                  "Score of cloud (points output)"):
+        assert title in text
+    assert "Middlebury bad 1.0 px, all pixels with known truth" in text  # labels from the column registry
+    assert "depth RMS over the plate&#39;s pixels" in text
+    assert "plausibility: the median depth error" in text and "is this file in millimetres?" in text
+    assert text.count("Error map of disp0&#39;s disparity output") == 1
+    assert text.count("Error map of cloud&#39;s points output") == 1
+    assert "error map unavailable" not in text

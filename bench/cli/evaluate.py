@@ -8,6 +8,11 @@ or exactly one file of another program's output, scored with the metrics of its 
 * ``--depth F``: left-view z-depth in metres, EXR/PFM/NPY;
 * ``--points F``: world points in metres, PLY/CSV/NPY;
 * ``--mesh F``: surface mesh in metres, PLY.
+
+A file whose errors lie orders of magnitude beyond the scene (a disparity given as ``--depth``,
+millimetres for metres, points in the camera's frame) is scored all the same, with a hint
+("is this file in millimetres?") printed and written to the score JSON's ``hints``
+(``evaluation.plausibility``).
 """
 from __future__ import annotations
 
@@ -187,12 +192,18 @@ def run(args) -> int:
             coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
     else:
         score = score_output(output, truth, what)
+    from platebench.evaluation.plausibility import plausibility_hints  # noqa: PLC0415
+
+    hints = plausibility_hints(kind, getattr(output, kind), truth)
     name = args.name or path.stem
     out = args.out or path.with_name(f"{path.stem}.score.json")
     doc = score_document(name, kind, score, args.sample_dir)
     doc["input"] = str(path)
+    doc["hints"] = list(hints)  # plausibility: is the file what its flag says? (evaluation.plausibility)
     write_json(out, doc)
     print(f"{'method':16s} {name} ({kind}: {path})")
     print(format_field_table(score))
+    for h in hints:
+        print(f"{'hint':16s} {h}")
     print(f"{'written':16s} {out}")
     return 0

@@ -866,7 +866,7 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
     from platebench.bench.io.method_outputs import read_depth, read_disparity, read_mesh, read_points  # noqa: PLC0415
     from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
 
-    fig = _figure(7.0, 5.0)
+    fig = _figure(7.5, 5.4)
     ax = fig.add_subplot(111)
     found = output_file(where)
     try:
@@ -885,7 +885,8 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
                 raise ValueError(f"{file}: {z.shape[1]}x{z.shape[0]} px, the sample is "
                                  f"{truth.shape[1]}x{truth.shape[0]}")
             mask = truth.mask
-            err = np.where(mask & np.isfinite(z) & (z > 0), (z - truth.depth) * 1e3, np.nan)
+            with np.errstate(invalid="ignore"):  # inf - inf off the plate, masked out
+                err = np.where(mask & np.isfinite(z) & (z > 0), (z - truth.depth) * 1e3, np.nan)
             vs, us = np.nonzero(mask)
             v0, v1 = max(vs.min() - 5, 0), min(vs.max() + 6, mask.shape[0])
             u0, u1 = max(us.min() - 5, 0), min(us.max() + 6, mask.shape[1])
@@ -922,7 +923,10 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
             raise ValueError(f"{file}: kind {kind!r} has no error map")
     except (OSError, ValueError) as e:  # missing or damaged files (DatasetError is a ValueError)
         _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
-    fig.suptitle(title or f"Error of {Path(where).name} against {Path(sample_dir).name}'s ground truth", fontsize=10)
+    import textwrap  # noqa: PLC0415
+    ax.set_title(textwrap.fill(ax.get_title(), 80), fontsize=8)
+    head = title or f"Error of {Path(where).name} against {Path(sample_dir).name}'s ground truth"
+    fig.suptitle(textwrap.fill(head, 90), fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
 

@@ -93,7 +93,8 @@ class MethodInputs:
 
 @dataclass(frozen=True)
 class Disparity:
-    """(H, W) left-view disparity, px (d = u_left - u_right; non-finite or <= 0: no estimate)."""
+    """(H, W) left-view disparity, px (d = u_left - u_right; +inf or NaN: no estimate; the Middlebury metrics
+    clip any other value to [0, ndisp], as the Middlebury SDK does; ETH3D's and the implied depth skip <= 0)."""
 
     disparity: np.ndarray
     metrics: Mapping[str, float] = field(default_factory=dict)
