@@ -4,8 +4,10 @@ A method (the bench's own, a plug-in, or another program whose output is scored 
 gives one of four kinds of result, each scored with the metrics its field uses:
 
 * **disparity** (H, W) px of the left view, d = u_left - u_right (Middlebury's convention, Z = f B /
-  (d + doffs)); non-finite or <= 0 = no estimate. Middlebury v3 (bad 0.5/1/2/4 px, invalid,
-  avgerr, rms, A50-A99) and ETH3D two-view metrics (``evaluation.disparity_metrics``) on all
+  (d + doffs)); +inf or NaN = no estimate. Middlebury v3 with the SDK's rules (other values,
+  0 and negative ones too, are estimates clipped to [0, ndisp]; bad 0.5/1/2/4 px, invalid,
+  avgerr, rms, A50-A99) against the sample's float32 truth file, and ETH3D two-view metrics
+  (estimates finite and > 0; ``evaluation.disparity_metrics``) on all
   pixels with known truth and on the non-occluded ones (``evaluation.stereo_truth``), plus the
   depth error the disparities imply (scored as a depth map).
 * **depth** (H, W) z-depth in metres along the left optical axis; non-finite or <= 0 = no

@@ -23,7 +23,7 @@ import re
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
-__all__ = ["MetricsRow", "METRIC_FIELDS", "EXTRA_FAMILIES", "metric_unit", "metric_label"]
+__all__ = ["MetricsRow", "METRIC_FIELDS", "EXTRA_FAMILIES", "metric_unit", "metric_label", "is_metric"]
 
 
 def _m(unit: str, label: str, kind: str = "float"):
@@ -175,6 +175,11 @@ def _family(name: str):
                          K={"precision": "precision", "recall": "recall", "fscore": "F-score"}.get(g.get("k", ""), ""))
             return label.format(**words), unit
     return None
+
+
+def is_metric(name: str) -> bool:
+    """Whether ``name`` is a metric column: a shared field or one of ``EXTRA_FAMILIES``."""
+    return name in METRIC_FIELDS or _family(name) is not None
 
 
 def metric_unit(name: str) -> str:

@@ -23,7 +23,6 @@ right silhouette) counts as seen: nothing of the plate lies in front of it.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numpy as np

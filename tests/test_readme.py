@@ -127,3 +127,11 @@ def test_a_script_without_the_main_guard_fails_with_the_reason(tmp_path):
     assert "WorkerImportError: platebench.sweep() was called while a worker process imported" in r.stderr
     # the dataset says so too
     assert '"failed": 1' in (tmp_path / "ds" / "manifest.json").read_text()
+
+
+def test_readme_and_demo_help_give_the_same_demo_time():
+    from platebench.bench.cli.demo import DEMO_TIME
+    demo_line = next(ln for ln in readme_blocks("sh")[0].splitlines() if ln.startswith("make demo"))
+    assert DEMO_TIME in demo_line, (DEMO_TIME, demo_line)
+    help_text = " ".join(build_parser(["demo"])._subparsers._group_actions[0].choices["demo"].format_help().split())
+    assert DEMO_TIME in help_text

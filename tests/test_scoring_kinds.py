@@ -345,3 +345,25 @@ def test_nonocclusion_mask_agrees_with_ray_casting(tmp_path):
     both = np.isfinite(a) & np.isfinite(b)
     inside = (np.minimum(a, b) - 0.5 <= d0) & (d0 <= np.maximum(a, b) + 0.5)
     assert both.mean() > 0.8 and inside[both].mean() > 0.99
+
+
+def test_every_column_of_every_kind_has_a_label_of_its_own(small_sample_dir):
+    """Every results column the four kinds produce is a shared field or of a known family, and its label
+    is words, not a mangled name ("depth bad 0 1 mm", "mb all bad 1 0")."""
+    import re
+
+    from platebench.bench.io.field_truth import load_field_truth
+    from platebench.evaluation.field_scores import score_depth, score_disparity, score_mesh, score_point_cloud
+    from platebench.evaluation.metrics_row import METRIC_FIELDS, is_metric, metric_label
+    t = load_field_truth(small_sample_dir)
+    mesh = trimesh.load(small_sample_dir / "plate.ply", process=False, force="mesh")
+    scores = [score_disparity(t.disparity + 0.2, t), score_depth(t.depth + 1e-4, t),
+              score_point_cloud(trimesh.sample.sample_surface(mesh, 500, seed=0)[0], t), score_mesh(mesh, t)]
+    names = {k for s in scores for k in s.metrics_row().columns()} | {"method_lit_px"}
+    assert len(names) > 80
+    unknown = sorted(n for n in names if not is_metric(n))
+    assert not unknown, unknown
+    for n in names:
+        label = metric_label(n)
+        assert not re.search(r"\d \d|\b(mb|eth|pct|frac)\b", label), (n, label)
+        assert n in METRIC_FIELDS or "_" not in label.split("'")[0], (n, label)

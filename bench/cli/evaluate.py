@@ -46,7 +46,8 @@ def add_parser(sub) -> None:
                    help="reconstruction directory from 'platebench reconstruct'")
     g = p.add_argument_group("another program's output (exactly one)")
     g.add_argument("--disparity", type=Path, metavar="F", help="left disparity in px: .pfm, or 16-bit .png with "
-                   "--disparity-scale; inf/NaN/<= 0 (PNG: 0) = no estimate")
+                   "--disparity-scale; +inf or NaN (PNG: 0) = no estimate; Middlebury's figures clip "
+                   "other values to [0, ndisp] as its SDK does")
     g.add_argument("--disparity-scale", type=float, metavar="S", help="16-bit PNG disparity: px = value / S "
                    "(KITTI: 256)")
     g.add_argument("--depth", type=Path, metavar="F", help="left z-depth in METRES: .exr (one channel), .pfm, .npy")

@@ -54,8 +54,8 @@ def add_parser(sub) -> None:
                    help="passive: plate under the overhead light; active: the projected square grid (default passive)")
     p.add_argument("--shift", type=str, default="0", metavar="PX|auto",
                    help="middlebury: shift disparities down by PX (crop the left image's first PX columns and the "
-                        f"right's last PX), or 'auto': per sample, so the smallest true disparity is {MIN_DISPARITY_PX} "
-                        f"to {MIN_DISPARITY_PX + 1} px (default 0; not with kitti, whose loaders assume equal "
+                        "right's last PX), or 'auto': per sample, so the smallest true disparity is "
+                        f"{MIN_DISPARITY_PX} to {MIN_DISPARITY_PX + 1} px (default 0; not with kitti, whose loaders assume equal "
                         "principal points)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing DIR")
     p.set_defaults(run=run)

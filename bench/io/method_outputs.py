@@ -3,8 +3,8 @@
 =========  ==========================================  ======================================
 kind       reads                                       meaning
 =========  ==========================================  ======================================
-disparity  ``.pfm`` (Middlebury, float32; inf/NaN or   left view, px, d = u_left - u_right
-           <= 0 = no estimate); ``.png`` 16-bit with
+disparity  ``.pfm`` (Middlebury, float32; +inf or   left view, px, d = u_left - u_right
+           NaN = no estimate); ``.png`` 16-bit with
            a scale S: d = value / S, 0 = no estimate
            (KITTI: S = 256)
 depth      ``.exr`` (one channel, or Z/Y/depth/R), left view z-depth, metres

@@ -35,7 +35,7 @@ from pathlib import Path
 from platebench.bench.config.axes import PARAMETER_NAMES, parameter_label
 from platebench.bench.report.thumbs import sample_thumbnails
 from platebench.bench.report.values import flag
-from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
+from platebench.evaluation.metrics_row import is_metric, metric_label
 from platebench.scenes.naming import IMAGE_NAMES
 
 __all__ = ["Page", "normalise_section", "table_of", "column_label"]
@@ -95,12 +95,12 @@ class Page:
 
 # ----------------------------------------------------------------------------- generic sections
 def column_label(key: str) -> str:
-    """A column's label with its unit: a metric's (``metric_label``), a parameter's
-    (``parameter_label``), else the name with spaces."""
-    if key in METRIC_FIELDS:
-        return metric_label(key)
+    """A column's label with its unit: a parameter's (``parameter_label``), a metric's (``metric_label``:
+    a shared field or an extra column's family), else the name with spaces."""
     if key in PARAMETER_NAMES:
         return parameter_label(key)
+    if is_metric(key):
+        return metric_label(key)
     return str(key).replace("_", " ")
 
 
