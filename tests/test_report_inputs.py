@@ -453,3 +453,10 @@ def test_report_of_scores_that_evaluate_wrote_for_other_programs_outputs(small_s
     assert text.count("Error map of disp0&#39;s disparity output") == 1
     assert text.count("Error map of cloud&#39;s points output") == 1
     assert "error map unavailable" not in text
+    # a sensing run's merged reconstruction, scored as README shows it, is reported with the run
+    sense = make_sensing(tmp_path / "sense")
+    np.save(sense / "merged_points.npy", trimesh.sample.sample_surface(mesh, 500, seed=2)[0])
+    assert main(["evaluate", str(small_sample_dir), "--points", str(sense / "merged_points.npy")]) == 0
+    capsys.readouterr()
+    text = write_report(sense).read_text()
+    assert "Outcome: clean" in _headline(text) and "Score of merged_points (points output)" in text

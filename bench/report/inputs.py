@@ -182,8 +182,7 @@ def detect_inputs(input_dir: Path) -> Inputs:
                              ("recon", inp.recons), ("sample", inp.samples)):
             if kind in kinds:
                 bucket.append(d)
-        if not kinds & {"dataset", "study", "sensing"}:
-            inp.scores += _score_documents(d)
+        inp.scores += _score_documents(d)  # e.g. a sensing run's merged surface, scored with evaluate --mesh
         if not kinds - {"sample"} and depth < MAX_DEPTH:  # a sample may hold its reconstruction
             queue += [(s, depth + 1) for s in _subdirs(d)]
     inp.recons.sort(key=lambda r: (str(r.parent), r.name != "paper", r.name))  # the paper's pipeline first
