@@ -20,8 +20,8 @@ from platebench.errors import PlateBenchError
 # the work's modules (renderer, pipeline, scores) are imported in _run(), once --out is checked
 HELP = "the main job: the paper's reference experiment end to end, a bend sweep, a false-boundary study and the report"
 # How long the whole demo takes (README says the same; tests/test_readme.py checks that they agree):
-# 340 CPU-seconds measured in all (render, methods, sweeps on 2 workers, study, report), so about 3 to 4
-# minutes of wall time on 2 free cores.
+# measured 329 CPU-seconds in all (render, methods, sweeps on 2 workers, study, report; /usr/bin/time),
+# so about 3 to 4 minutes of wall time on 2 free cores.
 DEMO_TIME = "about 4 minutes on 2 cores"
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"  # installed as platebench/examples (package data)
 DEMO_SPEC = EXAMPLES / "demo_sweep.toml"
