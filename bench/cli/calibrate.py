@@ -139,15 +139,16 @@ def format_table(report: dict, comparison: dict | None = None) -> str:
     if comparison is not None:
         lines.append("reference reconstruction:")
         lines.append(f"  {'calibration':26s} {'points':>6s} {'depth RMS':>10s} {'depth max':>10s} {'x/y RMS':>15s} "
-                     f"{'boundary':>9s} {'expected':>8s}  (mm)")
+                     f"{'boundary':>9s} {'expected':>8s}  (mm; depth and x/y at the square centres)")
         for name in ("true", "estimated", "true_rig_estimated_rays"):
             s = comparison[name]
             if s.points is None:
                 lines.append(f"  {name:26s} no points scored")
                 continue
             p, m = s.points.stats, MetricsRow.from_score(s)
-            lines.append(f"  {name:26s} {p.count:>6d} {m.depth_rms_mm:>10.4f} {m.depth_max_mm:>10.4f} "
-                         f"{p.x.rms * 1e3:>7.4f}/{p.y.rms * 1e3:<7.4f} {m.boundary_mean_mm:>9.4f} "
+            lines.append(f"  {name:26s} {p.count:>6d} {m.centres_depth_rms_mm:>10.4f} "
+                         f"{m.centres_depth_max_mm:>10.4f} {p.x.rms * 1e3:>7.4f}/{p.y.rms * 1e3:<7.4f} "
+                         f"{m.boundary_mean_mm:>9.4f} "
                          f"{s.matching.expected_count_method:>8d}")
     t = report["timings_s"]
     lines.append(f"{'time (s)':34s} board {t['board_render_s']:.1f}, target {t['target_render_s']:.1f}, "

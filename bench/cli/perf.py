@@ -30,9 +30,10 @@ def add_parser(sub) -> None:
                         "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), and "
                         "variants (the same scene rendered by each of --variants, pixels compared with the first, "
                         "samples per second)")
-    p.add_argument("--width", type=int, default=1280)
-    p.add_argument("--height", type=int, default=960)
-    p.add_argument("--spp", type=int, default=16)
+    p.add_argument("--width", type=int, default=1280, help="image width in px of the rendered samples (default 1280; "
+                   "f scales with it)")
+    p.add_argument("--height", type=int, default=960, help="image height in px (default 960)")
+    p.add_argument("--spp", type=int, default=16, help="samples per pixel of the renders (default 16)")
     p.add_argument("--repeat", type=int, default=2, help="timed repetitions (best is reported)")
     p.add_argument("--json", type=Path, help="also write the figures as JSON here (a new file, or with --overwrite "
                    "one 'platebench perf' wrote)")

@@ -12,7 +12,8 @@ per sample) three ways in one run and prints, for each:
   measured inside the worker and returned with each sample's result.
 
 A warm-up sample is run first so that no configuration pays for kernel compilation
-that the others then reuse from the drjit disk cache. Run ``python -m bench.perf_sweep``.
+that the others then reuse from the drjit disk cache. Run ``platebench perf sweep`` or
+``python -m platebench.bench.perf.sweep``.
 """
 from __future__ import annotations
 
@@ -79,7 +80,7 @@ def perf_sweep(n_samples: int = 8, width: int = 320, height: int = 240, spp: int
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m bench.perf_sweep", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m platebench.bench.perf.sweep", description=__doc__.splitlines()[0])
     p.add_argument("--samples", type=int, default=8)
     p.add_argument("--width", type=int, default=320)
     p.add_argument("--height", type=int, default=240)
