@@ -9,6 +9,7 @@ from platebench.bench.io.atomic import write_json
 from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
+from platebench.tolerances import tol
 
 # the calibration's modules (renderer, OpenCV, the pipeline) are imported in run(), once the flags are checked
 HELP = "calibrate cameras (ChArUco) and projector rays (paper IV-A) from renders"
@@ -85,11 +86,10 @@ def run(args) -> int:
 
 def format_table(report: dict, comparison: dict | None = None) -> str:
     """The calibration report (and the reference reconstruction per calibration, ``Score``s) as text."""
-    """The calibration errors (and the reconstruction with estimated vs true calibration) as text."""
     c = report["config"]
     est = report["estimate"]
     lines = [f"calibration at {c['width_px']}x{c['height_px']} px, f {c['f_px']:.1f} px"
-             + (f" (fy {c['fy_px']:.1f})" if abs(c.get("fy_px", c["f_px"]) - c["f_px"]) > 1e-9 else "")
+             + (f" (fy {c['fy_px']:.1f})" if abs(c.get("fy_px", c["f_px"]) - c["f_px"]) > tol.pixel else "")
              + f", spp {c['spp']}, {len(c['board_poses'])} board poses, "
              f"target z {[round(z * 1e3, 1) for z in c['target_z_m']]} mm",
              f"estimate handed to the pipeline: {est['distortion_model'].replace('_', ' ')} "
