@@ -110,6 +110,17 @@ def run(args) -> int:
     return 0
 
 
+def refuse_robot_errors(cfg, command: str, allow_estimates: bool = False) -> None:
+    """One-line error when ``command`` would silently drop the realism's robot, hand/eye (or, unless
+    ``allow_estimates``, estimated-intrinsics) errors: it places its cameras itself."""
+    rz = cfg.realism
+    dropped = [s for s in ("robot_repeatability", "robot_accuracy", "hand_eye") + (() if allow_estimates else
+                                                                                   ("calibration",)) if rz.on(s)]
+    if dropped:
+        raise UserValueError(f"--realism {rz.name}: {command} does not model {', '.join(dropped)} (it places its "
+                             f"cameras itself); the preset's camera alone: --camera {rz.camera}")
+
+
 def sample_moves(cfg) -> bool:
     """True when the sample's realism adds an acquisition step (a robot, or estimates)."""
     return not cfg.realism.is_ideal

@@ -98,8 +98,10 @@ def budget_configs(realism: Realism, budget: bool = True) -> list[BudgetConfig]:
     """The budget's configurations of ``realism``'s sources: none, each alone, all but each, all
     (``budget`` False: all only)."""
     on = list(realism.sources)
+    if not on:
+        return [BudgetConfig("no source", "none", realism)]
     allc = BudgetConfig("all sources", "all", realism)
-    if not budget or not on:
+    if not budget:
         return [allc]
     out = [BudgetConfig("no source", "none", realism.with_sources([], f"{realism.name}: no source"))]
     out += [BudgetConfig(f"{s} alone", "alone", realism.only(s)) for s in on]
