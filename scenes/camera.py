@@ -10,6 +10,10 @@ Frames and units (see ../shared/DESIGN.md):
   ``K = [[f, 0, cx], [0, f, cy], [0, 0, 1]]``; a centred principal point is
   ``cx = W/2 - 0.5``, ``cy = H/2 - 0.5``.
 * Depth is z-depth along the optical axis, never distance along the ray.
+* Lens distortion (optional, ``distortion``): Brown-Conrady on normalised coordinates
+  (``scenes.lens``), applied between the pinhole projection and K, as OpenCV does:
+  ``(u, v) = K distort(X/Z, Y/Z)``. ``rays`` inverts it exactly, so ``project``, ``rays`` and
+  ``at_depth`` stay each other's inverses on a distorted camera.
 
 This module knows no renderer; ``scenes.mitsuba_convert`` is the one place that
 turns these poses into Mitsuba transforms.
@@ -20,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.scenes.lens import BrownConrady, DistortionError
 from platebench.tolerances import is_rotation, tol
 
 
@@ -68,13 +73,15 @@ def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Camera:
-    """A pinhole camera: OpenCV intrinsics K, pose (R, t), image size in pixels."""
+    """A pinhole camera: OpenCV intrinsics K, pose (R, t), image size in pixels, and optionally
+    the lens's distortion (None, or an identity ``BrownConrady``, is the ideal pinhole)."""
 
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
     width: int
     height: int
+    distortion: BrownConrady | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "K", _as_matrix(self.K, (3, 3), "K"))
@@ -87,6 +94,28 @@ class Camera:
             object.__setattr__(self, name, int(v))
         if not is_rotation(self.R):
             raise ValueError("R must be a proper rotation matrix (orthonormal, det +1)")
+        d = self.distortion
+        if d is not None and not isinstance(d, BrownConrady):
+            raise ValueError(f"distortion must be a BrownConrady model or None, got {type(d).__name__}")
+        if d is not None and d.is_identity:
+            object.__setattr__(self, "distortion", None)  # one representation of "no distortion"
+        elif d is not None:
+            self._check_one_to_one()
+
+    def _check_one_to_one(self) -> None:
+        """Refuse a distortion that folds over inside the image (no unique ray per pixel)."""
+        w, h = self.width, self.height
+        edge = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [-0.5, h - 0.5], [w - 0.5, h - 0.5],
+                         [(w - 1) / 2, -0.5], [(w - 1) / 2, h - 0.5], [-0.5, (h - 1) / 2], [w - 0.5, (h - 1) / 2]])
+        try:
+            ideal = self.distortion.undistort(self._normalised_distorted(edge))
+        except DistortionError as e:
+            raise ValueError(f"distortion {self.distortion.as_opencv().tolist()} does not map the "
+                             f"{w}x{h} image one-to-one: {e}") from None
+        r_max = float(np.max(np.linalg.norm(ideal, axis=1)))
+        if not self.distortion.monotonic_to(r_max * 1.05):
+            raise ValueError(f"distortion {self.distortion.as_opencv().tolist()} folds over inside the "
+                             f"{w}x{h} image (radial map not increasing to r = {r_max:.3f})")
 
     # -- construction ---------------------------------------------------------
     @classmethod
@@ -110,26 +139,43 @@ class Camera:
         return p @ self.R.T + self.t
 
     def project(self, points_world) -> np.ndarray:
-        """(N,3) world points -> (N,2) pixel coordinates (u, v); NaN behind the camera."""
+        """(N,3) world points -> (N,2) pixel coordinates (u, v), through the distortion if any;
+        NaN behind the camera."""
         pc = self.to_camera(points_world)
         z = pc[:, 2:3]
         with np.errstate(divide="ignore", invalid="ignore"):
-            uvw = pc @ self.K.T
-            uv = uvw[:, :2] / z
+            if self.distortion is None:
+                uvw = pc @ self.K.T
+                uv = uvw[:, :2] / z
+            else:
+                xy = self.distortion.distort(pc[:, :2] / z)
+                uv = xy @ self.K[:2, :2].T + self.K[:2, 2]
         uv[(z[:, 0] <= 0)] = np.nan
         return uv
+
+    def _normalised_distorted(self, pixels) -> np.ndarray:
+        """(N,2) pixels -> (N,2) normalised coordinates K^-1 (u, v, 1) (distorted if the lens is)."""
+        px = np.atleast_2d(np.asarray(pixels, float))
+        K = self.K
+        y = (px[:, 1] - K[1, 2]) / K[1, 1]
+        x = (px[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
+        return np.column_stack([x, y])
+
+    def normalised(self, pixels) -> np.ndarray:
+        """(N,2) pixels -> (N,2) ideal normalised coordinates (X/Z, Y/Z) of the rays through them:
+        K^-1, then the exact inverse of the distortion."""
+        xy = self._normalised_distorted(pixels)
+        return xy if self.distortion is None else self.distortion.undistort(xy)
 
     def depth(self, points_world) -> np.ndarray:
         """z-depth (metres) of world points along the optical axis."""
         return self.to_camera(points_world)[:, 2]
 
     def rays(self, pixels) -> tuple[np.ndarray, np.ndarray]:
-        """Unit world-frame ray directions through (N,2) pixels; origin is ``center``."""
-        px = np.atleast_2d(np.asarray(pixels, float))
-        K = self.K
-        y = (px[:, 1] - K[1, 2]) / K[1, 1]
-        x = (px[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
-        d = np.outer(x, self.R[0]) + np.outer(y, self.R[1]) + self.R[2]
+        """Unit world-frame ray directions through (N,2) pixels (through the distortion if any);
+        origin is ``center``."""
+        xy = self.normalised(pixels)
+        d = np.outer(xy[:, 0], self.R[0]) + np.outer(xy[:, 1], self.R[1]) + self.R[2]
         d /= np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
         return self.center, d
 
@@ -150,13 +196,23 @@ class Camera:
     def horizontal_fov_rad(self) -> float:
         return 2.0 * float(np.arctan(self.width / 2.0 / self.K[0, 0]))
 
+    @property
+    def pinhole(self) -> "Camera":
+        """The same camera without its distortion (K, pose and size kept)."""
+        return Camera(self.K, self.R, self.t, self.width, self.height)
+
     def to_dict(self) -> dict:
-        return {"K": self.K.tolist(), "R": self.R.tolist(), "t": self.t.tolist(),
-                "width": self.width, "height": self.height}
+        d = {"K": self.K.tolist(), "R": self.R.tolist(), "t": self.t.tolist(),
+             "width": self.width, "height": self.height}
+        if self.distortion is not None:
+            d["distortion_k1_k2_p1_p2_k3"] = self.distortion.as_opencv().tolist()
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Camera":
-        return cls(np.array(d["K"]), np.array(d["R"]), np.array(d["t"]), d["width"], d["height"])
+        dist = d.get("distortion_k1_k2_p1_p2_k3")
+        return cls(np.array(d["K"]), np.array(d["R"]), np.array(d["t"]), d["width"], d["height"],
+                   None if dist is None else BrownConrady.from_opencv(dist))
 
 
 def triangulate_rectified(u_left, v_left, u_right, left: Camera, baseline_m: float) -> np.ndarray:

@@ -60,18 +60,21 @@ class StereoRig(_CameraPair):
 
     @classmethod
     def conventional(cls, center, target, baseline_m, f_px, width, height,
-                     up=DEFAULT_UP) -> "StereoRig":
+                     up=DEFAULT_UP, K=None, distortion=None) -> "StereoRig":
         """Place the rig with its mid-baseline point at ``center`` looking at ``target``.
 
         The default ``up`` (world -X appears up in the image) puts the image x axis,
         and so the baseline, along world +Y: across the reference plate's bend.
+        ``K`` (3x3) replaces the square-pixel, centred ``intrinsics(f_px, ...)`` (e.g. non-square
+        pixels); ``distortion`` (``scenes.lens.BrownConrady``) is the lens of both cameras (the
+        paper's pair is one camera moved by the robot).
         """
         R = look_at_rotation(center, target, up)
-        K = intrinsics(f_px, width, height)
+        K = intrinsics(f_px, width, height) if K is None else np.asarray(K, float)
         c = np.asarray(center, float)
         c_left = c - 0.5 * baseline_m * R[0]
-        left = Camera(K, R, -R @ c_left, width, height)
-        right = Camera(K, R, left.t - np.array([baseline_m, 0.0, 0.0]), width, height)
+        left = Camera(K, R, -R @ c_left, width, height, distortion)
+        right = Camera(K, R, left.t - np.array([baseline_m, 0.0, 0.0]), width, height, distortion)
         return cls(left, right, float(baseline_m))
 
     def disparity(self, depth_m):

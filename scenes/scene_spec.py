@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from platebench.scenes.camera import intrinsics
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.projector import Projector
 from platebench.scenes.rig import PosedPair, StereoRig
@@ -145,7 +146,7 @@ def scene_for_pose(center, target, baseline_dir, base: SceneSpec, baseline_m: fl
     """``base`` with the rig re-placed: mid-baseline at ``center`` looking at ``target``, baseline
     along ``baseline_dir``; the projector sits between the cameras aimed at ``target``, or at
     ``projector_center`` aimed at ``projector_target`` (default ``target``), its image x axis
-    along the baseline. K and pattern of both are kept. World frame, metres."""
+    along the baseline. K, lens distortion and pattern of both are kept. World frame, metres."""
     center = np.asarray(center, float)
     target = np.asarray(target, float)
     pc = center if projector_center is None else np.asarray(projector_center, float)
@@ -154,7 +155,7 @@ def scene_for_pose(center, target, baseline_dir, base: SceneSpec, baseline_m: fl
     p_up = up_for_baseline(pt - pc, baseline_dir)
     left = base.rig.left
     rig = StereoRig.conventional(center, target, baseline_m or base.rig.baseline_m, left.f_px,
-                                 left.width, left.height, up=up)
+                                 left.width, left.height, up=up, K=left.K, distortion=left.distortion)
     p = base.projector
     if p.kind == "spot":
         proj = Projector.look_at(pc, pt, p.pattern, kind="spot", cutoff_rad=p.cutoff_rad, up=p_up)
@@ -167,13 +168,17 @@ def reference_scene(distance_m: float = REFERENCE["distance_m"], width: int = RE
                     height: int = REFERENCE["height"], f_px: float = REFERENCE["f_px"],
                     baseline_m: float = REFERENCE["baseline_m"], target=(0.0, 0.0, 0.0),
                     projector_kind: str = "pinhole", pattern=None, material: Material | None = None,
-                    lighting: Lighting | None = None) -> SceneSpec:
-    """The paper's reference set-up, optionally changed; the rig looks straight down at ``target``."""
+                    lighting: Lighting | None = None, fy_px: float | None = None,
+                    distortion=None) -> SceneSpec:
+    """The paper's reference set-up, optionally changed; the rig looks straight down at ``target``.
+    ``fy_px``: the vertical focal length in pixels (non-square pixels; default ``f_px``);
+    ``distortion``: both cameras' lens (``scenes.lens.BrownConrady``; default none)."""
     if not (0.05 <= distance_m <= 5.0):
         raise ValueError(f"distance_m = {distance_m} is out of range: allowed 0.05 to 5 m")
     target = np.asarray(target, float)
     center = target + np.array([0.0, 0.0, distance_m])
-    rig = StereoRig.conventional(center, target, baseline_m, f_px, width, height)
+    K = None if fy_px is None else intrinsics(f_px, width, height, fy_px=fy_px)
+    rig = StereoRig.conventional(center, target, baseline_m, f_px, width, height, K=K, distortion=distortion)
     pattern = pattern or default_pattern(REFERENCE["projector_width"], REFERENCE["projector_height"])
     if projector_kind == "spot":
         # Same footprint as the pinhole: tan(cutoff) = (W/2) / f, texture stretched to +-cutoff.

@@ -28,6 +28,10 @@ def add_parser(sub) -> None:
     add_sample_flags(p)
     p.add_argument("--target-z-mm", type=float, nargs="+", metavar="Z",
                    help="heights of the white target plane in MILLIMETRES, world z (default -30 0 30; at least 2)")
+    p.add_argument("--distortion-model", choices=("auto", "fixed", "free"), default="auto",
+                   help="lens model of the estimate handed to the pipeline: auto (default: free k1, k2, p1, p2 "
+                        "when it explains the board's corners 1.5 times better than the pinhole), fixed (no "
+                        "distortion) or free")
     p.add_argument("--no-reconstruction", action="store_true",
                    help="skip the reference reconstruction with estimated vs true calibration")
     p.set_defaults(run=run)
@@ -59,7 +63,8 @@ def run(args) -> int:
     with staged_output(args.out, overwrite=args.overwrite, what="calibration") as stage, \
             bar(steps, "calibrate") as pbar:
         step = step_callback(pbar)
-        result, renderer = run_calibration(cfg, board, target_z, progress=step)
+        result, renderer = run_calibration(cfg, board, target_z, progress=step,
+                                           distortion_model=args.distortion_model)
         comparison = None
         if not args.no_reconstruction:
             comparison = compare_reconstruction(cfg, result, renderer, progress=step)
@@ -81,8 +86,13 @@ def format_table(report: dict, comparison: dict | None = None) -> str:
     """The calibration report (and the reference reconstruction per calibration, ``Score``s) as text."""
     """The calibration errors (and the reconstruction with estimated vs true calibration) as text."""
     c = report["config"]
-    lines = [f"calibration at {c['width_px']}x{c['height_px']} px, f {c['f_px']:.1f} px, spp {c['spp']}, "
-             f"{len(c['board_poses'])} board poses, target z {[round(z * 1e3, 1) for z in c['target_z_m']]} mm",
+    est = report["estimate"]
+    lines = [f"calibration at {c['width_px']}x{c['height_px']} px, f {c['f_px']:.1f} px"
+             + (f" (fy {c['fy_px']:.1f})" if abs(c.get("fy_px", c["f_px"]) - c["f_px"]) > 1e-9 else "")
+             + f", spp {c['spp']}, {len(c['board_poses'])} board poses, "
+             f"target z {[round(z * 1e3, 1) for z in c['target_z_m']]} mm",
+             f"estimate handed to the pipeline: {est['distortion_model'].replace('_', ' ')} "
+             f"({est['distortion_model_choice']})",
              f"{'quantity':34s} {'fixed distortion':>22s} {'free distortion':>22s}"]
 
     def row(name, fmt, get):
@@ -99,6 +109,8 @@ def format_table(report: dict, comparison: dict | None = None) -> str:
         row(f"{cam} reprojection RMS (px)", "{:.4f}", lambda r, k: r["cameras"][k][cam]["reprojection_rms_px"])
         row(f"{cam} max distortion shift (px)", "{:.3f}",
             lambda r, k: r["cameras"][k][cam]["max_distortion_displacement_px"])
+        row(f"{cam} lens model error max (px)", "{:.3f}",
+            lambda r, k: r["cameras"][k][cam]["lens_model_error_max_px"])
     row("stereo f error (px / %)", "{}", lambda r, k: f"{r['stereo'][k]['K_left']['fx_error_px']:+.3f} / "
                                                       f"{r['stereo'][k]['K_left']['fx_error_pct']:+.4f}")
     row("stereo pp error L, R (px)", "{}", lambda r, k: f"{r['stereo'][k]['K_left']['principal_point_error_px']:.3f}, "
@@ -110,6 +122,8 @@ def format_table(report: dict, comparison: dict | None = None) -> str:
     row("stereo reprojection RMS (px)", "{:.4f}", lambda r, k: r["stereo"][k]["stereo_reprojection_rms_px"])
     row("left camera centre error (mm)", "{:.4f}", lambda r, k: r["stereo"][k]["left_center_error_norm_mm"])
     row("left camera rotation error (deg)", "{:.4f}", lambda r, k: r["stereo"][k]["left_rotation_error_deg"])
+    true_shift = report["cameras"]["fixed_distortion"]["left"]["true_max_distortion_displacement_px"]
+    lines.append(f"{'true lens: max distortion shift (px)':34s} {true_shift:>22.3f}")
     lines.append("projector rays (estimated stereo | true stereo):")
     for key, label, unit in (("angle_error", "ray angle error", "mrad"),
                              ("distance_at_plate_plane", "ray distance at z = 0", "mm")):

@@ -20,8 +20,10 @@ reference experiment)::
     baseline_m = 0.10
     projector_kind = "pinhole"   # or "spot"
     ambient = 0.0
+    fy_px = 2500.0               # vertical focal length (px): non-square pixels; default f_px
     [scene.material]             # kind = "diffuse" | "roughconductor", albedo, metal, alpha
     [scene.pattern]              # rows, cols, square_px, gap_x_px, gap_y_px
+    [scene.distortion]           # Brown-Conrady lens distortion, OpenCV's k1, k2, p1, p2, k3
 
     [render]
     spp = 16
@@ -47,6 +49,7 @@ from pathlib import Path
 from platebench.bench.config.realism import Realism, RealismError
 from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
+from platebench.scenes.lens import BrownConrady
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.scene_spec import (
     REFERENCE,
@@ -67,11 +70,12 @@ class ConfigError(UserValueError):
 
 
 _SCENE_KEYS = {"distance_m", "width", "height", "f_px", "baseline_m", "projector_kind", "ambient",
-               "material", "pattern", "aperture_radius_m", "focus_distance_m"}
+               "material", "pattern", "aperture_radius_m", "focus_distance_m", "fy_px", "distortion"}
+_DISTORTION_KEYS = {"k1", "k2", "p1", "p2", "k3"}
 _PATTERN_KEYS = {"rows", "cols", "square_px", "gap_x_px", "gap_y_px"}
 _MATERIAL_KEYS = {"kind", "albedo", "metal", "alpha"}
 _RENDER_KEYS = {"spp", "seed", "variant"}
-_SENSOR_KEYS = {"bit_depth", "radiance_full_scale", "gamma", "full_well_e", "read_noise_dn"}
+_SENSOR_KEYS = {"bit_depth", "radiance_full_scale", "gamma", "full_well_e", "read_noise_dn", "line_jitter_px"}
 _TOP_KEYS = {"plate", "scene", "render", "sensor", "realism"}
 
 
@@ -81,12 +85,14 @@ _TOP_KEYS = {"plate", "scene", "render", "sensor", "realism"}
 _TYPES = {
     "scene": {"distance_m": "float", "width": "int", "height": "int", "f_px": "float?", "baseline_m": "float",
               "projector_kind": "str", "ambient": "float", "material": "table", "pattern": "table",
-              "aperture_radius_m": "float", "focus_distance_m": "float?"},
+              "aperture_radius_m": "float", "focus_distance_m": "float?", "fy_px": "float?",
+              "distortion": "table"},
     "scene.pattern": dict.fromkeys(_PATTERN_KEYS, "int"),
+    "scene.distortion": dict.fromkeys(_DISTORTION_KEYS, "float"),
     "scene.material": {"kind": "str", "albedo": "float", "metal": "str", "alpha": "float"},
     "render": {"spp": "int", "seed": "int", "variant": "str?"},
     "sensor": {"bit_depth": "int", "radiance_full_scale": "float", "gamma": "float", "full_well_e": "float",
-               "read_noise_dn": "float"},
+               "read_noise_dn": "float", "line_jitter_px": "float"},
     "plate": {"length_m": "float", "width_m": "float", "thickness_m": "float", "deformation": "table"},
 }
 _ALLOWED = {"scene.width": "an integer 16 to 8192", "scene.height": "an integer 16 to 8192",
@@ -163,13 +169,15 @@ class SceneParams:
     pattern: dict = field(default_factory=dict)
     aperture_radius_m: float = 0.0  # thin-lens aperture radius; 0: pinhole (no defocus)
     focus_distance_m: float | None = None  # None: focused on the plate centre
+    fy_px: float | None = None  # vertical focal length (px); None: fy = fx (square pixels)
+    distortion: dict = field(default_factory=dict)  # OpenCV k1, k2, p1, p2, k3 (absent: 0); {}: no distortion
 
     def __post_init__(self):
         checks = (("distance_m", 0.05, 5.0), ("width", 16, 8192), ("height", 16, 8192),
-                  ("f_px", 10.0, 1e5), ("baseline_m", 1e-3, 2.0), ("ambient", 0.0, 1.0))
+                  ("f_px", 10.0, 1e5), ("baseline_m", 1e-3, 2.0), ("ambient", 0.0, 1.0), ("fy_px", 10.0, 1e5))
         for name, lo, hi in checks:
             v = getattr(self, name)
-            if name == "f_px" and v is None:
+            if name in ("f_px", "fy_px") and v is None:
                 continue
             if not isinstance(v, (int, float)) or not math.isfinite(v) or not (lo <= v <= hi):
                 raise ConfigError(f"scene.{name} = {v!r} is out of range: allowed {lo} to {hi}")
@@ -177,6 +185,11 @@ class SceneParams:
             raise ConfigError(f"scene.projector_kind = {self.projector_kind!r}: allowed 'pinhole' or 'spot'")
         _check_keys("scene.material", self.material, _MATERIAL_KEYS)
         _check_keys("scene.pattern", self.pattern, _PATTERN_KEYS)
+        _check_keys("scene.distortion", self.distortion, _DISTORTION_KEYS)
+        try:
+            self.lens
+        except ValueError as e:
+            raise ConfigError(f"scene.distortion: {e}") from None
 
     def build(self) -> SceneSpec:
         try:
@@ -187,7 +200,8 @@ class SceneParams:
             scene = reference_scene(distance_m=self.distance_m, width=int(self.width), height=int(self.height),
                                     f_px=self.focal_px, baseline_m=self.baseline_m,
                                     projector_kind=self.projector_kind, pattern=pattern, material=material,
-                                    lighting=Lighting(ambient=self.ambient))
+                                    lighting=Lighting(ambient=self.ambient), fy_px=self.fy_px,
+                                    distortion=self.lens)
             return replace(scene, aperture_radius_m=self.aperture_radius_m, focus_distance_m=self.focus_distance_m)
         except ValueError as e:
             raise ConfigError(str(e)) from None
@@ -197,10 +211,21 @@ class SceneParams:
         """Focal length in pixels; by default the reference 2000 px scaled with the image width."""
         return float(self.f_px) if self.f_px is not None else REFERENCE["f_px"] * self.width / REFERENCE["width"]
 
+    @property
+    def lens(self) -> BrownConrady | None:
+        """The lens distortion of both cameras (None: an ideal pinhole)."""
+        return BrownConrady.from_dict(self.distortion) if self.distortion else None
+
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("distance_m", "width", "height", "f_px", "baseline_m",
-                                              "projector_kind", "ambient", "material", "pattern",
-                                              "aperture_radius_m", "focus_distance_m")}
+        d = {k: getattr(self, k) for k in ("distance_m", "width", "height", "f_px", "baseline_m",
+                                           "projector_kind", "ambient", "material", "pattern",
+                                           "aperture_radius_m", "focus_distance_m")}
+        # Recorded only when set, so that records of square-pixel, distortion-free scenes read as before.
+        if self.fy_px is not None:
+            d["fy_px"] = self.fy_px
+        if self.distortion:
+            d["distortion"] = dict(self.distortion)
+        return d
 
 
 @dataclass(frozen=True)

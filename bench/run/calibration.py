@@ -1,11 +1,14 @@
 """Calibration experiment (paper IV-A): render calibration images, calibrate, compare with the truth.
 
-1. Stereo cameras: a ChArUco board (``scenes.board_renderer``) in 12 poses (flat, tilted
-   20-28 degrees about both image axes, rolled, shifted, 0.36-0.50 m away) seen by both
-   cameras -> ``reconstruction.calibration``: per-camera ``calibrateCamera`` (distortion
-   fixed to zero, and free with k3 fixed, both reported), joint ``stereoCalibrate``,
-   world registration from pose 0, which lies flat in the plate's plane z = 0 centred
-   on the rig's target (its world placement is known, as the paper's target block's).
+1. Stereo cameras: a ChArUco board (``scenes.board_renderer``) in 20 poses (flat, tilted
+   15-35 degrees about both image axes, rolled, shifted, 0.36-0.50 m away) seen by both
+   cameras through the same lens, sensor and noise as the samples -> ``reconstruction.calibration``:
+   per-camera ``calibrateCamera`` (distortion fixed to zero, and free with k3 fixed, both
+   reported), joint ``stereoCalibrate``, world registration from pose 0, which lies flat in
+   the plate's plane z = 0 centred on the rig's target (its world placement is known, as the
+   paper's target block's). The estimate handed to the pipeline takes the free distortion
+   model when the images call for it (``distortion_is_needed``; ``distortion_model`` forces
+   either), so the pipeline then undistorts its images with the estimated lens.
 2. Structured light: a white flat target (0.3 x 0.3 m) at known heights
    ``target_z_m`` under the projector, rendered by the real ``PlateRenderer`` (active
    images) -> square centres triangulated with the *estimated* stereo calibration ->
@@ -43,15 +46,17 @@ from platebench.bench.io.images import DatasetError
 from platebench.bench.run.render import render_sample
 from platebench.bench.run.score import recon_data, truth_from_sample
 from platebench.evaluation.score import Score, score_reconstruction
+from platebench.errors import UserValueError
 from platebench.reconstruction.calibration import (
-    CameraCalibration,
     StereoCalibration,
     StructuredLightCalibration,
     calibrate_camera,
     calibrate_structured_light,
     detect_charuco,
+    distortion_is_needed,
     stereo_calibrate,
 )
+from platebench.reconstruction.calibration.stereo import UNDISTORT_CRITERIA
 from platebench.reconstruction.paper.false_boundary import FeatureRays
 from platebench.reconstruction.paper.pipeline import (
     PipelineOptions,
@@ -106,10 +111,11 @@ class CalibrationResult:
 
     cameras: dict  # "fixed_distortion"/"free_distortion" -> {"left": CameraCalibration, "right": ...}
     stereo: dict  # "fixed_distortion"/"free_distortion" -> StereoCalibration
-    structured_light: StructuredLightCalibration  # rays from the estimated (fixed-distortion) stereo
+    structured_light: StructuredLightCalibration  # rays from the estimated stereo (the chosen model)
     structured_light_true_stereo: StructuredLightCalibration  # same images, true stereo: the method's own error
     rig_estimate: StereoRig
     report: dict
+    distortion_model: str = "fixed_distortion"  # the model of the estimate: a key of ``stereo``
 
     @property
     def rays(self) -> FeatureRays:
@@ -152,9 +158,19 @@ def render_calibration_images(cfg: SampleConfig, board: BoardSpec = BoardSpec(),
 
 
 # -- calibrating ------------------------------------------------------------------------
+DISTORTION_MODELS = ("auto", "fixed", "free")
+
+
 def calibrate_from_images(images: CalibrationImages, width: int, height: int, pattern,
-                          registration_view: int = 0) -> tuple[dict, dict, StructuredLightCalibration]:
-    """Run the calibrations on rendered images (no truth used): cameras, stereo, rays."""
+                          registration_view: int = 0, distortion_model: str = "auto"
+                          ) -> tuple[dict, dict, StructuredLightCalibration, str]:
+    """Run the calibrations on rendered images (no truth used): cameras, stereo (both distortion
+    models), the rays from the chosen model's stereo, and the chosen model's key
+    (``"fixed_distortion"``/``"free_distortion"``). ``distortion_model``: "auto" (the images
+    decide: ``distortion_is_needed``), "fixed" (pinhole) or "free" (k1, k2, p1, p2)."""
+    if distortion_model not in DISTORTION_MODELS:
+        raise UserValueError(f"distortion model {distortion_model!r} is not allowed: choose one of "
+                             f"{', '.join(DISTORTION_MODELS)}")
     cv_board = images.board.board()
     dets = {c: [detect_charuco(p[c], cv_board) for p in images.board_images] for c in ("left", "right")}
     size = (width, height)
@@ -165,8 +181,13 @@ def calibrate_from_images(images: CalibrationImages, width: int, height: int, pa
         cameras[key] = cams
         stereo[key] = stereo_calibrate(dets["left"], dets["right"], cams["left"], cams["right"], size,
                                        registration_view, (reg.R_wb, reg.p_wb))
-    sl = calibrate_structured_light(images.target_images, stereo["fixed_distortion"], pattern)
-    return cameras, stereo, sl
+    if distortion_model == "auto":
+        free = distortion_is_needed(cameras["fixed_distortion"], cameras["free_distortion"])
+    else:
+        free = distortion_model == "free"
+    chosen = "free_distortion" if free else "fixed_distortion"
+    sl = calibrate_structured_light(images.target_images, stereo[chosen], pattern)
+    return cameras, stereo, sl, chosen
 
 
 # -- errors against the truth ----------------------------------------------------------
@@ -197,12 +218,26 @@ def _stats(name: str, unit: str, v) -> dict:
     return {f"{name}_rms_{unit}": float(np.sqrt(np.mean(v ** 2))), f"{name}_max_{unit}": float(v.max())}
 
 
-def _max_distortion_px(cal: CameraCalibration, width: int, height: int) -> float:
-    """Largest displacement (px) the distortion model applies inside the image."""
+def _image_grid(width: int, height: int) -> np.ndarray:
     uu, vv = np.meshgrid(np.linspace(0, width - 1, 33), np.linspace(0, height - 1, 25))
-    pts = np.column_stack([uu.ravel(), vv.ravel()]).astype(np.float64).reshape(-1, 1, 2)
-    und = cv2.undistortPoints(pts, cal.K, cal.dist, P=cal.K).reshape(-1, 2)
-    return float(np.max(np.linalg.norm(und - pts.reshape(-1, 2), axis=1)))
+    return np.column_stack([uu.ravel(), vv.ravel()]).astype(np.float64)
+
+
+def _max_distortion_px(K: np.ndarray, dist: np.ndarray, width: int, height: int) -> float:
+    """Largest displacement (px) the distortion model (K, OpenCV coefficients) applies inside the image."""
+    pts = _image_grid(width, height)
+    und = cv2.undistortPoints(pts.reshape(-1, 1, 2), K, dist, P=K, criteria=UNDISTORT_CRITERIA).reshape(-1, 2)
+    return float(np.max(np.linalg.norm(und - pts, axis=1)))
+
+
+def _lens_model_error_px(K: np.ndarray, dist: np.ndarray, true_cam) -> float:
+    """Largest disagreement (px) inside the image between an estimated lens (K, distortion) and the
+    true camera's: each pixel's true ray, projected through the estimate (the estimate's whole
+    intrinsic model, K included, against the truth)."""
+    pts = _image_grid(true_cam.width, true_cam.height)
+    xy = true_cam.normalised(pts)
+    est, _ = cv2.projectPoints(np.column_stack([xy, np.ones(len(xy))]), np.zeros(3), np.zeros(3), K, dist)
+    return float(np.max(np.linalg.norm(est.reshape(-1, 2) - pts, axis=1)))
 
 
 def _intrinsics_errors(K: np.ndarray, K_true: np.ndarray) -> dict:
@@ -259,21 +294,25 @@ def _rays_report(sl: StructuredLightCalibration, true_rays: FeatureRays, true_ce
 
 def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = BoardSpec(),
                     target_z_m=DEFAULT_TARGET_Z_M, progress=None,
-                    renderer: PlateRenderer | None = None) -> tuple[CalibrationResult, PlateRenderer]:
+                    renderer: PlateRenderer | None = None,
+                    distortion_model: str = "auto") -> tuple[CalibrationResult, PlateRenderer]:
     """Render, calibrate and compare with the truth. Returns the result and the plate renderer
-    (reuse it for samples of the same scene: its kernels are compiled)."""
+    (reuse it for samples of the same scene: its kernels are compiled). ``distortion_model``:
+    the estimate's lens model ("auto": chosen from the images; "fixed"; "free")."""
     t0 = time.perf_counter()
     scene = cfg.scene.build()
     rig, projector = scene.rig, scene.projector
     images, renderer = render_calibration_images(cfg, board, target_z_m, progress, renderer)
     t = time.perf_counter()
     W, H = rig.left.width, rig.left.height
-    cameras, stereo, sl = calibrate_from_images(images, W, H, projector.pattern)
+    cameras, stereo, sl, chosen = calibrate_from_images(images, W, H, projector.pattern,
+                                                        distortion_model=distortion_model)
     sl_true = calibrate_structured_light(images.target_images, rig, projector.pattern)
     t_cal = time.perf_counter() - t
     true_rays = projector_feature_rays(projector.camera, projector.pattern)
     report = {
-        "config": {"width_px": W, "height_px": H, "f_px": rig.left.f_px, "baseline_m": rig.baseline_m,
+        "config": {"width_px": W, "height_px": H, "f_px": rig.left.f_px, "fy_px": float(rig.left.K[1, 1]),
+                   "baseline_m": rig.baseline_m,
                    "distance_m": cfg.scene.distance_m, "spp": cfg.render.spp, "seed": cfg.render.seed,
                    "board": board.to_dict(), "board_poses": [p.to_dict() for p in images.poses],
                    "registration_pose": images.poses[0].name, "target_z_m": list(images.target_z_m),
@@ -284,21 +323,30 @@ def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = Board
         report["cameras"][key] = {}
         for cam, cal in cameras[key].items():
             e = _intrinsics_errors(cal.K, rig.cameras[cam].K)
+            true_cam = rig.cameras[cam]
+            true_dist = np.zeros(5) if true_cam.distortion is None else true_cam.distortion.as_opencv()
             e.update({"reprojection_rms_px": cal.rms_px, "views_used": len(cal.views),
                       "dist_k1_k2_p1_p2_k3": cal.dist.tolist(),
-                      "max_distortion_displacement_px": _max_distortion_px(cal, W, H)})
+                      "true_dist_k1_k2_p1_p2_k3": true_dist.tolist(),
+                      "max_distortion_displacement_px": _max_distortion_px(cal.K, cal.dist, W, H),
+                      "true_max_distortion_displacement_px": _max_distortion_px(true_cam.K, true_dist, W, H),
+                      "lens_model_error_max_px": _lens_model_error_px(cal.K, cal.dist, true_cam)})
             report["cameras"][key][cam] = e
         report["stereo"][key] = _stereo_errors(stereo[key], rig)
     report["projector_rays"] = _rays_report(sl, true_rays, projector.camera.center, images.target_z_m)
     report["projector_rays_true_stereo"] = _rays_report(sl_true, true_rays, projector.camera.center,
                                                         images.target_z_m)
-    report["estimate"] = {"stereo": stereo["fixed_distortion"].to_dict(), "rays": sl.to_dict()}
+    report["estimate"] = {"stereo": stereo[chosen].to_dict(), "rays": sl.to_dict(),
+                          "distortion_model": chosen,
+                          "distortion_model_choice": distortion_model,
+                          "reprojection_rms_px": {k: {c: cal.rms_px for c, cal in cams.items()}
+                                                  for k, cams in cameras.items()}}
     report["truth"] = {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
                        "projector": projector.to_dict(),
                        "rays": {"origins_m": true_rays.origins.tolist(), "directions": true_rays.directions.tolist(),
                                 "ids": true_rays.ids.tolist()}}
     report["timings_s"] = dict(images.timings_s, calibrate_s=t_cal, total_s=time.perf_counter() - t0)
-    result = CalibrationResult(cameras, stereo, sl, sl_true, stereo["fixed_distortion"].to_rig(), report)
+    result = CalibrationResult(cameras, stereo, sl, sl_true, stereo[chosen].to_rig(), report, chosen)
     return result, renderer
 
 

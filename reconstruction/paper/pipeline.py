@@ -10,7 +10,11 @@ active pair  -> squares inside the passive boundary -> horizontal arrays -> Fig.
 
 It never sees ground truth: only the four images, the stereo calibration, and the
 projector's feature rays (from its calibration) with the pattern's feature table.
-World frame, metres; pixels in OpenCV convention.
+A calibration with lens distortion is honoured first: the images are resampled to the
+cameras' pinholes (``reconstruction.calibration.undistort``), as Tsai-style calibration does,
+and everything after works on the pinhole pair (``reconstruct``, ``passive_stereo`` and
+``square_stereo`` each do it, so any entry point is safe; ``Reconstruction`` pixels are
+undistorted pixels). World frame, metres; pixels in OpenCV convention.
 """
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from platebench.reconstruction.calibration.undistort import undistort_views
 from platebench.reconstruction.paper.boundary_plane import (
     BoundaryPlane,
     fit_boundary_plane,
@@ -128,6 +133,11 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
         timings[name] = now - t
         t = now
 
+    distorted = rig.left.distortion is not None or rig.right.distortion is not None
+    images, rig = undistort_views(images, rig)
+    if distorted:
+        lap("undistort_s")
+
     # -- passive stereo: boundary ------------------------------------------------
     passive = passive_stereo(images["left_passive"], images["right_passive"], rig)
     timings.update(passive.timings_s)
@@ -182,8 +192,10 @@ class SquareStereo:
 
 def square_stereo(images: dict, masks: dict, rig: StereoRig) -> SquareStereo:
     """Squares of ``images["left_active"]``/``["right_active"]`` inside the plate masks ((H,W) bool,
-    by camera), sorted into horizontal arrays, matched by the paper's criteria and triangulated."""
+    by camera, in undistorted pixels), sorted into horizontal arrays, matched by the paper's
+    criteria and triangulated (images through a distorted lens are undistorted first)."""
     t0 = time.perf_counter()
+    images, rig = undistort_views({k: images[k] for k in ("left_active", "right_active")}, rig)
     dets = {c: extract_squares(images[f"{c}_active"], masks[c], f"{c}_active") for c in ("left", "right")}
     t1 = time.perf_counter()
     groups = {c: group_squares(dets[c].squares) for c in ("left", "right")}
@@ -218,9 +230,12 @@ class PassiveResult:
 
 
 def passive_stereo(left_passive: np.ndarray, right_passive: np.ndarray, rig: StereoRig) -> PassiveResult:
-    """Plate regions, sub-pixel outlines, boundary stereo and the boundary plane (world, metres)."""
+    """Plate regions, sub-pixel outlines, boundary stereo and the boundary plane (world, metres);
+    images through a distorted lens are undistorted first (regions in undistorted pixels)."""
     timings = {}
     t = time.perf_counter()
+    views, rig = undistort_views({"left_passive": left_passive, "right_passive": right_passive}, rig)
+    left_passive, right_passive = views["left_passive"], views["right_passive"]
     # The paper's corner method where it applies, else the general outline stereo (stereo.method).
     regions, stereo = boundary_stereo(left_passive, right_passive, rig)
     timings["boundary_stereo_s"] = time.perf_counter() - t

@@ -26,10 +26,7 @@ import numpy as np
 
 from platebench.scenes.naming import CAMERAS
 from platebench.scenes.render import runtime
-from platebench.scenes.render.mitsuba_convert import (
-    perspective_fov_deg,
-    perspective_to_world,
-)
+from platebench.scenes.render.lens_sensor import PLUGIN, configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.rig import StereoRig
 from platebench.scenes.scene_spec import RenderSettings
 from platebench.scenes.sensor_model import SensorModel
@@ -223,14 +220,11 @@ class BoardRenderer:
         cam = rig.left
         film = {"type": "hdrfilm", "width": cam.width, "height": cam.height, "rfilter": {"type": "box"},
                 "pixel_format": "rgb", "sample_border": False}
-        lens = {"type": "perspective"}
-        if aperture_radius_m > 0:
-            focus = focus_distance_m or float(max(rig.left.depth(np.zeros((1, 3)))[0], 0.01))
-            lens = {"type": "thinlens", "aperture_radius": float(aperture_radius_m), "focus_distance": focus}
-        sensors = {name: {**lens, "fov_axis": "x", "fov": perspective_fov_deg(c, name),
-                          "near_clip": 1e-3, "far_clip": 100.0,
-                          "to_world": mi.ScalarTransform4f(perspective_to_world(c).tolist()),
-                          "film": dict(film), "sampler": {"type": SAMPLER}}
+        self._aperture = float(aperture_radius_m)
+        self._focus = (focus_distance_m or float(max(rig.left.depth(np.zeros((1, 3)))[0], 0.01))
+                       if aperture_radius_m > 0 else None)
+        self._kind = sensor_kind(rig.cameras.values(), self._aperture)
+        sensors = {name: sensor_dict(mi, c, name, self._kind, film, {"type": SAMPLER}, self._aperture, self._focus)
                    for name, c in rig.cameras.items()}
         self.scene = mi.load_dict({
             "type": "scene",
@@ -242,14 +236,19 @@ class BoardRenderer:
         self.params = mi.traverse(self.scene)
         self._size = (cam.width, cam.height)
         self.pose: BoardPose | None = None
+        self._sensors = dict(zip(CAMERAS, self.scene.sensors()))
+        if self._kind == PLUGIN:  # the plugin takes its camera as parameters after loading
+            self.set_rig(rig)
 
     def set_rig(self, rig: StereoRig) -> None:
-        """Move the sensors (same image size and field of view): a parameter update."""
+        """Move the sensors (same image size, lens model kind and aperture): a parameter update."""
         if (rig.left.width, rig.left.height) != self._size:
             raise ValueError("BoardRenderer.set_rig: image size differs; build a new BoardRenderer")
+        if sensor_kind(rig.cameras.values(), self._aperture) != self._kind:
+            raise ValueError("BoardRenderer.set_rig: the lens model kind differs; build a new BoardRenderer")
         for name, c in rig.cameras.items():
-            self.params[f"{name}.to_world"] = self.mi.Transform4f(perspective_to_world(c).tolist())
-            self.params[f"{name}.x_fov"] = perspective_fov_deg(c, name)
+            configure_sensor(self.mi, self.params, self._sensors[name], c, name, self._kind, self._aperture,
+                             self._focus)
         self.params.update()
         self.rig = rig
 

@@ -8,6 +8,15 @@ rows of R (camera axes in world) and C the centre. Mitsuba's projector emitter u
 the same mapping as the perspective camera. The textured ``spot`` emitter maps
 u toward local +x and v toward local +y (rotated 180 degrees relative to the camera),
 so its to_world takes the OpenCV axes unflipped.
+
+A camera Mitsuba's ``perspective`` cannot model (lens distortion, non-square pixels, an
+off-centre principal point or skew) is rendered by the bench's own sensor plugin
+(``scenes.render.lens_sensor``), which works in OpenCV's frames directly: a film sample at
+fractional film position (x, y) in [0, 1]^2 (pixel i covers [i, i + 1) / W) is the OpenCV
+pixel ``u = x W - 0.5, v = y H - 0.5`` (pixel centres at integers); its ray leaves the
+camera centre C along ``R^T (x_n, y_n, 1)``, ``(x_n, y_n)`` the ideal normalised coordinates
+of that pixel (K^-1, then the lens's inverse distortion). ``lens_sensor_params`` is that
+conversion.
 """
 from __future__ import annotations
 
@@ -58,3 +67,22 @@ def spot_cutoff_deg(cam: Camera, cutoff_rad: float) -> float:
     if abs(cam.K[0, 0] - cam.width / (2 * tc)) > tol.pixel * cam.K[0, 0] or abs(cam.K[1, 1] - cam.height / (2 * tc)) > tol.pixel * cam.K[1, 1]:
         raise ValueError("spot projector K does not match its cutoff angle")
     return float(np.degrees(cutoff_rad))
+
+
+def needs_lens_sensor(cam: Camera) -> bool:
+    """True when Mitsuba's ``perspective`` sensor cannot render ``cam`` exactly: a distorted
+    lens, non-square pixels, an off-centre principal point or skew."""
+    K = cam.K
+    cx, cy = centred_principal_point(cam.width, cam.height)
+    return (cam.distortion is not None or abs(K[0, 0] - K[1, 1]) > tol.pixel * K[0, 0] or K[0, 1] != 0
+            or abs(K[0, 2] - cx) > tol.pixel or abs(K[1, 2] - cy) > tol.pixel)
+
+
+def lens_sensor_params(cam: Camera) -> dict:
+    """What the bench's sensor plugin needs, in OpenCV frames (module doc): ``R_cw`` (3x3,
+    camera-to-world rotation R^T), ``center`` (3,) metres, ``fx, fy, cx, cy, skew`` pixels,
+    ``distortion`` OpenCV (k1, k2, p1, p2, k3)."""
+    K = cam.K
+    dist = np.zeros(5) if cam.distortion is None else cam.distortion.as_opencv()
+    return {"R_cw": cam.R.T.copy(), "center": cam.center, "fx": float(K[0, 0]), "fy": float(K[1, 1]),
+            "cx": float(K[0, 2]), "cy": float(K[1, 2]), "skew": float(K[0, 1]), "distortion": dist}

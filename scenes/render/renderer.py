@@ -20,6 +20,7 @@ import numpy as np
 
 from platebench.scenes.naming import CAMERAS, LIGHTINGS, image_seed
 from platebench.scenes.render import runtime
+from platebench.scenes.render.lens_sensor import configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.render.mitsuba_convert import (
     perspective_fov_deg,
     perspective_to_world,
@@ -63,7 +64,12 @@ def _structure(spec: SceneSpec) -> tuple:
     p = spec.projector
     m = spec.material
     return (spec.rig.left.width, spec.rig.left.height, p.kind, p.pattern.width, p.pattern.height,
-            m.kind, m.metal if m.kind == "roughconductor" else None, spec.max_depth, spec.aperture_radius_m > 0)
+            m.kind, m.metal if m.kind == "roughconductor" else None, spec.max_depth, spec.aperture_radius_m > 0,
+            _sensor_kind(spec))
+
+
+def _sensor_kind(spec: SceneSpec) -> str:
+    return sensor_kind(spec.rig.cameras.values(), spec.aperture_radius_m)
 
 
 class PlateRenderer:
@@ -112,13 +118,9 @@ class PlateRenderer:
         cam = spec.rig.left
         film = {"type": "hdrfilm", "width": cam.width, "height": cam.height,
                 "rfilter": {"type": "box"}, "pixel_format": "rgb", "sample_border": False}
-        lens = {"type": "perspective"}
-        if spec.aperture_radius_m > 0:  # thin lens: same pinhole mapping at the focus plane, plus blur
-            lens = {"type": "thinlens", "aperture_radius": spec.aperture_radius_m, "focus_distance": spec.focus_m}
-        sensors = {name: {**lens, "fov_axis": "x", "fov": perspective_fov_deg(c, name),
-                          "near_clip": 1e-3, "far_clip": 100.0,
-                          "to_world": mi.ScalarTransform4f(perspective_to_world(c).tolist()),
-                          "film": dict(film), "sampler": {"type": "independent"}}
+        kind = _sensor_kind(spec)
+        sensors = {name: sensor_dict(mi, c, name, kind, film, {"type": "independent"}, spec.aperture_radius_m,
+                                     spec.focus_m)
                    for name, c in spec.rig.cameras.items()}
         proj = spec.projector
         pat = np.zeros((proj.pattern.height, proj.pattern.width, 1), np.float32)
@@ -168,13 +170,9 @@ class PlateRenderer:
         p = self.params
         mi = self.mi
         import drjit as dr  # noqa: PLC0415  (runtime.mitsuba() has chosen libLLVM already)
+        kind = _sensor_kind(spec)
         for name, cam in spec.rig.cameras.items():
-            key = f"{name}.to_world"
-            p[key] = mi.Transform4f(perspective_to_world(cam).tolist())
-            p[f"{name}.x_fov"] = perspective_fov_deg(cam, name)
-            if spec.aperture_radius_m > 0:
-                p[f"{name}.aperture_radius"] = spec.aperture_radius_m
-                p[f"{name}.focus_distance"] = spec.focus_m
+            configure_sensor(mi, p, self.sensors[name], cam, name, kind, spec.aperture_radius_m, spec.focus_m)
         proj = spec.projector
         if proj.kind == "spot":
             p["projector.to_world"] = mi.Transform4f(spot_to_world(proj.camera).tolist())
