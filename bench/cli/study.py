@@ -230,16 +230,18 @@ def accuracy_lines(doc: dict) -> list[str]:
 
     paper = doc["paper"]
     st = doc["settings"]
-    out = [f"realism {st['realism']['preset']}: {doc['camera']['width_px']}x{doc['camera']['height_px']} px, "
-           f"f {doc['camera']['f_px']:.0f} px, baseline {doc['camera']['baseline_m'] * 1e3:.0f} mm, distance "
-           f"{doc['camera']['distance_m'] * 1e3:.0f} mm; {st['draws']} draws per row; paper (V-D): depth <= "
+    cam = doc["camera"]
+    out = [f"realism {st['realism']['preset']}: camera {cam['name']} {cam['width_px']}x{cam['height_px']} px, "
+           f"fx/fy {cam['fx_px']:.1f}/{cam['fy_px']:.1f} px, baseline {cam['baseline_m'] * 1e3:.0f} mm, distance "
+           f"{cam['distance_m'] * 1e3:.0f} mm; {st['draws']} draws per row; paper (V-D): depth <= "
            f"{paper['depth_mm']:g} mm, x/y <= {paper['xy_mm']:g} mm (one trial's worst corner)"]
     if doc.get("robot"):
         r = doc["robot"]
         out.append(f"robot {r['name']}: {r['description']}")
     if doc.get("corner_noise_px"):
-        out.append("calibration views: corner noise " + ", ".join(f"{v:.3f} px (sensor {k})"
-                                                                   for k, v in doc["corner_noise_px"].items()))
+        vals = sorted(set(round(v, 4) for v in doc["corner_noise_px"].values()))
+        out.append(f"calibration views: corner noise measured on rendered target images, {vals[0]:.3f}-{vals[-1]:.3f} "
+                   "px per axis (by the camera defects on)")
     head = (f"{'':34s} {'depth: worst corner (mm)':>32s}  {'all corners (mm)':>20s}   "
             f"{'x/y: worst corner (mm)':>32s}  {'all corners (mm)':>20s}")
     sub = (f"{'budget row':34s} {'median':>8s} {'q05-q95':>15s} {'<=2':>5s}   {'RMS':>6s} {'p95':>6s} {'max':>6s}   "

@@ -8,12 +8,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from platebench.bench.config.realism import Realism, RealismError, realism_preset
+from platebench.bench.config.hardware_camera import CameraDefects, apply_camera_hardware, camera_hardware
+from platebench.bench.config.realism import CAMERA_SOURCES, Realism, RealismError, realism_preset
 from platebench.bench.config.sample_config import ConfigError, SampleConfig
+from platebench.scenes.lens import BrownConrady
 from platebench.scenes.sensor_model import SensorModel
 
-__all__ = ["CAMERA_PRESETS", "NOISE_PRESETS", "with_camera_preset", "noise_preset_of", "with_realism",
-           "realism_sensor"]
+__all__ = ["CAMERA_PRESETS", "NOISE_PRESETS", "with_camera_preset", "noise_preset_of", "with_realism"]
 
 NOISE_PRESETS = {
     "none": {"full_well_e": 0.0, "read_noise_dn": 0.0},
@@ -42,29 +43,33 @@ def with_camera_preset(cfg: SampleConfig, name: str) -> SampleConfig:
 
 
 
-def realism_sensor(realism: Realism) -> SensorModel:
-    """The sensor of a realism's camera preset with its noise on (scaled by the ``sensor`` scale: read
-    noise times the scale, shot noise as from a full well divided by its square), or noise-free at the same
-    bit depth when the ``sensor`` source is off."""
-    sensor = CAMERA_PRESETS[realism.camera][1]
-    if not realism.on("sensor"):
-        return replace(sensor, full_well_e=0.0, read_noise_dn=0.0)
-    k = realism.scale("sensor")
-    return replace(sensor, read_noise_dn=sensor.read_noise_dn * k,
-                   full_well_e=sensor.full_well_e / (k * k) if sensor.full_well_e > 0 else 0.0)
-
-
 def with_realism(cfg: SampleConfig, realism: "Realism | str") -> SampleConfig:
-    """``cfg`` under a realism preset (a name or a ``Realism``): its camera preset's resolution (field
-    of view kept) and its sensor (``realism_sensor``), and the realism recorded in the config."""
+    """``cfg`` under a realism preset (a name or a ``Realism``), the realism recorded in it. Its camera:
+    "ideal" keeps ``cfg``'s (noise-free); otherwise ``hardware_camera.apply_camera_hardware`` with the
+    camera defects that are on, each at its scale (distortion coefficients, fy/fx - 1, aperture radius,
+    line jitter and noise std multiplied by it; shot noise through the full well over the scale squared)."""
     try:
         rz = realism_preset(realism) if isinstance(realism, str) else realism
     except RealismError as e:
         raise ConfigError(str(e)) from None
-    if rz.camera not in CAMERA_PRESETS:
-        raise ConfigError(f"realism camera = {rz.camera!r} is not known: choose one of {', '.join(CAMERA_PRESETS)}")
-    scene_over, _ = CAMERA_PRESETS[rz.camera]
-    return replace(cfg, scene=replace(cfg.scene, **scene_over), sensor=realism_sensor(rz), realism=rz)
+    if rz.camera == "ideal":
+        return replace(cfg, sensor=replace(cfg.sensor, full_well_e=0.0, read_noise_dn=0.0, line_jitter_px=0.0),
+                       realism=rz)
+    hw = camera_hardware(rz.camera)
+    k = {s: rz.scale(s) for s in CAMERA_SOURCES}
+    if k["distortion"] != 1.0:
+        hw = replace(hw, distortion=BrownConrady.from_opencv(hw.distortion.as_opencv() * k["distortion"]))
+    if k["pixel_aspect"] != 1.0:
+        hw = replace(hw, fy_px=hw.fx_px * (1.0 + (hw.fy_px / hw.fx_px - 1.0) * k["pixel_aspect"]))
+    if k["defocus"] != 1.0 and hw.f_number is not None:
+        hw = replace(hw, f_number=hw.f_number / k["defocus"])  # aperture radius = focal length / (2 N)
+    s = hw.sensor
+    hw = replace(hw, line_jitter_px=hw.line_jitter_px * k["line_jitter"],
+                 sensor=replace(s, read_noise_dn=s.read_noise_dn * k["noise"],
+                                full_well_e=s.full_well_e / k["noise"] ** 2 if s.full_well_e > 0 and k["noise"] > 0
+                                else s.full_well_e))
+    out = apply_camera_hardware(cfg, hw, CameraDefects(**{d: rz.on(d) for d in CAMERA_SOURCES}))
+    return replace(out, realism=rz)
 
 
 def noise_preset_of(sensor: dict) -> str:

@@ -1,13 +1,18 @@
 """Realism presets: which error sources of a real rig are on, and how large (``ideal``, ``1995``, ``modern``).
 
-A ``Realism`` composes the camera preset (``bench.config.presets.CAMERA_PRESETS``: resolution and
-sensor), the robot that carries the camera (``bench.config.hardware_robot.ROBOTS``), how the stereo
-pair is taken (one camera moved between the two views, the paper's set-up, or a rigid two-camera
-head) and the set of error SOURCES that are on. Each source can be turned on or off alone and scaled
-(1 = as sourced), so that an error budget can run each source alone, all together and all but one:
+A ``Realism`` composes the camera hardware (``bench.config.hardware_camera.CAMERA_HARDWARE``: sensor,
+lens, digitiser; "ideal" keeps the bench's ideal camera), the robot that carries the camera
+(``bench.config.hardware_robot.ROBOTS``), how the stereo pair is taken (one camera moved between the
+two views, the paper's set-up, or a rigid two-camera head) and the set of error SOURCES that are on.
+Each source can be turned on or off alone and scaled (1 = as sourced), so that an error budget can run
+each source alone, all together and all but one:
 
 =====================  ==========================================================================
-sensor                 the camera's shot and read noise (its bit depth stays)
+distortion             the lens's Brown-Conrady distortion (scale: its coefficients)
+pixel_aspect           non-square pixels, fy != fx (scale: of fy / fx - 1)
+defocus                the thin lens at its f-number (scale: of the aperture radius)
+line_jitter            the analogue grabber's per-row shift (scale: of its std)
+noise                  the camera's shot and read noise, its bit depth kept (scale: of the noise std)
 robot_repeatability    each move of the robot lands with a new random joint error (datasheet RP)
 robot_accuracy         the robot's real kinematics differ from its controller's (absolute accuracy)
 hand_eye               the camera's mount on the flange and the target's pose are estimated from
@@ -37,8 +42,13 @@ class RealismError(UserValueError):
     """A realism preset, source or scale that does not exist or is out of range."""
 
 
+CAMERA_SOURCES = ("distortion", "pixel_aspect", "defocus", "line_jitter", "noise")  # hardware_camera's defects
 SOURCES: dict[str, str] = {
-    "sensor": "camera shot and read noise",
+    "distortion": "lens distortion (Brown-Conrady), undistorted by the calibration the method is told",
+    "pixel_aspect": "non-square pixels of the digitiser (fy != fx)",
+    "defocus": "defocus of the lens at its f-number",
+    "line_jitter": "frame grabber line jitter (a per-row horizontal shift)",
+    "noise": "camera shot and read noise",
     "robot_repeatability": "robot repeatability (a new joint error every move)",
     "robot_accuracy": "robot absolute accuracy (real kinematics differ from the controller's)",
     "hand_eye": "hand/eye mount and target pose estimated from target views (Park-Martin)",
@@ -147,10 +157,10 @@ class Realism:
 REALISM_PRESETS: dict[str, Realism] = {
     # Every source off: the commanded rig, the true calibration, a noise-free camera.
     "ideal": Realism(),
-    # The paper's rig (section V-A): a PULNiX TM-540-like camera (CAMERA_PRESETS["1995"]) moved by a PUMA 560
-    # between the left and the right view; mount and intrinsics estimated from target views.
+    # The paper's rig (section V-A): the PULNiX TM-540, its lens and grabber (hardware_camera "1995") moved by a
+    # PUMA 560 between the left and the right view; mount and intrinsics estimated from target views.
     "1995": Realism(name="1995", camera="1995", robot="puma560", rigid_head=False, sources=tuple(SOURCES)),
-    # A current rig: a modern camera on a rigid two-camera head carried by a modern arm; the head's
+    # A current rig: a modern camera (hardware_camera "modern") on a rigid two-camera head carried by a modern arm; the head's
     # stereo geometry is fixed, so robot errors move the whole pair but not one view against the other.
     "modern": Realism(name="modern", camera="modern", robot="modern", rigid_head=True, sources=tuple(SOURCES)),
 }

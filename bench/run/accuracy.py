@@ -15,9 +15,10 @@ trial here does the same under a realism preset (``bench.config.realism``):
   the world, and taken into the block's frame through the block pose the calibration estimated.
   Error = measured minus true corner in the block frame: depth = z, and x, y.
 * ``plate``: the reference experiment's plate and its 16 projected squares under the same draws; the
-  paper's whole pipeline (``reconstruction.paper.pipeline.reconstruct``) on the four images, every
-  square centre compared with the true one (its projector ray's hit on the plate), in the world frame
-  (the plate's).
+  paper's pipeline up to the square centres (``pipeline.passive_stereo`` for the plate regions,
+  ``pipeline.square_stereo``: squares, arrays, matching, triangulation; the surface is not needed) on
+  the four images, every square centre compared with the true one (its projector ray's hit on the
+  plate), in the world frame (the plate's).
 
 Statistics. Per trial: the worst corner (or centre) in depth and in x/y (the larger of |x| and |y|),
 because the paper's "within" is one trial's worst. Over the draws: the median of those worst values
@@ -33,6 +34,7 @@ keys ending _mm.
 """
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, replace
 
@@ -41,13 +43,14 @@ import trimesh
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET
-from platebench.bench.config.presets import realism_sensor, with_realism
+from platebench.bench.config.presets import with_realism
 from platebench.bench.config.realism import SOURCES, Realism
 from platebench.bench.run.realism import RealismSetup, realise
 from platebench.bench.run.render import render_images
 from platebench.evaluation.truth import true_feature_points
 from platebench.plates import build_plate
-from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.pipeline import passive_stereo, square_stereo
+from platebench.reconstruction.calibration.undistort import undistort_views
 from platebench.reconstruction.paper.passive_boundary import outline_edges
 from platebench.reconstruction.paper.plate_region import ReconstructionError, extract_plate_region, order_corners
 from platebench.scenes.camera import triangulate_rectified
@@ -63,7 +66,7 @@ PAPER_DEPTH_MM = 2.0  # paper V-D: "the error in depth ... is within 2 mm"
 PAPER_XY_MM = 1.0  # paper V-D: "the error in the x and y coordinates is within 1 mm"
 TARGETS = ("block", "plate")
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
-MATCH_PX = 10.0  # a plate centre is compared with the true centre projected within this many pixels
+MATCH_M = 5e-3  # a measured plate centre is compared with the nearest true one, if within 5 mm (centres lie 16 mm+ apart)
 
 
 @dataclass(frozen=True)
@@ -131,12 +134,14 @@ def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> 
     renderer.set_scene(scene)
     renderer.set_plate(square)
     settings = RenderSettings(cfg.render.spp, seed)
+    images = {f"{cam}_passive": cfg.sensor.digitize(renderer.render(cam, "passive", settings),
+                                                    seed=(seed * 7919 + len(cam)) % 2 ** 31) for cam in ("left", "right")}
+    images, told = undistort_views(images, acq.told)  # through the lens the method is told, as the pipeline does
     corners = {}
     for cam in ("left", "right"):
-        img = cfg.sensor.digitize(renderer.render(cam, "passive", settings), seed=(seed * 7919 + len(cam)) % 2 ** 31)
+        img = images[f"{cam}_passive"]
         corners[cam] = outline_edges(img, extract_plate_region(img, f"{cam}_passive")).corners  # TL, TR, BR, BL
     ul, ur = corners["left"], corners["right"]
-    told = acq.told
     p_world = triangulate_rectified(ul[:, 0], 0.5 * (ul[:, 1] + ur[:, 1]), ur[:, 0], told.left, told.baseline_m)
     T_block_world = invert_pose(acq.T_world_block_est)
     p_block = p_world @ T_block_world[:3, :3].T + T_block_world[:3, 3]
@@ -152,20 +157,20 @@ def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: i
     proj = base.projector
     c = replace(cfg, render=RenderSettings(cfg.render.spp, seed))
     _, digital, _, _ = render_images(c, renderer, scene, plate, IMAGE_NAMES)
-    rays = projector_feature_rays(proj.camera, proj.pattern)
-    rec = reconstruct(digital, acq.told, rays, proj.pattern)
+    passive = passive_stereo(digital["left_passive"], digital["right_passive"], acq.told)
+    rec = square_stereo(digital, {k: passive.regions[k].mask for k in ("left", "right")}, acq.told)
     centres = np.array([f.center for f in proj.pattern.features], float).reshape(-1, 2)
     truth = true_feature_points(plate.mesh, proj.camera, centres)
-    uv_true = acq.taken.left.project(np.nan_to_num(truth, nan=0.0))
-    uv_true[~np.all(np.isfinite(truth), axis=1)] = np.nan
-    errs = []
-    for p, uv in zip(rec.points, rec.uv_left):
-        d = np.linalg.norm(uv_true - uv, axis=1)
-        if np.isfinite(d).any() and np.nanmin(d) <= MATCH_PX:
-            errs.append(p - truth[int(np.nanargmin(d))])
-    if not errs:
-        raise ReconstructionError("no square centre matches a true one")
-    return {"errors_m": np.array(errs), "points": len(errs), "matched": int(len(rec.points))}
+    truth = truth[np.all(np.isfinite(truth), axis=1)]
+    d = np.linalg.norm(rec.points[:, None, :] - truth[None], axis=2) if len(rec.points) and len(truth) else None
+    if d is None:
+        raise ReconstructionError("no square centre measured")
+    near = d.argmin(axis=1)
+    ok = d[np.arange(len(near)), near] <= MATCH_M
+    if not ok.any():
+        raise ReconstructionError(f"no square centre lies within {MATCH_M * 1e3:g} mm of a true one")
+    errs = rec.points[ok] - truth[near[ok]]
+    return {"errors_m": errs, "points": int(ok.sum()), "matched": int(len(rec.points))}
 
 
 def _trial_row(target: str, conf: BudgetConfig, seed: int, out: dict | None, error: str | None) -> dict:
@@ -211,28 +216,31 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
     ``progress(row)`` is called after each trial with its row."""
     t0 = time.perf_counter()
     rz = settings.realism
-    base = with_realism(SampleConfig(render=RenderSettings(settings.spp, settings.seed0), variant=settings.variant), rz)
-    rig = base.scene.build().rig
+    start = SampleConfig(render=RenderSettings(settings.spp, settings.seed0), variant=settings.variant)
+    base = with_realism(start, rz)
     confs = budget_configs(rz, settings.budget)
-    noise_cache: dict = {}
+    noise_cache: dict = {}  # corner noise per camera (lens, aperture, sensor): measured once
+    renderers: dict = {}  # one renderer per scene structure (a thin lens, a distorting lens): kernels kept
     plate = build_plate(base.plate) if "plate" in settings.targets else None
-    renderer = None
     rows, setups = [], {}
     for conf in confs:
-        sensor = realism_sensor(conf.realism)
-        key = (conf.realism.on("sensor"), conf.realism.scale("sensor"))
+        cfg = with_realism(start, conf.realism)
+        scene = cfg.scene.build()
+        rig = scene.rig
+        key = json.dumps([cfg.scene.to_dict(), cfg.sensor.to_dict()], sort_keys=True)
         if conf.realism.estimates and key not in noise_cache:
-            noise_cache[key] = RealismSetup.prepare(conf.realism, rig, sensor, variant=settings.variant).corner_noise_px
-        setup = RealismSetup.prepare(conf.realism, rig, sensor, corner_noise_px=noise_cache.get(key, 0.0))
+            noise_cache[key] = RealismSetup.prepare(conf.realism, cfg).corner_noise_px
+        setup = RealismSetup.prepare(conf.realism, cfg, corner_noise_px=noise_cache.get(key, 0.0))
         setups[conf.label] = setup
-        cfg = replace(base, sensor=sensor, realism=conf.realism)
+        rkey = (scene.aperture_radius_m > 0, rig.left.distortion is not None, rig.left.K[0, 0] != rig.left.K[1, 1])
+        if rkey not in renderers:
+            renderers[rkey] = PlateRenderer(scene, plate or SquareTarget.of(np.eye(4), TARGET.square_block()),
+                                            settings.variant)
+        renderer = renderers[rkey]
         for k in range(settings.draws):
             seed = settings.seed0 + k
             acq = realise(setup, rig, seed)
             for target in settings.targets:
-                if renderer is None:
-                    renderer = PlateRenderer(cfg.scene.build(), plate or SquareTarget.of(np.eye(4), TARGET.square_block()),
-                                             settings.variant)
                 t = time.perf_counter()
                 try:
                     out = _block_trial(cfg, acq, renderer, seed) if target == "block" else \
@@ -252,15 +260,25 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
             "paper": {"depth_mm": PAPER_DEPTH_MM, "xy_mm": PAPER_XY_MM, "distance_m": base.scene.distance_m,
                       "what": "one trial's worst corner of a square on the hand/eye target block, in the block's frame "
                               "(paper section V-D)"},
-            "camera": {"width_px": rig.left.width, "height_px": rig.left.height, "f_px": rig.left.f_px,
-                       "baseline_m": rig.baseline_m, "distance_m": base.scene.distance_m},
+            "camera": _camera_dict(base),
             "target_block": {"squares_x": TARGET.squares_x, "squares_y": TARGET.squares_y,
                              "square_m": TARGET.square_m, "yaw_rad": CELL.target_yaw_rad},
             "robot": None if rz.robot is None else {"name": rz.robot, "description": ROBOTS[rz.robot].description,
                                                    **_model_dict(setups[confs[-1].label])},
-            "corner_noise_px": {("on" if k[0] else "off"): v for k, v in noise_cache.items()},
+            "corner_noise_px": {c.label: setups[c.label].corner_noise_px for c in confs if c.realism.estimates},
             "sources": {s: SOURCES[s] for s in rz.sources},
             "summary": summary, "rows": rows, "time_s": time.perf_counter() - t0}
+
+
+def _camera_dict(cfg: SampleConfig) -> dict:
+    scene = cfg.scene.build()
+    left = scene.rig.left
+    return {"name": cfg.realism.camera, "width_px": left.width, "height_px": left.height, "fx_px": float(left.K[0, 0]),
+            "fy_px": float(left.K[1, 1]), "baseline_m": scene.rig.baseline_m, "distance_m": cfg.scene.distance_m,
+            "distortion_k1_k2_p1_p2_k3": None if left.distortion is None else left.distortion.as_opencv().tolist(),
+            "aperture_radius_m": scene.aperture_radius_m, "line_jitter_px": cfg.sensor.line_jitter_px,
+            "full_well_e": cfg.sensor.full_well_e, "read_noise_dn": cfg.sensor.read_noise_dn,
+            "bit_depth": cfg.sensor.bit_depth}
 
 
 def _model_dict(setup: RealismSetup) -> dict:

@@ -34,8 +34,9 @@ import numpy as np
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET, Cell, TargetBlock, nominal_arm, robot_error_model
 from platebench.bench.config.realism import Realism
 from platebench.reconstruction.calibration.hand_eye import solve_hand_eye
-from platebench.reconstruction.calibration.stereo import BoardDetection, calibrate_camera
+from platebench.reconstruction.calibration.stereo import BoardDetection, calibrate_camera, distortion_is_needed
 from platebench.scenes.camera import Camera, look_at_rotation
+from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import PosedPair, StereoRig
 from platebench.scenes.robot import (
     EyeInHand,
@@ -48,7 +49,6 @@ from platebench.scenes.robot import (
     pose_matrix,
 )
 from platebench.scenes.scene_spec import RenderSettings
-from platebench.scenes.sensor_model import SensorModel
 
 __all__ = ["RealismSetup", "Acquisition", "realise", "realise_sample", "measure_corner_noise", "calibration_view_cameras",
            "STREAM_ROBOT", "STREAM_MOVES", "STREAM_CORNERS"]
@@ -71,11 +71,11 @@ class RealismSetup:
     corner_noise_px: float
 
     @classmethod
-    def prepare(cls, realism: Realism, rig: StereoRig, sensor: SensorModel, cell: Cell = CELL,
-                target: TargetBlock = TARGET, corner_noise_px: float | None = None, variant: str | None = None,
-                spp: int = 16) -> "RealismSetup":
-        """Everything that does not change between draws. ``corner_noise_px`` None: measured on rendered
-        views of the target through ``rig.left`` and ``sensor`` (only when an estimate needs it)."""
+    def prepare(cls, realism: Realism, cfg, cell: Cell = CELL, target: TargetBlock = TARGET,
+                corner_noise_px: float | None = None, spp: int = 16) -> "RealismSetup":
+        """Everything that does not change between draws. ``cfg``: the sample configuration under this
+        realism (``presets.with_realism``: its camera, lens and sensor). ``corner_noise_px`` None: measured
+        on rendered views of the target through that camera (only when an estimate needs it)."""
         model = None
         if realism.robot is not None:
             hw = ROBOTS[realism.robot]
@@ -86,7 +86,7 @@ class RealismSetup:
                                       repeatability_scale=realism.scale("robot_repeatability"),
                                       accuracy_scale=realism.scale("robot_accuracy"))
         if corner_noise_px is None:
-            corner_noise_px = measure_corner_noise(rig.left, sensor, target, variant, spp) if realism.estimates else 0.0
+            corner_noise_px = measure_corner_noise(cfg, target, spp) if realism.estimates else 0.0
         return cls(realism, cell, target, model, float(corner_noise_px))
 
 
@@ -141,15 +141,16 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
     cell, target = setup.cell, setup.target
     T_world_block = target.pose_world(cell)
     K_true, W, H = rig.left.K, rig.left.width, rig.left.height
-    if rz.is_ideal or (setup.robot_model is None and not rz.estimates):
+    moves = setup.robot_model is not None and not setup.robot_model.exact
+    if not moves and not rz.estimates:  # the robot goes where it is told, the method is told the truth
         return Acquisition(rig, rig, T_world_block, T_world_block, {"exact": True})
     report: dict = {"exact": False}
     robot = None
-    if setup.robot_model is not None:
+    if moves:
         hw = ROBOTS[rz.robot]
         robot = Robot.build(nominal_arm(hw, cell), setup.robot_model, cell.q_seed, _rng(seed, STREAM_ROBOT))
-    moves = _rng(seed, STREAM_MOVES)
-    mount_est, T_block_est, K_est = cell.mount, T_world_block, K_true
+    move_rng = _rng(seed, STREAM_MOVES)
+    mount_est, T_block_est, K_est, lens_est = cell.mount, T_world_block, K_true, rig.left.distortion
     if rz.estimates:
         corners_block = target.corners_block()
         corners_world = corners_block @ T_world_block[:3, :3].T + T_world_block[:3, 3]
@@ -157,25 +158,30 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
         eye_cal = EyeInHand(robot, cell.mount, cell.mount, rig.left) if robot is not None else None
         flanges, dets = [], []
         for F in calibration_flange_poses(cell, target):
-            cam = eye_cal.move_flange(F, moves) if eye_cal is not None else camera_from_pose(F @ cell.mount, rig.left)
+            cam = eye_cal.move_flange(F, move_rng) if eye_cal is not None else camera_from_pose(F @ cell.mount, rig.left)
             idx, uv = _observe(cam, corners_world, setup.corner_noise_px, noise)
             flanges.append(F)
             dets.append(BoardDetection(idx, uv, corners_block[idx]) if len(idx) >= MIN_VIEW_CORNERS else None)
         used = [i for i, d in enumerate(dets) if d is not None]
         if rz.on("calibration"):
-            cal = calibrate_camera(dets, (W, H), fix_distortion=True)
+            fixed = calibrate_camera(dets, (W, H), fix_distortion=True)
+            free = calibrate_camera(dets, (W, H), fix_distortion=False)
+            cal = free if distortion_is_needed({"camera": fixed}, {"camera": free}) else fixed
             K_est = cal.K
+            lens_est = None if cal.fix_distortion else BrownConrady.from_opencv(cal.dist)
             poses = [pose_matrix(cv2.Rodrigues(r)[0], t) for r, t in zip(cal.rvecs, cal.tvecs)]
             used = list(cal.views)
             report["calibration"] = {"fx_error_px": float(K_est[0, 0] - K_true[0, 0]),
                                      "fy_error_px": float(K_est[1, 1] - K_true[1, 1]),
                                      "cx_error_px": float(K_est[0, 2] - K_true[0, 2]),
                                      "cy_error_px": float(K_est[1, 2] - K_true[1, 2]),
-                                     "reprojection_rms_px": cal.rms_px, "views": len(used)}
+                                     "reprojection_rms_px": cal.rms_px, "views": len(used),
+                                     "distortion_estimated": not cal.fix_distortion,
+                                     "distortion_k1_k2_p1_p2_k3": cal.dist.tolist()}
         else:
             poses = []
             for i in used:
-                ok, rv, tv = cv2.solvePnP(dets[i].object_points, dets[i].image_points, K_true, np.zeros(5),
+                ok, rv, tv = cv2.solvePnP(dets[i].object_points, dets[i].image_points, K_true, _opencv_dist(rig.left),
                                           flags=cv2.SOLVEPNP_ITERATIVE)
                 poses.append(pose_matrix(cv2.Rodrigues(rv)[0], tv))
         if rz.on("hand_eye"):
@@ -188,14 +194,15 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
                                   "residual_rotation_rms_rad": he.rotation_rms_rad,
                                   "residual_translation_rms_m": he.translation_rms_m, "views": len(used)}
         report["corner_noise_px"] = setup.corner_noise_px
-    told = StereoRig(replace(rig.left, K=K_est), replace(rig.right, K=K_est), rig.baseline_m)
+    told = StereoRig(replace(rig.left, K=K_est, distortion=lens_est), replace(rig.right, K=K_est, distortion=lens_est),
+                     rig.baseline_m)
     if robot is None and not rz.on("hand_eye"):
         return Acquisition(told, rig, T_block_est, T_world_block, report)
     eye = EyeInHand(robot or _exact_robot(rz, cell), cell.mount, mount_est, rig.left)
     head = None
     if rz.rigid_head:
         head = invert_pose(camera_pose(rig.left)) @ camera_pose(rig.right)  # the head's true left -> right pose
-    taken = eye.executed_pair(rig, moves, head)
+    taken = eye.executed_pair(rig, move_rng, head)
     report["views"] = {c: dict(zip(("position_error_m", "rotation_error_rad"),
                                    pose_difference(camera_pose(taken.cameras[c]), camera_pose(rig.cameras[c]))))
                        for c in ("left", "right")}
@@ -204,9 +211,12 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
 
 def realise_sample(cfg, rig: StereoRig) -> Acquisition:
     """One acquisition of ``rig`` under a sample configuration's realism (its draw: ``cfg.realism.seed``;
-    its sensor: ``cfg.sensor``; the corner noise measured with them)."""
-    setup = RealismSetup.prepare(cfg.realism, rig, cfg.sensor, variant=cfg.variant)
-    return realise(setup, rig, cfg.realism.seed)
+    its camera: ``cfg``'s; the corner noise measured with it)."""
+    return realise(RealismSetup.prepare(cfg.realism, cfg), rig, cfg.realism.seed)
+
+
+def _opencv_dist(cam: Camera) -> np.ndarray:
+    return np.zeros(5) if cam.distortion is None else cam.distortion.as_opencv()
 
 
 def _exact_robot(rz: Realism, cell: Cell) -> Robot:
@@ -216,30 +226,31 @@ def _exact_robot(rz: Realism, cell: Cell) -> Robot:
 
 
 # -- corner-localisation noise, measured on renders ----------------------------------------
-def measure_corner_noise(camera: Camera, sensor: SensorModel, target: TargetBlock = TARGET,
-                         variant: str | None = None, spp: int = 16, seed: int = 0) -> float:
-    """RMS per-axis error (px) of corners located on rendered images of a ChArUco board with the target's
-    square size, seen by ``camera`` through ``sensor`` in a few of the bench's calibration poses
-    (``board_renderer.calibration_poses``), against their exact projections."""
+def measure_corner_noise(cfg, target: TargetBlock = TARGET, spp: int = 16, seed: int = 0) -> float:
+    """RMS per-axis error (px) of corners located (``detect_charuco``) on rendered images of a ChArUco board
+    with the target's square size, seen by ``cfg``'s left camera (its lens, aperture and sensor, line
+    jitter included) in a few of the bench's calibration poses (``board_renderer.calibration_poses``),
+    against their exact projections through that camera."""
     from platebench.reconstruction.calibration.stereo import detect_charuco  # noqa: PLC0415
     from platebench.scenes.render.board_renderer import BoardRenderer, calibration_poses  # noqa: PLC0415
 
+    scene = cfg.scene.build()
+    rig, camera = scene.rig, scene.rig.left
     spec = target.charuco()
-    rig = StereoRig(camera, replace(camera, t=camera.t - np.array([1e-3, 0.0, 0.0])), 1e-3)
     centre = camera.center + camera.R[2] * float(camera.depth(np.zeros((1, 3)))[0])
-    poses = calibration_poses(rig, spec, target=centre)
-    picks = [p for p in poses if p.name in ("flat", "tilt+x", "diag++", "roll45")][:CORNER_NOISE_VIEWS]
-    br = BoardRenderer(rig, spec, variant, sensor)
+    picks = [p for p in calibration_poses(rig, spec, target=centre)
+             if p.name in ("flat", "tilt+x", "diag++", "roll45")][:CORNER_NOISE_VIEWS]
+    br = BoardRenderer(rig, spec, cfg.variant, cfg.sensor, scene.aperture_radius_m,
+                       scene.focus_m if scene.aperture_radius_m > 0 else None)
     board = spec.board()
     errs = []
     for i, pose in enumerate(picks):
         br.set_pose(pose)
-        img = sensor.digitize(br.render("left", RenderSettings(spp, seed), i), seed=seed * 101 + i)
+        img = cfg.sensor.digitize(br.render("left", RenderSettings(spp, seed), i), seed=seed * 101 + i)
         det = detect_charuco(img, board)
         if det is None:
             continue
-        truth = camera.project(pose.to_world(det.object_points))
-        errs.append(det.image_points - truth)
+        errs.append(det.image_points - camera.project(pose.to_world(det.object_points)))
     if not errs:
         raise ValueError("corner noise: no board corners found in the rendered views")
     e = np.concatenate(errs)

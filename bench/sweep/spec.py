@@ -101,8 +101,10 @@ realism            "ideal", "1995", "modern" (``bench.config.realism``): the cam
                    applied first, so resolution/noise axes change its camera
 realism_seed       the draw of the realism's error sources (robot errors, estimates)
 realism_SOURCE     one error source's magnitude, x its sourced value (0 turns it
-                   off): realism_sensor, realism_robot_repeatability,
-                   realism_robot_accuracy, realism_hand_eye, realism_calibration
+                   off): realism_distortion, realism_pixel_aspect,
+                   realism_defocus, realism_line_jitter, realism_noise,
+                   realism_robot_repeatability, realism_robot_accuracy,
+                   realism_hand_eye, realism_calibration
 =================  ==========================================================
 
 Every results row records the realism preset, its draw and each source's magnitude (columns
@@ -145,8 +147,8 @@ import numpy as np
 
 from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml
 from platebench.bench.config.axes import AXES as AXIS_INFO
-from platebench.bench.config.presets import realism_sensor, with_realism
-from platebench.bench.config.realism import MAX_SCALE, REALISM_PRESETS, Realism, RealismError, realism_preset
+from platebench.bench.config.presets import with_realism
+from platebench.bench.config.realism import CAMERA_SOURCES, MAX_SCALE, REALISM_PRESETS, Realism, RealismError, realism_preset
 from platebench.bench.config.realism import SOURCES as _SOURCES
 from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
@@ -293,12 +295,14 @@ def _apply_realism(d: dict, v, state: dict) -> None:
 
 def _apply_source(source: str):
     """A realism source's magnitude (x its sourced value; 0 turns it off). Robot and hand/eye sources do not
-    apply to a preset without a robot (the axis is ignored for that sample)."""
+    apply to a preset without a robot, camera sources not to one without camera hardware (the axis is
+    ignored for that sample)."""
     def apply(d: dict, v, state: dict) -> None:
         try:
             r = Realism.from_dict(copy.deepcopy(d.get("realism") or {}))
-            if r.robot is None and source in ("robot_repeatability", "robot_accuracy", "hand_eye"):
-                raise _NotApplicable  # a preset without a robot (ideal) has no such source
+            if (r.robot is None and source in ("robot_repeatability", "robot_accuracy", "hand_eye")) or \
+                    (r.camera == "ideal" and source in CAMERA_SOURCES):
+                raise _NotApplicable  # the ideal preset has no robot and no camera hardware
             scales = {k: x for k, x in r.scales.items() if k != source}
             if v > 0:
                 scales[source] = float(v)
@@ -306,9 +310,9 @@ def _apply_source(source: str):
                         scales=scales)
         except RealismError as e:
             raise ConfigError(str(e)) from None
-        d["realism"] = r.to_dict()
-        if source == "sensor":
-            d["sensor"] = realism_sensor(r).to_dict()
+        new = with_realism(SampleConfig.from_dict(copy.deepcopy(d)), r).to_dict()  # the camera follows its sources
+        d.clear()
+        d.update(new)
     return apply
 
 
