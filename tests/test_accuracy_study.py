@@ -28,7 +28,7 @@ def test_budget_rows_are_none_each_alone_all_but_each_and_all():
 
 def test_a_small_accuracy_study_runs_end_to_end(tmp_path):
     out = tmp_path / "acc"
-    p = run_cli("study", "accuracy", "--realism", "1995", "--draws", "2", "--targets", "block", "--out", out)
+    p = run_cli("study", "accuracy", "--realism", "1995", "--draws", "2", "--spp", "4", "--out", out)
     assert p.returncode == 0, p.stderr
     doc = json.loads((out / "accuracy.json").read_text())
     rows = doc["rows"]
@@ -48,7 +48,7 @@ def test_the_ideal_study_measures_the_methods_floor_in_the_true_block_frame():
     """Every source off: the corners are triangulated by the true rig and the block's true pose, so the errors
     are the corner method's alone: well inside the paper's bound, and the plate's centres at the bench's
     noise-free level."""
-    doc = run_accuracy_study(AccuracySettings(REALISM_PRESETS["ideal"], draws=2, targets=("block", "plate")))
+    doc = run_accuracy_study(AccuracySettings(REALISM_PRESETS["ideal"], draws=2, targets=("block", "plate"), spp=4))
     assert {r["config"] for r in doc["rows"]} == {"no source"}
     block, plate = doc["summary"]["block"]["no source"], doc["summary"]["plate"]["no source"]
     assert block["depth"]["max_mm"] < 1.0 and block["xy"]["max_mm"] < 0.2

@@ -38,15 +38,17 @@ def add_parser(sub) -> None:
                                    "accuracy: the paper's accuracy test (V-D): passive stereo on the corners of a "
                                    "square of the hand/eye target block 0.40 m away, errors in the block's frame "
                                    "(paper: depth within 2 mm, x/y within 1 mm), as a Monte Carlo over --draws draws "
-                                   "of every error source of --realism (robot repeatability and accuracy, the "
-                                   "hand/eye estimate, the intrinsics estimate, sensor noise), and the same on the "
+                                   "of every error source of --realism (the camera's lens distortion, non-square "
+                                   "pixels, defocus, line jitter and noise; the robot's repeatability and accuracy; "
+                                   "the hand/eye and intrinsics estimates), and the same on the "
                                    "reference plate's 16 square centres (world frame). Each trial's worst corner is "
                                    "what the paper reports; the median over draws and its spread are compared with "
                                    "it. The error budget runs no source, each source alone, all but one and all. "
                                    "Writes accuracy.json (every trial and the statistics), accuracy.csv (one row "
                                    "per trial: realism, draw seed, errors) and accuracy.png.",
                        epilog="error sources: " + "; ".join(f"{k}: {v}" for k, v in SOURCES.items())
-                              + ". Sources and magnitudes: bench/config/hardware_robot.py, bench/config/presets.py.")
+                              + ". Sources and magnitudes, each with its citation: bench/config/hardware_camera.py, "
+                                "bench/config/hardware_robot.py. README: what each source costs in accuracy.")
     p.add_argument("which", choices=["false-boundary", "accuracy"], help="the study to run")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--overwrite", action="store_true")
@@ -62,7 +64,8 @@ def add_parser(sub) -> None:
                    "e.g. 120,150,165,172)")
     p.add_argument("--width", type=int, default=640, help="false-boundary: image width in px (default 640; f scales "
                    "with it); accuracy: the realism's camera sets it")
-    p.add_argument("--spp", type=int, help="samples per pixel (default 2; accuracy 4)")
+    p.add_argument("--spp", type=int, help="samples per pixel (default 2; accuracy 16: the corners are fitted to "
+                   "edges, and the renderer's Monte Carlo noise at the edge pixels would add to the camera's)")
     p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
     p.add_argument("--resume", action="store_true",
                    help="finish an interrupted study: the plates it finished (kept in OUT.journal.jsonl beside "
@@ -83,10 +86,11 @@ def add_parser(sub) -> None:
                         "modern: a rigid head on a current arm; ideal: none). false-boundary: only ideal so far")
     a.add_argument("--draws", type=int, default=30,
                    help="Monte Carlo draws per budget row (default 30; allowed 1 to 1000): each draws new robot "
-                        "errors, a new hand/eye and intrinsics estimate and new sensor noise")
-    a.add_argument("--targets", default="block,plate",
-                   help="block (the target block's square, the paper's test), plate (the reference plate's 16 "
-                        "square centres) or both (default block,plate)")
+                        "errors, a new hand/eye and intrinsics estimate, new line jitter and sensor noise; draw k "
+                        "uses seed --seed + k in every row, so rows compare like with like")
+    a.add_argument("--targets", default="block",
+                   help="block (the target block's square, the paper's test; default), plate (the reference "
+                        "plate's 16 square centres, four renders a draw: about twice the time) or block,plate")
     a.add_argument("--no-budget", action="store_true",
                    help="run only every source on (the budget runs 2N+2 rows for N sources)")
     p.set_defaults(run=run)
@@ -163,6 +167,7 @@ def run(args) -> int:
 
 
 MAX_DRAWS = 1000
+ACCURACY_SPP = 16  # the no-source floor of the block's corners: 0.74 mm at spp 4, 0.33 at 16, 0.22 at 64 (8 draws)
 
 
 def run_accuracy(args) -> int:
@@ -181,7 +186,7 @@ def run_accuracy(args) -> int:
     if bad or not targets:
         raise UserValueError(f"--targets value {(bad or [args.targets])[0]!r} is not allowed: allowed "
                              + ", ".join(TARGETS) + " (comma-separated)")
-    spp = 4 if args.spp is None else args.spp
+    spp = ACCURACY_SPP if args.spp is None else args.spp
     if not (1 <= spp <= 1024):
         raise UserValueError(f"--spp = {spp} is out of range: allowed 1 to 1024")
     try:
