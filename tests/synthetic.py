@@ -86,3 +86,10 @@ def square(center, side: float, angle_rad: float = 0.0) -> np.ndarray:
     R = np.array([[c, -s], [s, c]])
     h = side / 2.0
     return np.asarray(center, float) + np.array([[-h, -h], [h, -h], [h, h], [-h, h]]) @ R.T
+
+
+def weighted_centroid(img: np.ndarray) -> np.ndarray:
+    """(u, v) centroid of an (H, W) weight image, pixel centres at integers (OpenCV's convention)."""
+    vv, uu = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+    w = img.sum()
+    return np.array([(uu * img).sum() / w, (vv * img).sum() / w])

@@ -50,6 +50,33 @@ def calibrated(small_cfg):
 
 
 # -- pure geometry (no rendering) ---------------------------------------------------------
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_view_the_solution_cannot_fit_is_left_out_of_the_camera_calibration(seed):
+    """Exact corners of a known camera in 10 board views, one view's corners scrambled (a wrong
+    identification): that view is dropped, the others give K back; without the scramble nothing
+    is dropped."""
+    from platebench.reconstruction.calibration import BoardDetection, calibrate_camera
+    rng = np.random.default_rng(seed)
+    K = np.array([[930.0, 0.0, 255.5], [0.0, 1163.0, 239.5], [0.0, 0.0, 1.0]])
+    gx, gy = np.meshgrid(np.arange(9) * 0.015, np.arange(6) * 0.015)
+    obj = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    dets = []
+    for _ in range(10):
+        rvec = rng.normal(0, 0.3, 3)
+        tvec = np.array([-0.06, -0.04, 0.4]) + rng.normal(0, 0.01, 3)
+        uv, _ = cv2.projectPoints(obj, rvec, tvec, K, np.zeros(5))
+        dets.append(BoardDetection(np.arange(len(obj)), uv.reshape(-1, 2) + rng.normal(0, 0.05, (len(obj), 2)), obj))
+    clean = calibrate_camera(dets, (512, 480))
+    assert clean.views == tuple(range(10))
+    bad = dets[4]
+    dets[4] = BoardDetection(bad.ids, bad.image_points[rng.permutation(len(obj))], bad.object_points)
+    cal = calibrate_camera(dets, (512, 480))
+    assert 4 not in cal.views and len(cal.views) == 9
+    without = calibrate_camera([d if i != 4 else None for i, d in enumerate(dets)], (512, 480))
+    assert np.allclose(cal.K, without.K, rtol=1e-9) and cal.rms_px < 0.1  # as if the view had not been taken
+    assert np.allclose(np.diag(cal.K)[:2], np.diag(K)[:2], rtol=5e-3)
+
+
 def test_true_rig_calibration_triangulates_like_the_pipeline():
     rig = reference_scene(width=640, height=480, f_px=1000.0).rig
     pts = np.array([[0.01, -0.02, 0.0], [-0.03, 0.015, 0.012], [0.0, 0.0, -0.03]])

@@ -15,16 +15,11 @@ from platebench.plates import Flat, PlateSpec, build_plate
 from platebench.scenes.pattern import Pattern
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings, reference_scene
+from tests.synthetic import weighted_centroid
 
 pytestmark = pytest.mark.render
 
 TOL_PX = 0.05
-
-
-def _weighted_centroid(img: np.ndarray) -> np.ndarray:
-    vv, uu = np.mgrid[0:img.shape[0], 0:img.shape[1]]
-    w = img.sum()
-    return np.array([(uu * img).sum() / w, (vv * img).sum() / w])
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +41,7 @@ def test_square_feature_lands_where_K_R_t_project_it(offset_scene):
     for cam_name in ("left", "right"):
         flat_field = r.render(cam_name, "passive", settings)
         coverage = np.clip(imgs_small[cam_name] / flat_field, 0.0, 1.0)
-        measured = _weighted_centroid(coverage)
+        measured = weighted_centroid(coverage)
         cam = offset_scene.rig.cameras[cam_name]
         expected = cam.project(np.zeros((1, 3)))[0]  # plate centre; fronto-parallel, so centroid maps exactly
         assert np.abs(expected - np.array([cam.width / 2 - 0.5, cam.height / 2 - 0.5])).min() > 10
@@ -74,7 +69,7 @@ def test_projector_texel_lands_where_projector_K_R_t_send_it(kind):
         image = r.render(cam_name, "active", RenderSettings(spp=256, seed=2))
         cam = scene.rig.cameras[cam_name]
         expected = cam.project(hit[None])[0]
-        measured = _weighted_centroid(image)
+        measured = weighted_centroid(image)
         assert np.abs(measured - expected).max() <= TOL_PX, f"{kind} {cam_name}: {measured} vs {expected}"
 
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
+from platebench.scenes.lens import BrownConrady
 from platebench.scenes.render import runtime
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings, reference_scene, scene_for_pose
@@ -33,14 +34,21 @@ def _render_kernels(dr, r, scene, settings) -> list[dict]:
             for k in dr.kernel_history() if k.get("operation_count", 0) > BIG_KERNEL_OPS]
 
 
-@pytest.mark.parametrize("projector_kind", ["spot", "pinhole"])
-def test_new_poses_reuse_the_render_kernel(projector_kind):
+LENSES = {  # the camera: Mitsuba's perspective, or the bench's lens sensor (distortion, non-square pixels, aperture)
+    "perspective": {},
+    "lens-sensor": {"fy_px": 125.0, "distortion": BrownConrady(-0.2, 0.1, 0.001, -0.002)},
+}
+
+
+@pytest.mark.parametrize("projector_kind,lens", [("spot", "perspective"), ("pinhole", "perspective"),
+                                                 ("pinhole", "lens-sensor")])
+def test_new_poses_reuse_the_render_kernel(projector_kind, lens):
     mi = runtime.mitsuba()
     if mi.variant().startswith("scalar"):
         pytest.skip("scalar variant: no kernels")
     import drjit as dr  # noqa: PLC0415  (after runtime.mitsuba(): libLLVM chosen)
 
-    base = reference_scene(width=64, height=48, f_px=100.0, projector_kind=projector_kind)
+    base = reference_scene(width=64, height=48, f_px=100.0, projector_kind=projector_kind, **LENSES[lens])
     base = dataclasses.replace(base, lighting=dataclasses.replace(base.lighting, follows_rig=True))
     plate = build_plate(PlateSpec(length_m=0.2, width_m=0.1, deformation=CylindricalBend(angle_rad=np.radians(120.0))))
     settings = RenderSettings(spp=1, seed=3)
@@ -62,3 +70,32 @@ def test_new_poses_reuse_the_render_kernel(projector_kind):
         assert len(kernels) == 4, f"pose {k}: expected the 4 renders' kernels in the history, got {kernels}"
         fresh = [c["ops"] for c in kernels if c["fresh"]]
         assert not fresh, f"pose {k} needed new render kernels ({fresh} operations): a pose-dependent literal"
+
+
+def test_another_lens_or_aperture_reuses_the_lens_sensors_kernel():
+    """The lens sensor's K, distortion, aperture and focus are kernel inputs: a camera with another
+    lens (same structure: image size, thin lens on) renders with the compiled kernels."""
+    mi = runtime.mitsuba()
+    if mi.variant().startswith("scalar"):
+        pytest.skip("scalar variant: no kernels")
+    import drjit as dr  # noqa: PLC0415
+
+    plate = build_plate(PlateSpec(length_m=0.1, width_m=0.07, deformation=CylindricalBend(angle_rad=np.radians(20.0))))
+    settings = RenderSettings(spp=1, seed=1)
+
+    def scene(k1, fy, aperture, focus):
+        s = reference_scene(width=64, height=48, f_px=100.0, fy_px=fy, distortion=BrownConrady(k1, 0.05))
+        return dataclasses.replace(s, aperture_radius_m=aperture, focus_distance_m=focus)
+
+    r = PlateRenderer(scene(-0.2, 125.0, 0.004, 0.40), plate)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        _render_kernels(dr, r, scene(-0.2, 125.0, 0.004, 0.40), settings)
+        later = [_render_kernels(dr, r, scene(k1, fy, a, f), settings)
+                 for k1, fy, a, f in ((-0.1, 120.0, 0.003, 0.38), (0.15, 90.0, 0.006, 0.45))]
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+        dr.kernel_history()
+    assert r.scene_builds == 1
+    for kernels in later:
+        assert len(kernels) == 4 and not [c["ops"] for c in kernels if c["fresh"]], kernels

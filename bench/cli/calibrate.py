@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
                    help="heights of the white target plane in MILLIMETRES, world z (default -30 0 30; at least 2)")
     p.add_argument("--distortion-model", choices=("auto", "fixed", "free"), default="auto",
                    help="lens model of the estimate handed to the pipeline: auto (default: free k1, k2, p1, p2 "
-                        "when it explains the board's corners 1.5 times better than the pinhole), fixed (no "
+                        "when they explain >= 0.05 px RMS of the board corners' displacement), fixed (no "
                         "distortion) or free")
     p.add_argument("--no-reconstruction", action="store_true",
                    help="skip the reference reconstruction with estimated vs true calibration")

@@ -1,14 +1,22 @@
 """Named presets: camera (resolution + sensor model) and sensor noise levels.
 
 The "1995" camera is a PULNiX TM-540-like CCD (512 x 480, 8-bit, noisy), the paper's; "modern"
-a current machine-vision camera; "ideal" is noise-free. Noise presets set the shot noise
+a current machine-vision camera; "ideal" is noise-free. These presets set only the frame size (the
+field of view kept) and the sensor model of ``bench.config.hardware_camera``'s parameter sets;
+``apply_camera_hardware`` puts a whole camera (focal lengths, lens, aperture, line jitter) in. Noise presets set the shot noise
 (electrons at full scale) and the read noise (DN) of the sensor model.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 
-from platebench.bench.config.hardware_camera import CameraDefects, apply_camera_hardware, camera_hardware
+from platebench.bench.config.hardware_camera import (
+    BASLER_ACA2040_55UM,
+    PULNIX_TM540_1995,
+    CameraDefects,
+    apply_camera_hardware,
+    camera_hardware,
+)
 from platebench.bench.config.realism import CAMERA_SOURCES, Realism, RealismError, realism_preset
 from platebench.bench.config.sample_config import ConfigError, SampleConfig
 from platebench.scenes.lens import BrownConrady
@@ -25,12 +33,11 @@ NOISE_PRESETS = {
 
 
 
-CAMERA_PRESETS = {
+CAMERA_PRESETS = {  # frame size and sensor model of the cameras in bench.config.hardware_camera (their sources)
     "ideal": ({}, SensorModel()),
-    "1995": ({"width": 512, "height": 480},
-             SensorModel(bit_depth=8, full_well_e=4000.0, read_noise_dn=1.5, gamma=1.0)),
-    "modern": ({"width": 2048, "height": 1536},
-               SensorModel(bit_depth=16, full_well_e=20000.0, read_noise_dn=3.0, gamma=1.0)),
+    "1995": ({"width": PULNIX_TM540_1995.width, "height": PULNIX_TM540_1995.height}, PULNIX_TM540_1995.sensor),
+    "modern": ({"width": BASLER_ACA2040_55UM.width, "height": BASLER_ACA2040_55UM.height},
+               BASLER_ACA2040_55UM.sensor),
 }
 
 

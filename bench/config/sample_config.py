@@ -46,9 +46,12 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from platebench.bench.config.realism import Realism, RealismError
 from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
+from platebench.scenes.camera import Camera, intrinsics
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.scene_spec import (
@@ -186,8 +189,12 @@ class SceneParams:
         _check_keys("scene.material", self.material, _MATERIAL_KEYS)
         _check_keys("scene.pattern", self.pattern, _PATTERN_KEYS)
         _check_keys("scene.distortion", self.distortion, _DISTORTION_KEYS)
-        try:
-            self.lens
+        try:  # the lens must map this image one-to-one (checked by the camera model)
+            lens = self.lens
+            if lens is not None:
+                fy = self.focal_px if self.fy_px is None else float(self.fy_px)
+                Camera(intrinsics(self.focal_px, int(self.width), int(self.height), fy_px=fy), np.eye(3),
+                       np.zeros(3), int(self.width), int(self.height), lens)
         except ValueError as e:
             raise ConfigError(f"scene.distortion: {e}") from None
 

@@ -119,6 +119,12 @@ def cases() -> list[Case]:
             ("toml length_m = \"a\"", "[plate]\nlength_m = \"a\"\nwidth_m = 0.07\n", ("plate.length_m = 'a'",
                                                                                      "finite number")),
             ("toml unknown key", "[scene]\nwdth = 3\n", ("scene.wdth", "allowed keys")),
+            ("toml distortion k4", "[scene.distortion]\nk4 = 0.1\n", ("scene.distortion.k4", "allowed keys")),
+            ("toml distortion k1 = \"a\"", "[scene.distortion]\nk1 = \"a\"\n",
+             ("scene.distortion.k1 = 'a'", "finite number")),
+            ("toml distortion folds", "[scene.distortion]\nk1 = -3.0\n", ("distortion", "one-to-one")),
+            ("toml fy_px = 0", "[scene]\nfy_px = 0.0\n", ("scene.fy_px = 0.0", "10.0 to 100000.0")),
+            ("toml line_jitter_px = 9", "[sensor]\nline_jitter_px = 9.0\n", ("line_jitter_px = 9.0", "0 to 5 px")),
             ("toml scene not a table", "scene = 3\n", ("scene = 3", "not a table")),
             ("toml syntax error", "[scene\nwidth = 3\n", ("cfg.toml", "invalid TOML")),
     ):

@@ -3,7 +3,8 @@
 * ``render``: a whole sample (4 images + all ground truth) against raw ``mitsuba.render``
   of the same 4 images (target ratio <= 1.3); then a second sample with another bend
   and camera distance through the same renderer, which must reuse the compiled kernels
-  (kernel compiles counted with drjit's kernel history).
+  (kernel compiles counted with drjit's kernel history); then the same 4 images through
+  the bench's lens sensor (distortion and non-square pixels) against Mitsuba's perspective.
 * ``reconstruct``: the paper's pipeline on the reference sample against one OpenCV
   StereoSGBM call on the same passive pair (target ratio <= 0.5).
 * ``score``: exact point-to-mesh distance on a dent plate's mesh, by triangle radius classes
@@ -20,7 +21,7 @@ import cv2
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.run.render import render_sample
+from platebench.bench.run.render import ground_truth_at, render_sample
 from platebench.plates import CylindricalBend
 from platebench.scenes.naming import IMAGE_NAMES
 from platebench.scenes.render.runtime import KernelCounter
@@ -35,9 +36,8 @@ def _best(fn, repeat: int) -> float:
     return best
 
 
-def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:
-    """Whole sample vs raw renders; then a second sample reusing kernels."""
-    sample, renderer = render_sample(cfg)  # warm-up: compiles (or loads) kernels
+def _raw_renders(renderer, cfg: SampleConfig):
+    """The four images by ``mitsuba.render`` alone (after the renderer's lighting switch)."""
     mi = renderer.mi
 
     def raw():
@@ -48,7 +48,47 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
                             seed=cfg.render.seed)
             np.asarray(img)  # the pixels in host memory, as any caller needs them
 
-    t_raw = _best(raw, repeat)
+    return raw
+
+
+# The lens the lens-sensor figure renders through: the 1995 camera's (bench.config.hardware_camera),
+# with its pixel aspect, so that Mitsuba's perspective sensor cannot render it.
+LENS_BENCHMARK = {"distortion": {"k1": -0.228601, "k2": 0.190353}, "pixel_aspect": 1.25}
+
+
+def perf_lens_sensor(cfg: SampleConfig, perspective, repeat: int = 2, log=print) -> dict:
+    """Raw renders of the same 4 images through the bench's lens sensor (Brown-Conrady distortion,
+    non-square pixels: rays generated through the model) against Mitsuba's perspective sensor
+    (the renderer ``perspective`` of ``cfg``), timed alternately (best of ``repeat`` each, so that a
+    busy machine slows both alike); and the ground truth of both."""
+    lens_cfg = replace(cfg, scene=replace(cfg.scene, fy_px=cfg.scene.focal_px * LENS_BENCHMARK["pixel_aspect"],
+                                          distortion=dict(LENS_BENCHMARK["distortion"])))
+    sample, renderer = render_sample(lens_cfg)  # warm-up: compiles the lens sensor's kernels
+    t = dict.fromkeys(("perspective", "lens", "perspective_cpu", "lens_cpu", "perspective_gt", "lens_gt"), np.inf)
+    for _ in range(repeat):
+        for key, r, c in (("perspective", perspective, cfg), ("lens", renderer, lens_cfg)):
+            cpu = time.process_time()  # all of the process's threads: steadier than wall time on a busy machine
+            t[key] = min(t[key], _best(_raw_renders(r, c), 1))
+            t[f"{key}_cpu"] = min(t[f"{key}_cpu"], time.process_time() - cpu)
+            t[f"{key}_gt"] = min(t[f"{key}_gt"], _best(lambda: ground_truth_at(r), 1))  # noqa: B023
+    ratio, ratio_cpu = t["lens"] / t["perspective"], t["lens_cpu"] / t["perspective_cpu"]
+    out = {"raw_4_images_perspective_alternating_s": t["perspective"],
+           "raw_4_images_lens_sensor_s": t["lens"], "ratio_lens_sensor_over_perspective": ratio,
+           "raw_4_images_perspective_cpu_s": t["perspective_cpu"], "raw_4_images_lens_sensor_cpu_s": t["lens_cpu"],
+           "ratio_lens_sensor_over_perspective_cpu": ratio_cpu,
+           "ground_truth_perspective_s": t["perspective_gt"], "ground_truth_lens_sensor_s": t["lens_gt"],
+           "lens": LENS_BENCHMARK}
+    log(f"lens sensor, 4 images (raw)       {t['lens']:7.2f} s   vs perspective {t['perspective']:.2f} s, ratio "
+        f"{ratio:.2f}; CPU time {t['lens_cpu']:.1f} vs {t['perspective_cpu']:.1f} s, ratio {ratio_cpu:.2f} "
+        f"(k1 {LENS_BENCHMARK['distortion']['k1']}, fy/fx {LENS_BENCHMARK['pixel_aspect']})")
+    log(f"ground truth, lens sensor         {t['lens_gt']:7.2f} s   vs perspective {t['perspective_gt']:.2f} s")
+    return out
+
+
+def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:
+    """Whole sample vs raw renders; then a second sample reusing kernels; then the lens sensor."""
+    sample, renderer = render_sample(cfg)  # warm-up: compiles (or loads) kernels
+    t_raw = _best(_raw_renders(renderer, cfg), repeat)
     t_sample = _best(lambda: render_sample(cfg, renderer), repeat)
     other = replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(np.radians(40.0), "up")),
                     scene=replace(cfg.scene, distance_m=cfg.scene.distance_m * 1.25))
@@ -68,6 +108,7 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
     log(f"whole sample (images + GT)        {t_sample:7.2f} s   ratio {t_sample / t_raw:.2f} (target <= 1.3)")
     log(f"second sample (40 deg, 0.5 m)     {t_second:7.2f} s   kernel compiles {kc.compiled} of "
         f"{kc.launches} launches, scene rebuilds {out['second_sample_scene_rebuilds']}")
+    out.update(perf_lens_sensor(cfg, renderer, repeat, log))
     return out
 
 

@@ -53,6 +53,7 @@ from platebench.reconstruction.calibration import (
     calibrate_camera,
     calibrate_structured_light,
     detect_charuco,
+    distortion_explained_px,
     distortion_is_needed,
     stereo_calibrate,
 )
@@ -340,7 +341,10 @@ def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = Board
                           "distortion_model": chosen,
                           "distortion_model_choice": distortion_model,
                           "reprojection_rms_px": {k: {c: cal.rms_px for c, cal in cams.items()}
-                                                  for k, cams in cameras.items()}}
+                                                  for k, cams in cameras.items()},
+                          "distortion_explained_px": {c: distortion_explained_px(cameras["fixed_distortion"][c],
+                                                                                 cameras["free_distortion"][c])
+                                                      for c in ("left", "right")}}
     report["truth"] = {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
                        "projector": projector.to_dict(),
                        "rays": {"origins_m": true_rays.origins.tolist(), "directions": true_rays.directions.tolist(),

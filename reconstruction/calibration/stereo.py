@@ -13,8 +13,9 @@ robot's x-y plane): its corners are triangulated with the
 stereo calibration and rigidly aligned (Kabsch) with their known world positions.
 Distortion is either fixed to zero (``fix_distortion=True``: the pinhole model) or free with
 k3 fixed (k1, k2, p1, p2 estimated); ``distortion_is_needed`` chooses between them from the
-images alone (the free model must explain the corners ``DISTORTION_GAIN`` times better), and a
-calibration with distortion hands it to the pipeline (``to_rig``), which undistorts the images.
+images alone (the free model must explain ``DISTORTION_EXPLAINED_PX`` of the corners' RMS
+displacement), and a calibration with distortion hands it to the pipeline (``to_rig``), which
+undistorts the images.
 
 The structured light's rays: ``reconstruction.calibration.structured_light``.
 """
@@ -30,18 +31,21 @@ from platebench.scenes.camera import Camera
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import StereoRig
 
-__all__ = ["MIN_CORNERS", "DISTORTION_GAIN", "CalibrationError", "BoardDetection", "detect_charuco",
-           "CameraCalibration", "calibrate_camera", "distortion_is_needed", "StereoCalibration", "stereo_calibrate"]
+__all__ = ["MIN_CORNERS", "DISTORTION_EXPLAINED_PX", "CalibrationError", "BoardDetection", "detect_charuco",
+           "CameraCalibration", "calibrate_camera", "distortion_explained_px", "distortion_is_needed",
+           "StereoCalibration", "stereo_calibrate"]
 
 MIN_CORNERS = 6
+OUTLIER_VIEW_PX = 1.0  # a view fitted worse than this (RMS, px) and ...
+OUTLIER_VIEW_FACTOR = 5.0  # ... this many times the median view's is left out of a camera's calibration
 REFINE_SIGMA_PX = 1.5
 FIXED_DISTORTION_FLAGS = cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
 FREE_DISTORTION_FLAGS = cv2.CALIB_FIX_K3
-# The free model is kept when it explains the board's corners this many times better (reprojection
-# RMS) than the pinhole: a real lens's distortion does by far (measured on the 1995 camera's lens:
-# 1.6 px -> 0.1 px), while on a distortion-free lens the four extra coefficients only fit the
-# corners' noise (RMS ratio within 1.1 on the bench's renders).
-DISTORTION_GAIN = 1.5
+# The free model is kept when its four coefficients explain at least this much of the board corners'
+# RMS displacement, sqrt(rms_pinhole^2 - rms_free^2) (px): measured 0.18-0.20 px with the 1995
+# camera's lens (with or without its noise, line jitter and defocus, which raise both RMS to 0.15-0.25
+# px), 0.001-0.006 px without a lens distortion (noise-free or not): the extra terms then fit noise.
+DISTORTION_EXPLAINED_PX = 0.05
 _CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, 1e-12)
 # cv2.undistortPoints' fixed-point iteration run to convergence (its default stops after 5 steps)
 UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-14)
@@ -133,28 +137,43 @@ def calibrate_camera(detections, image_size: tuple[int, int], fix_distortion: bo
     """Calibrate one camera from its board detections (None entries are skipped).
 
     ``image_size`` = (width, height). ``fix_distortion``: distortion held at zero
-    (pinhole); else k1, k2, p1, p2 free and k3 fixed.
+    (pinhole); else k1, k2, p1, p2 free and k3 fixed. A view the solution does not fit
+    (reprojection RMS above ``OUTLIER_VIEW_PX`` and ``OUTLIER_VIEW_FACTOR`` times the median
+    view's: a board seen by a few corners at the image's edge can pull the solver into a wrong
+    pose) is left out and the camera calibrated again, as a practitioner drops such images;
+    ``views`` lists the views kept.
     """
     views = tuple(i for i, d in enumerate(detections) if d is not None and len(d) >= MIN_CORNERS)
     if len(views) < 3:
         raise CalibrationError(f"camera calibration needs >= 3 board views with >= {MIN_CORNERS} corners, "
                                f"got {len(views)}")
-    obj = [detections[i].object_points.astype(np.float32) for i in views]
-    img = [detections[i].image_points.astype(np.float32) for i in views]
     flags = FIXED_DISTORTION_FLAGS if fix_distortion else FREE_DISTORTION_FLAGS
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(int(v) for v in image_size), None,
-                                                     np.zeros(5), flags=flags, criteria=_CRIT)
-    dist = np.asarray(dist, float).ravel()[:5]
-    per = np.array([_view_rms(o, m, r, t, K, dist) for o, m, r, t in zip(obj, img, rvecs, tvecs)])
+    for _ in range(len(views)):
+        obj = [detections[i].object_points.astype(np.float32) for i in views]
+        img = [detections[i].image_points.astype(np.float32) for i in views]
+        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(int(v) for v in image_size), None,
+                                                         np.zeros(5), flags=flags, criteria=_CRIT)
+        dist = np.asarray(dist, float).ravel()[:5]
+        per = np.array([_view_rms(o, m, r, t, K, dist) for o, m, r, t in zip(obj, img, rvecs, tvecs)])
+        bad = (per > OUTLIER_VIEW_PX) & (per > OUTLIER_VIEW_FACTOR * np.median(per))
+        if not bad.any() or len(views) - 1 < 3:
+            break
+        views = tuple(v for k, v in enumerate(views) if k != int(np.argmax(per)))  # the worst one, then again
     return CameraCalibration(np.asarray(K, float), dist, float(rms), per,
                              np.array([np.ravel(r) for r in rvecs]), np.array([np.ravel(t) for t in tvecs]),
                              views, fix_distortion)
 
 
+def distortion_explained_px(fixed: CameraCalibration, free: CameraCalibration) -> float:
+    """RMS (px) of the board corners' displacement the free distortion terms explain:
+    sqrt(rms_pinhole^2 - rms_free^2)."""
+    return float(np.sqrt(max(fixed.rms_px ** 2 - free.rms_px ** 2, 0.0)))
+
+
 def distortion_is_needed(fixed: dict, free: dict) -> bool:
-    """True when the free-distortion calibrations (camera name -> ``CameraCalibration``) explain the
-    corners ``DISTORTION_GAIN`` times better than the pinhole ones for any camera."""
-    return any(fixed[c].rms_px > DISTORTION_GAIN * free[c].rms_px for c in fixed)
+    """True when, for any camera (name -> ``CameraCalibration``), the free distortion terms explain
+    at least ``DISTORTION_EXPLAINED_PX`` of the corners' displacement."""
+    return any(distortion_explained_px(fixed[c], free[c]) >= DISTORTION_EXPLAINED_PX for c in fixed)
 
 
 # -- stereo pair --------------------------------------------------------------------
@@ -297,8 +316,9 @@ def stereo_calibrate(det_left, det_right, cal_left: CameraCalibration, cal_right
     if cal_left.fix_distortion != cal_right.fix_distortion:
         raise CalibrationError("stereo_calibrate: both cameras must use the same distortion model")
     obj, il, ir, views = [], [], [], []
+    kept = set(cal_left.views) & set(cal_right.views)
     for i, (a, b) in enumerate(zip(det_left, det_right)):
-        if a is None or b is None:
+        if a is None or b is None or i not in kept:
             continue
         common = np.intersect1d(a.ids, b.ids)
         if len(common) < MIN_CORNERS:

@@ -168,8 +168,9 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
                       0 if rec is None else len(rec.points), () if rec is None else tuple(rec.unmatched),
                       gt_visibility_dict(vis3), error)
     # the stage-2 pose's own outline, measured by the general outline stereo (as every later pose's)
-    view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.scene, s2.digital), s2.scene.rig.left,
-                        s2.gt_visibility)
+    # (in undistorted pixels: its camera is the rig's pinhole)
+    view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.scene, s2.digital),
+                        s2.scene.rig.left.pinhole, s2.gt_visibility)
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
 
 

@@ -17,6 +17,7 @@ import numpy as np
 from platebench.bench.config import SampleConfig
 from platebench.bench.run.render import ground_truth_at, render_images
 from platebench.plates import build_plate
+from platebench.reconstruction.calibration.undistort import undistort_views
 from platebench.reconstruction.paper.outline_stereo import match_outlines
 from platebench.reconstruction.paper.plate_region import ReconstructionError, plate_mask
 from platebench.reconstruction.strategy.active_views import ActivePoints, active_points, projector_pose
@@ -61,7 +62,10 @@ def plate_masks(digital: dict) -> dict:
 
 
 def measure_outline(name: str, scene: SceneSpec, digital: dict, masks: dict | None = None) -> ViewOutline:
-    """The plate's outline in the world frame from a passive pair (general outline stereo)."""
+    """The plate's outline in the world frame from a passive pair (general outline stereo); a
+    distorted rig's images are undistorted first (``masks``, if given, are of undistorted images)."""
+    digital, rig = undistort_views({k: digital[k] for k in PASSIVE}, scene.rig)
+    scene = replace(scene, rig=rig)
     m = masks or plate_masks(digital)
     st = match_outlines(digital["left_passive"], digital["right_passive"], m["left"], m["right"], scene.rig)
     return ViewOutline.from_stereo(name, st, scene.rig.center, scene.rig.left)
@@ -104,20 +108,22 @@ class SimulatedSensor:
         (``active_views.active_points``)."""
         shot = self.shoot(pose, PASSIVE + (ACTIVE if rays_for is not None else ()),
                           projector=projector_pose(pose) if rays_for is not None else None, label=name)
+        # a distorted camera's images are measured undistorted, with its pinhole (reconstruction.calibration.undistort)
+        digital, rig = undistort_views(shot.digital, shot.scene.rig)
+        scene = replace(shot.scene, rig=rig)
         try:
-            masks = plate_masks(shot.digital)
-            o = measure_outline(name, shot.scene, shot.digital, masks)
+            masks = plate_masks(digital)
+            o = measure_outline(name, scene, digital, masks)
         except ReconstructionError as err:
-            return PassiveView(name, pose, None, shot.scene.rig.left, shot.gt_visibility,
-                               f"passive stereo failed: {err}")
+            return PassiveView(name, pose, None, rig.left, shot.gt_visibility, f"passive stereo failed: {err}")
         active = None
         if rays_for is not None:
             try:
-                active = active_points(name, shot.digital, {c: m.mask for c, m in masks.items()}, shot.scene.rig,
+                active = active_points(name, digital, {c: m.mask for c, m in masks.items()}, rig,
                                        rays_for(shot.scene), shot.scene.projector.pattern)
             except ReconstructionError:  # no square inside the outline: recorded as 0 points (ViewRecord.active)
                 active = ActivePoints.empty(name)
-        return PassiveView(name, pose, o, shot.scene.rig.left, shot.gt_visibility, active=active)
+        return PassiveView(name, pose, o, rig.left, shot.gt_visibility, active=active)
 
     def boundary_visibility_masks(self, poses) -> dict:
         """camera -> (P, N) bool: which true boundary points that camera of each of ``poses`` sees
