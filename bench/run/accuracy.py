@@ -20,6 +20,9 @@ trial here does the same under a realism preset (``bench.config.realism``):
   the four images, every square centre compared with the true one (its projector ray's hit on the
   plate), in the world frame (the plate's).
 
+A draw whose estimates cannot be used (a calibration that fits a lens folding over inside the image,
+views that do not determine the mount) is recorded as failed with the reason, in every target.
+
 Statistics. Per trial: the worst corner (or centre) in depth and in x/y (the larger of |x| and |y|),
 because the paper's "within" is one trial's worst. Over the draws: the median of those worst values
 and its quantiles, and over all corners of all draws the RMS, the 95th percentile and the maximum.
@@ -53,6 +56,8 @@ from platebench.bench.run.render import render_images
 from platebench.evaluation.truth import true_feature_points
 from platebench.plates import build_plate
 from platebench.reconstruction.paper.pipeline import passive_stereo, square_stereo
+from platebench.reconstruction.calibration.hand_eye import HandEyeError
+from platebench.reconstruction.calibration.stereo import CalibrationError
 from platebench.reconstruction.calibration.undistort import undistort_views
 from platebench.reconstruction.paper.passive_boundary import outline_edges
 from platebench.reconstruction.paper.plate_region import ReconstructionError, extract_plate_region, order_corners
@@ -242,7 +247,16 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
         renderer = renderers[rkey]
         for k in range(settings.draws):
             seed = settings.seed0 + k
-            acq = realise(setup, rig, seed)
+            try:
+                acq = realise(setup, rig, seed)
+            except (CalibrationError, HandEyeError) as e:  # the draw's estimates cannot be used: said, not hidden
+                for target in settings.targets:
+                    row = _trial_row(target, conf, seed, None, str(e).splitlines()[0])
+                    row.update(time_s=0.0, acquisition=None)
+                    rows.append(row)
+                    if progress:
+                        progress(row)
+                continue
             for target in settings.targets:
                 t = time.perf_counter()
                 try:

@@ -34,7 +34,12 @@ import numpy as np
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET, Cell, TargetBlock, nominal_arm, robot_error_model
 from platebench.bench.config.realism import Realism
 from platebench.reconstruction.calibration.hand_eye import solve_hand_eye
-from platebench.reconstruction.calibration.stereo import BoardDetection, calibrate_camera, distortion_is_needed
+from platebench.reconstruction.calibration.stereo import (
+    BoardDetection,
+    CalibrationError,
+    calibrate_camera,
+    distortion_is_needed,
+)
 from platebench.scenes.camera import Camera, look_at_rotation
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import PosedPair, StereoRig
@@ -194,8 +199,11 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
                                   "residual_rotation_rms_rad": he.rotation_rms_rad,
                                   "residual_translation_rms_m": he.translation_rms_m, "views": len(used)}
         report["corner_noise_px"] = setup.corner_noise_px
-    told = StereoRig(replace(rig.left, K=K_est, distortion=lens_est), replace(rig.right, K=K_est, distortion=lens_est),
-                     rig.baseline_m)
+    try:
+        told = StereoRig(replace(rig.left, K=K_est, distortion=lens_est),
+                         replace(rig.right, K=K_est, distortion=lens_est), rig.baseline_m)
+    except ValueError as e:  # e.g. an estimated lens that folds over inside the image: the draw cannot be measured
+        raise CalibrationError(f"draw {seed}: the estimated calibration is unusable: {str(e).splitlines()[0]}") from None
     if robot is None and not rz.on("hand_eye"):
         return Acquisition(told, rig, T_block_est, T_world_block, report)
     eye = EyeInHand(robot or _exact_robot(rz, cell), cell.mount, mount_est, rig.left)
