@@ -1,8 +1,14 @@
-"""Stereo rig in conventional (parallel) geometry, as in the paper (section III).
+"""Stereo rigs: the conventional (parallel) geometry the paper assumes, and a pair as really posed.
 
-Both cameras share R; the right camera's centre is the left one's moved by the
-baseline along the left camera's +x axis. Hence ``t_right = t_left - (B, 0, 0)``
-and the disparity of a world point is ``d = u_left - u_right = f B / Z``.
+``StereoRig`` (paper section III): both cameras share R; the right camera's centre is the left
+one's moved by the baseline along the left camera's +x axis. Hence ``t_right = t_left - (B, 0, 0)``
+and the disparity of a world point is ``d = u_left - u_right = f B / Z``. It is what a method is
+told (the commanded geometry) and what the ideal bench renders.
+
+``PosedPair``: two cameras at any poses, e.g. the one camera a robot moved to the left and right
+views with its errors (``scenes.robot``). The renderer and the ground-truth caster need only each
+camera's own K, R, t, so they render a posed pair exactly as it stands, while a method keeps the
+commanded ``StereoRig``.
 Units: metres; frames as in ``scenes.camera``.
 """
 from __future__ import annotations
@@ -19,8 +25,24 @@ from platebench.tolerances import tol
 DEFAULT_UP = (-1.0, 0.0, 0.0)
 
 
+class _CameraPair:
+    """What any pair of cameras offers: the two by name and the mid-point of their centres."""
+
+    left: Camera
+    right: Camera
+
+    @property
+    def center(self) -> np.ndarray:
+        """Mid-point of the two optical centres, the mid-baseline point (world, metres)."""
+        return 0.5 * (self.left.center + self.right.center)
+
+    @property
+    def cameras(self) -> dict[str, Camera]:
+        return {"left": self.left, "right": self.right}
+
+
 @dataclass(frozen=True)
-class StereoRig:
+class StereoRig(_CameraPair):
     """A conventional stereo pair: ``left``, ``right`` and the baseline in metres."""
 
     left: Camera
@@ -55,15 +77,28 @@ class StereoRig:
         right = Camera(K, R, left.t - np.array([baseline_m, 0.0, 0.0]), width, height, distortion)
         return cls(left, right, float(baseline_m))
 
-    @property
-    def center(self) -> np.ndarray:
-        """Mid-baseline point (world, metres)."""
-        return 0.5 * (self.left.center + self.right.center)
-
-    @property
-    def cameras(self) -> dict[str, Camera]:
-        return {"left": self.left, "right": self.right}
-
     def disparity(self, depth_m):
         """Disparity in pixels for a z-depth in metres: f B / Z."""
         return self.left.f_px * self.baseline_m / np.asarray(depth_m, float)
+
+
+@dataclass(frozen=True)
+class PosedPair(_CameraPair):
+    """Two cameras at arbitrary poses (no parallel constraint): what a robot really took.
+
+    Same read interface as ``StereoRig`` for what renders and ground truth need: ``left``,
+    ``right``, ``cameras``, ``center`` and ``baseline_m`` (the distance between the optical centres).
+    """
+
+    left: Camera
+    right: Camera
+
+    @property
+    def baseline_m(self) -> float:
+        """Distance between the two optical centres (metres)."""
+        return float(np.linalg.norm(self.right.center - self.left.center))
+
+    @classmethod
+    def of(cls, rig: "StereoRig | PosedPair") -> "PosedPair":
+        """The pair of any rig (a conventional rig as a posed pair)."""
+        return cls(rig.left, rig.right)

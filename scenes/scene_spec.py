@@ -12,7 +12,7 @@ import numpy as np
 from platebench.scenes.camera import intrinsics
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.projector import Projector
-from platebench.scenes.rig import StereoRig
+from platebench.scenes.rig import PosedPair, StereoRig
 from platebench.tolerances import tol
 
 MATERIAL_KINDS = ("diffuse", "roughconductor")
@@ -87,7 +87,7 @@ class Lighting:
 class SceneSpec:
     """Everything but the plate: stereo rig, projector, lighting, material, ground."""
 
-    rig: StereoRig
+    rig: StereoRig | PosedPair  # a conventional rig, or the pair a robot really took (rendered as it stands)
     projector: Projector
     material: Material = field(default_factory=Material)
     lighting: Lighting = field(default_factory=Lighting)
@@ -110,7 +110,7 @@ class SceneSpec:
             return self.focus_distance_m
         return float(max(self.rig.left.depth(np.zeros((1, 3)))[0], 0.01))
 
-    def with_rig(self, rig: StereoRig) -> "SceneSpec":
+    def with_rig(self, rig: StereoRig | PosedPair) -> "SceneSpec":
         return replace(self, rig=rig)
 
 

@@ -94,3 +94,17 @@ def test_missing_reconstruction_file_is_a_clear_error(reference, tmp_path, missi
     (bad / missing).unlink()
     p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
     assert p.returncode == 2 and f"{missing}: file is missing" in p.stderr
+
+
+def test_realism_ideal_renders_the_reference_experiment_byte_for_byte(reference, tmp_path):
+    """--realism ideal changes nothing: the same images, calibration and ground truth, hence the same figures
+    (the golden bands above)."""
+    sample, _ = reference
+    out = tmp_path / "ideal"
+    p = run_cli("render", "--realism", "ideal", "--out", out)
+    assert p.returncode == 0, p.stderr
+    a, b = (json.loads((d / "sample.json").read_text()) for d in (sample, out))
+    assert a["images"] == b["images"] and a["config"] == b["config"] and "realism" not in b["config"]
+    for f in ("calib.json", "gt/disp0GT.pfm", "gt/left_depth.exr"):
+        assert (sample / f).read_bytes() == (out / f).read_bytes(), f
+    assert not (out / "gt" / "cameras.json").exists()

@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from platebench.bench.cli.render import add_sample_flags, config_from_args
+from platebench.bench.cli.render import add_sample_flags, config_from_args, refuse_robot_errors
 from platebench.bench.io.atomic import write_json
 from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
@@ -42,6 +42,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     cfg = config_from_args(args)
+    refuse_robot_errors(cfg, "calibrate", allow_estimates=True)
     check_output(args.out, "calibration", overwrite=args.overwrite, inputs=[args.config])
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
     from platebench.bench.run.calibration import (  # noqa: PLC0415

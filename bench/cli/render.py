@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 from platebench.bench.config import load_config, with_camera_preset, with_overrides
+from platebench.bench.config.presets import with_realism
+from platebench.bench.config.realism import REALISM_PRESETS
 from platebench.bench.io.outputs import output_dir
+from platebench.errors import UserValueError
 
 HELP = "render one sample of a bent plate with exact ground truth"
 
@@ -33,12 +37,28 @@ def add_sample_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera", choices=("ideal", "1995", "modern"),
                    help="camera preset: resolution + sensor noise/bit depth (1995: 512x480 8-bit noisy CCD; "
                         "modern: 2048x1536 16-bit); default ideal (noise-free 8-bit)")
+    p.add_argument("--realism", choices=tuple(REALISM_PRESETS),
+                   help="error model of a real rig (README: what each source costs): its camera (as --camera), "
+                        "the robot that moves the camera between the views and the estimated hand/eye and "
+                        "intrinsics; images and ground truth come from the cameras really posed, calib.json is "
+                        "what the method is told. ideal (default): none. 1995: the paper's PULNiX camera moved "
+                        "by a PUMA 560. modern: a rigid two-camera head on a current arm")
+    p.add_argument("--realism-seed", type=int, help="the draw of the realism's error sources (default 0)")
 
 
 def config_from_args(args):
     cfg = load_config(args.config)
+    if getattr(args, "camera", None) and getattr(args, "realism", None):
+        raise UserValueError("--camera and --realism both choose the camera: give one (a realism preset names its "
+                             "camera)")
     if getattr(args, "camera", None):
         cfg = with_camera_preset(cfg, args.camera)
+    if getattr(args, "realism", None):
+        cfg = with_realism(cfg, args.realism)
+    if getattr(args, "realism_seed", None) is not None:
+        if not 0 <= args.realism_seed < 2 ** 31:
+            raise UserValueError(f"--realism-seed = {args.realism_seed} is out of range: allowed 0 to 2^31-1")
+        cfg = replace(cfg, realism=cfg.realism.with_seed(args.realism_seed))
     return with_overrides(cfg, bend_deg=args.bend_deg, width=args.width, height=args.height, spp=args.spp,
                           seed=args.seed, variant=args.variant, distance_m=args.distance_m,
                           bend_direction=args.bend_direction, bend_axis_deg=args.bend_axis_deg, grid=args.grid)
@@ -67,13 +87,16 @@ def run(args) -> int:
         from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
         from platebench.bench.run.render import render_sample  # noqa: PLC0415
 
-        with bar(7, "render") as pbar:
+        with bar(8 if sample_moves(cfg) else 7, "render") as pbar:
             sample, _ = render_sample(cfg, progress=step_callback(pbar))
             pbar.set_postfix_str("write")
             write_sample(stage, sample, into=True)
             pbar.update(pbar.total - pbar.n)
     t = sample.timings_s
     vis = sample.visibility
+    if sample.acquisition is not None:
+        for line in acquisition_lines(cfg, sample.acquisition):
+            print(line)
     print(f"sample      {args.out}")
     print(f"plate       {cfg.plate.deformation}  {cfg.plate.length_m * 1e3:.1f} x {cfg.plate.width_m * 1e3:.1f} mm, "
           f"mesh {len(sample.plate.mesh.vertices)} vertices")
@@ -86,3 +109,38 @@ def run(args) -> int:
     print(f"time        {t['total_s']:.1f} s (renders {sum(v for k, v in t.items() if k.startswith('render_')):.1f} s, "
           f"ground truth {t['ground_truth_s']:.1f} s)")
     return 0
+
+
+def refuse_robot_errors(cfg, command: str, allow_estimates: bool = False) -> None:
+    """One-line error when ``command`` would silently drop the realism's robot, hand/eye (or, unless
+    ``allow_estimates``, estimated-intrinsics) errors: it places its cameras itself."""
+    rz = cfg.realism
+    dropped = [s for s in ("robot_repeatability", "robot_accuracy", "hand_eye") + (() if allow_estimates else
+                                                                                   ("calibration",)) if rz.on(s)]
+    if dropped:
+        raise UserValueError(f"--realism {rz.name}: {command} does not model {', '.join(dropped)} (it places its "
+                             f"cameras itself); the preset's camera alone: --camera {rz.camera}")
+
+
+def sample_moves(cfg) -> bool:
+    """True when the sample's realism adds an acquisition step (a robot, or estimates)."""
+    return not cfg.realism.is_ideal
+
+
+def acquisition_lines(cfg, report: dict) -> list[str]:
+    """What the realism's draw did to the acquisition, in mm, mrad and px."""
+    rz = cfg.realism
+    out = [f"realism     {rz.name} (draw {rz.seed}): " + (", ".join(rz.sources) or "no source on")]
+    for cam, v in (report.get("views") or {}).items():
+        out.append(f"  {cam:5s} view  really posed {v['position_error_m'] * 1e3:.3f} mm, "
+                   f"{v['rotation_error_rad'] * 1e3:.3f} mrad from the commanded pose")
+    he = report.get("hand_eye")
+    if he:
+        out.append(f"  hand/eye    mount {he['mount_position_error_m'] * 1e3:.3f} mm, "
+                   f"{he['mount_rotation_error_rad'] * 1e3:.3f} mrad off; target {he['target_position_error_m'] * 1e3:.3f} "
+                   f"mm, {he['target_rotation_error_rad'] * 1e3:.3f} mrad off ({he['views']} views)")
+    cal = report.get("calibration")
+    if cal:
+        out.append(f"  intrinsics  fx {cal['fx_error_px']:+.3f} px, fy {cal['fy_error_px']:+.3f} px, principal point "
+                   f"{cal['cx_error_px']:+.3f}/{cal['cy_error_px']:+.3f} px off (reprojection {cal['reprojection_rms_px']:.3f} px)")
+    return out

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from platebench.bench.cli.render import add_sample_flags, config_from_args
+from platebench.bench.cli.render import add_sample_flags, config_from_args, refuse_robot_errors
 from platebench.bench.io.outputs import output_dir
 from platebench.errors import UserValueError
 
@@ -111,6 +111,7 @@ def run(args) -> int:
     from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
 
     cfg = config_from_args(args)
+    refuse_robot_errors(cfg, "the sensing loop")
     if not (10 <= args.workspace_mm <= 2000):
         raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
     if not (0 <= args.max_cures <= 20):

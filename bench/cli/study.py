@@ -12,7 +12,8 @@ from platebench.scenes.scene_spec import RenderSettings
 
 # bench.run.study (the sensing loop, the renderer) is imported where it is used: by add_parser (the
 # default bends) only when 'study' is the command (see main.build_parser)
-HELP = "studies; 'study false-boundary' runs the sensing loop on plates of every family"
+HELP = ("studies: 'study false-boundary' runs the sensing loop on plates of every family; 'study accuracy' the "
+        "paper's accuracy test under a real rig's errors, with an error budget")
 DEFAULT_GRID = "6x12@12"
 MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
 MAX_PERTURB_AXIS_DEG = 10.0  # --perturb: small shifts only (the study's plates, moved a little)
@@ -24,6 +25,8 @@ MAX_WORKERS = 64
 def add_parser(sub) -> None:
     from platebench.bench.run.study import DEFAULT_BENDS_DEG  # noqa: PLC0415
 
+    from platebench.bench.config.realism import REALISM_PRESETS, SOURCES  # noqa: PLC0415
+
     p = sub.add_parser("study", help=HELP,
                        description="false-boundary: the sensing loop (stages 1-3, verification views, cures) on "
                                    "cylinders convex and concave about axes 0/30/60/90 degrees at the --bend angles, "
@@ -31,12 +34,28 @@ def add_parser(sub) -> None:
                                    "distance (61 plates by default). Reports each plate's outcome class, each "
                                    "detector's precision and recall against ground truth (per bend and per family), "
                                    "the targets, the smallest hiding bend and the L formula. Writes study.json and "
-                                   "study.csv.")
-    p.add_argument("which", choices=["false-boundary"], help="the study to run")
+                                   "study.csv. "
+                                   "accuracy: the paper's accuracy test (V-D): passive stereo on the corners of a "
+                                   "square of the hand/eye target block 0.40 m away, errors in the block's frame "
+                                   "(paper: depth within 2 mm, x/y within 1 mm), as a Monte Carlo over --draws draws "
+                                   "of every error source of --realism (the camera's lens distortion, non-square "
+                                   "pixels, defocus, line jitter and noise; the robot's repeatability and accuracy; "
+                                   "the hand/eye and intrinsics estimates), and the same on the "
+                                   "reference plate's 16 square centres (world frame). Each trial's worst corner is "
+                                   "what the paper reports; the median over draws and its spread are compared with "
+                                   "it. The error budget runs no source, each source alone, all but one and all. "
+                                   "Writes accuracy.json (every trial and the statistics), accuracy.csv (one row "
+                                   "per trial: realism, draw seed, errors) and accuracy.png.",
+                       epilog="error sources: " + "; ".join(f"{k}: {v}" for k, v in SOURCES.items())
+                              + ". Sources and magnitudes, each with its citation: bench/config/hardware_camera.py, "
+                                "bench/config/hardware_robot.py. README: what each source costs in accuracy.")
+    p.add_argument("which", choices=["false-boundary", "accuracy"], help="the study to run")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
-                   help="output directory: study.json, study.csv and one folder per plate (created; must not exist "
-                        "unless --overwrite or --resume)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
+                   help="output directory (false-boundary: study.json, study.csv and one folder per plate; "
+                        "accuracy: accuracy.json, accuracy.csv, accuracy.png); created, must not exist unless "
+                        "--overwrite or --resume")
+    p.add_argument("--overwrite", action="store_true", help="replace a study 'platebench study' wrote (nothing else "
+                   "is replaced)")
     p.add_argument("--bend", default=",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG),
                    help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
                         + ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG) + "; allowed 0 to 350)")
@@ -47,8 +66,10 @@ def add_parser(sub) -> None:
                    help=f"projected square grid (default {DEFAULT_GRID}; the paper's is 4x4@40)")
     p.add_argument("--l-bends", default="", help="convex bends (deg) for the L-formula check (default none; "
                    "e.g. 120,150,165,172)")
-    p.add_argument("--width", type=int, default=640, help="image width in px (default 640; f scales with it)")
-    p.add_argument("--spp", type=int, default=2, help="samples per pixel (default 2)")
+    p.add_argument("--width", type=int, default=640, help="false-boundary: image width in px (default 640; f scales "
+                   "with it); accuracy: the realism's camera sets it")
+    p.add_argument("--spp", type=int, help="samples per pixel (default 2; accuracy 16: the corners are fitted to "
+                   "edges, and the renderer's Monte Carlo noise at the edge pixels would add to the camera's)")
     p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
     p.add_argument("--resume", action="store_true",
                    help="finish an interrupted study: the plates it finished (kept in OUT.journal.jsonl beside "
@@ -63,10 +84,30 @@ def add_parser(sub) -> None:
                         "whose axis would leave 0-180 degrees keeps it, as turning it would mirror the fold), working "
                         f"distances changed by DISTANCE_MM (allowed -{MAX_PERTURB_MM:g} to {MAX_PERTURB_MM:g}); "
                         "default 0,0 (e.g. --perturb 1,5; write --perturb=-1,-5 when the first is negative)")
+    a = p.add_argument_group("accuracy study")
+    a.add_argument("--realism", choices=tuple(REALISM_PRESETS), default=None,
+                   help="the error model (default 1995 for accuracy: the paper's PULNiX camera moved by a PUMA 560; "
+                        "modern: a rigid head on a current arm; ideal: none). false-boundary: only ideal so far")
+    a.add_argument("--draws", type=int, default=30,
+                   help="Monte Carlo draws per budget row (default 30; allowed 1 to 1000): each draws new robot "
+                        "errors, a new hand/eye and intrinsics estimate, new line jitter and sensor noise; draw k "
+                        "uses seed --seed + k in every row, so rows compare like with like")
+    a.add_argument("--targets", default="block",
+                   help="block (the target block's square, the paper's test; default), plate (the reference "
+                        "plate's 16 square centres, four renders a draw: about twice the time) or block,plate")
+    a.add_argument("--no-budget", action="store_true",
+                   help="run only every source on (the budget runs 2N+2 rows for N sources)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    if args.which == "accuracy":
+        return run_accuracy(args)
+    if args.realism not in (None, "ideal"):
+        raise UserValueError(f"--realism = {args.realism} for the false-boundary study: the sensing loop does not "
+                             "model robot, hand/eye or calibration errors yet; allowed: ideal")
+    if args.spp is None:
+        args.spp = 2
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.study import perturbed_cases, study_cases, write_study  # noqa: PLC0415
 
@@ -127,6 +168,116 @@ def run(args) -> int:
         print(line)
     print(f"written         {args.out / 'study.json'}, {args.out / 'study.csv'}")
     return 0
+
+
+MAX_DRAWS = 1000
+ACCURACY_SPP = 16  # the no-source floor of the block's corners: 0.74 mm at spp 4, 0.33 at 16, 0.22 at 64 (8 draws)
+
+
+def run_accuracy(args) -> int:
+    from platebench.bench.config.realism import realism_preset  # noqa: PLC0415
+    from platebench.bench.io.atomic import write_json, write_text  # noqa: PLC0415
+    from platebench.bench.io.outputs import output_dir  # noqa: PLC0415
+    from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.report.plots import plot_accuracy_study  # noqa: PLC0415
+    from platebench.bench.run.accuracy import TARGETS, AccuracySettings, budget_configs, run_accuracy_study  # noqa: PLC0415
+    from platebench.bench.run.accuracy import accuracy_csv  # noqa: PLC0415
+
+    realism = realism_preset(args.realism or "1995")
+    if not (1 <= args.draws <= MAX_DRAWS):
+        raise UserValueError(f"--draws = {args.draws} is out of range: allowed 1 to {MAX_DRAWS}")
+    targets = tuple(t.strip() for t in args.targets.split(",") if t.strip())
+    bad = [t for t in targets if t not in TARGETS]
+    if bad or not targets:
+        raise UserValueError(f"--targets value {(bad or [args.targets])[0]!r} is not allowed: allowed "
+                             + ", ".join(TARGETS) + " (comma-separated)")
+    spp = ACCURACY_SPP if args.spp is None else args.spp
+    if not (1 <= spp <= 1024):
+        raise UserValueError(f"--spp = {spp} is out of range: allowed 1 to 1024")
+    try:
+        RenderSettings(spp=spp, seed=args.seed)
+    except ValueError as e:
+        raise UserValueError(f"--{e}") from None
+    settings = AccuracySettings(realism, args.draws, targets, not args.no_budget, spp, args.seed)
+    confs = budget_configs(realism, settings.budget)
+    total = len(confs) * args.draws * len(targets)
+    with output_dir(args.out, "accuracy study", overwrite=args.overwrite) as stage:
+        done: dict = {}
+        with bar(total, f"study accuracy ({realism.name})", unit="trial") as pbar:
+            def progress(row):
+                pbar.update(1)
+                key = (row["target"], row["config"])
+                done.setdefault(key, []).append(row)
+                if len(done[key]) == args.draws:
+                    pbar.write(config_line(row["target"], row["config"], done[key]))
+                    sys.stdout.flush()
+            doc = run_accuracy_study(settings, progress)
+        write_json(stage / "accuracy.json", doc)
+        write_text(stage / "accuracy.csv", accuracy_csv(doc["rows"]))
+        plot_accuracy_study(doc, stage / "accuracy.png")
+    for line in accuracy_lines(doc):
+        print(line)
+    print(f"written         {args.out / 'accuracy.json'}, {args.out / 'accuracy.csv'}, {args.out / 'accuracy.png'}")
+    return 0
+
+
+def config_line(target: str, config: str, rows: list) -> str:
+    """One finished budget row: the median worst corner over its draws (mm)."""
+    import numpy as np  # noqa: PLC0415
+
+    ok = [r for r in rows if r["status"] == "ok"]
+    if not ok:
+        return f"{target:6s} {config:32s} every draw failed: {rows[0].get('error')}"
+    d = np.median([r["worst_depth_mm"] for r in ok])
+    xy = np.median([r["worst_xy_mm"] for r in ok])
+    return (f"{target:6s} {config:32s} worst corner, median of {len(ok)} draws: depth {d:.3f} mm, x/y {xy:.3f} mm"
+            + (f" ({len(rows) - len(ok)} failed)" if len(ok) < len(rows) else ""))
+
+
+def accuracy_lines(doc: dict) -> list[str]:
+    """The accuracy study's tables: per target, each budget row beside the paper's figures."""
+    from platebench.bench.run.accuracy import dominant_sources  # noqa: PLC0415
+
+    paper = doc["paper"]
+    st = doc["settings"]
+    cam = doc["camera"]
+    out = [f"realism {st['realism']['preset']}: camera {cam['name']} {cam['width_px']}x{cam['height_px']} px, "
+           f"fx/fy {cam['fx_px']:.1f}/{cam['fy_px']:.1f} px, baseline {cam['baseline_m'] * 1e3:.0f} mm, distance "
+           f"{cam['distance_m'] * 1e3:.0f} mm; {st['draws']} draws per row; paper (V-D): depth <= "
+           f"{paper['depth_mm']:g} mm, x/y <= {paper['xy_mm']:g} mm (one trial's worst corner)"]
+    if doc.get("robot"):
+        r = doc["robot"]
+        out.append(f"robot {r['name']}: {r['description']}")
+    if doc.get("corner_noise_px"):
+        vals = sorted(set(round(v, 4) for v in doc["corner_noise_px"].values()))
+        out.append(f"calibration views: corner noise measured on rendered target images, {vals[0]:.3f}-{vals[-1]:.3f} "
+                   "px per axis (by the camera defects on)")
+    head = (f"{'':34s} {'depth: worst corner (mm)':>32s}  {'all corners (mm)':>20s}   "
+            f"{'x/y: worst corner (mm)':>32s}  {'all corners (mm)':>20s}")
+    sub = (f"{'budget row':34s} {'median':>8s} {'q05-q95':>15s} {'<=2':>5s}   {'RMS':>6s} {'p95':>6s} {'max':>6s}   "
+           f"{'median':>8s} {'q05-q95':>15s} {'<=1':>5s}   {'RMS':>6s} {'p95':>6s} {'max':>6s}")
+    for target, rows in doc["summary"].items():
+        what = ("the target block's square, 4 corners, block frame" if target == "block"
+                else "the reference plate, 16 square centres, world frame")
+        out += ["", f"{target}: {what}", head, sub]
+        for label, s in rows.items():
+            if "depth" not in s:
+                out.append(f"{label:34s} every draw failed")
+                continue
+            cells = []
+            for m in ("depth", "xy"):
+                v = s[m]
+                q = v["worst_quantiles_mm"]
+                cells.append(f"{v['worst_median_mm']:8.3f} {q['q05']:6.3f}-{q['q95']:<8.3f} {v['within_paper_frac'] * 100:4.0f}%"
+                             f"   {v['rms_mm']:6.3f} {v['p95_mm']:6.3f} {v['max_mm']:6.3f}")
+            out.append(f"{label:34s} " + "   ".join(cells) + (f"  ({s['failed']} failed)" if s["failed"] else ""))
+        for m, name in (("depth", "depth"), ("xy", "x/y")):
+            ranked = dominant_sources(rows, m)
+            if ranked:
+                out.append(f"  added to the no-source floor alone ({name}, median worst): "
+                           + ", ".join(f"{k} {v:+.3f} mm" for k, v in ranked))
+    out.append(f"time: {doc['time_s']:.0f} s")
+    return out
 
 
 def parse_perturb(text: str) -> tuple[float, float]:

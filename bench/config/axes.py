@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from platebench.bench.config.presets import noise_preset_of
+from platebench.bench.config.realism import SOURCES
 from platebench.bench.config.sample_config import ConfigError, SampleConfig
 
 __all__ = ["ParameterColumn", "PARAMETERS", "PARAMETER_NAMES", "AxisInfo", "AXES", "axis_column",
@@ -105,6 +106,24 @@ PARAMETERS: tuple[ParameterColumn, ...] = (
     ParameterColumn("read_noise_dn", "float", "DN", "read noise", _at("sensor", "read_noise_dn")),
     ParameterColumn("bit_depth", "int", "bit", "bit depth", _at("sensor", "bit_depth")),
 )
+def _realism(key: str, default):
+    def read(cfg: dict, pose: dict):
+        return (cfg.get("realism") or {}).get(key, default)
+    return read
+
+
+def _source_scale(source: str):
+    def read(cfg: dict, pose: dict):
+        r = cfg.get("realism") or {}
+        return float((r.get("scales") or {}).get(source, 1.0)) if source in (r.get("sources") or ()) else 0.0
+    return read
+
+
+PARAMETERS += (
+    ParameterColumn("realism", "str", "", "realism preset", _realism("preset", "ideal")),
+    ParameterColumn("realism_seed", "int", "", "realism draw", _realism("seed", 0)),
+    *(ParameterColumn(f"realism_{s}", "float", "", f"{s} (x sourced, 0 off)", _source_scale(s)) for s in SOURCES),
+)
 PARAMETER_NAMES = tuple(p.name for p in PARAMETERS)
 _BY_NAME = {p.name: p for p in PARAMETERS}
 
@@ -139,6 +158,10 @@ def _axis(name, path, columns, help_):
 
 
 AXES: dict[str, AxisInfo] = {a.name: a for a in (
+    # the realism first: an axis of resolution or noise then changes what the preset's camera set
+    _axis("realism", (), ("realism",), "realism preset: ideal, 1995, modern (camera, robot, estimates)"),
+    _axis("realism_seed", ("realism", "seed"), ("realism_seed",), "the draw of the realism's error sources"),
+    *(_axis(f"realism_{s}", (), (f"realism_{s}",), f"{SOURCES[s]}: magnitude x sourced (0 off)") for s in SOURCES),
     _axis("length_m", ("plate", "length_m"), ("length_m",), "plate length, m"),
     _axis("width_m", ("plate", "width_m"), ("width_m",), "plate width, m"),
     _axis("thickness_m", ("plate", "thickness_m"), ("thickness_m",), "plate thickness, m"),

@@ -29,7 +29,15 @@ reference experiment)::
     spp = 16
     seed = 0
 
-Unknown keys are refused with the key named.
+    [realism]                    # optional; see bench/config/realism.py
+    preset = "1995"              # ideal (default), 1995, modern: robot, hand/eye, calibration errors
+    seed = 3                     # the draw of the error sources
+    sources = ["robot_repeatability", "hand_eye"]   # optional: only these on
+    scales = { robot_accuracy = 2.0 }               # optional: a source's magnitude (1 = as sourced)
+
+Unknown keys are refused with the key named. The realism table records the error model a sample was
+rendered with; the camera part of a preset (resolution, sensor) is applied to [scene] and [sensor] by
+``bench.config.presets.with_realism`` (``--realism``), so those tables say what was rendered.
 """
 from __future__ import annotations
 
@@ -40,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.config.realism import Realism, RealismError
 from platebench.bench.files import CONFIG_MAX_BYTES, read_capped
 from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
@@ -71,7 +80,7 @@ _PATTERN_KEYS = {"rows", "cols", "square_px", "gap_x_px", "gap_y_px"}
 _MATERIAL_KEYS = {"kind", "albedo", "metal", "alpha"}
 _RENDER_KEYS = {"spp", "seed", "variant"}
 _SENSOR_KEYS = {"bit_depth", "radiance_full_scale", "gamma", "full_well_e", "read_noise_dn", "line_jitter_px"}
-_TOP_KEYS = {"plate", "scene", "render", "sensor"}
+_TOP_KEYS = {"plate", "scene", "render", "sensor", "realism"}
 
 
 # Types of every scalar key (what TOML gives): "int" (an integer, not 160.5, not "160", not a bool),
@@ -236,11 +245,15 @@ class SampleConfig:
     render: RenderSettings = field(default_factory=RenderSettings)
     sensor: SensorModel = field(default_factory=SensorModel)
     variant: str | None = None
+    realism: Realism = field(default_factory=Realism)  # error sources of a real rig; ideal: none
 
     def to_dict(self) -> dict:
-        return {"plate": self.plate.to_dict(), "scene": self.scene.to_dict(),
-                "render": {"spp": self.render.spp, "seed": self.render.seed, "variant": self.variant},
-                "sensor": self.sensor.to_dict()}
+        d = {"plate": self.plate.to_dict(), "scene": self.scene.to_dict(),
+             "render": {"spp": self.render.spp, "seed": self.render.seed, "variant": self.variant},
+             "sensor": self.sensor.to_dict()}
+        if self.realism.to_dict() != Realism().to_dict():  # the ideal bench's records stay as they were
+            d["realism"] = self.realism.to_dict()
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "SampleConfig":
@@ -260,11 +273,14 @@ class SampleConfig:
             sensor_d = dict(d.get("sensor", {}))
             _check_keys("sensor", sensor_d, _SENSOR_KEYS)
             sensor = SensorModel(**sensor_d)
+            realism = Realism.from_dict(d["realism"]) if "realism" in d else Realism()
+        except RealismError as e:
+            raise ConfigError(str(e)) from None
         except ConfigError:
             raise
         except (ValueError, TypeError) as e:
             raise ConfigError(str(e).splitlines()[0]) from None
-        return cls(plate, scene, render, sensor, variant)
+        return cls(plate, scene, render, sensor, variant, realism)
 
 
 # Camera presets: resolution and what the sensor gives. "1995" is a PULNiX TM-540-like CCD
@@ -358,4 +374,4 @@ def with_overrides(cfg: SampleConfig, bend_deg=None, width=None, height=None, sp
                                 seed=seed if seed is not None else cfg.render.seed)
     except ValueError as e:
         raise ConfigError(str(e)) from None
-    return SampleConfig(plate, scene, render, cfg.sensor, variant or cfg.variant)
+    return SampleConfig(plate, scene, render, cfg.sensor, variant or cfg.variant, cfg.realism)

@@ -133,6 +133,8 @@ KINDS: dict[str, OutputKind] = {k.label: k for k in (
     OutputKind("calibration", "calibrate", "calibration.json", lambda p: _dict_with(p, "cameras", "stereo")),
     OutputKind("sensing run", "sense", "sensing.json", lambda p: _dict_with(p, "steps", "final")),
     OutputKind("study", "study", "study.json", lambda p: _dict_with(p, "rows")),
+    OutputKind("accuracy study", "study accuracy", "accuracy.json",
+               lambda p: _dict_with(p, "rows", "summary", study="accuracy")),
     OutputKind("report", "report", "index.html", _report_index),
     OutputKind("demo output", "demo", "demo.json", lambda p: _dict_with(p, generator="platebench demo")),
     OutputKind("dataset", "sweep", MANIFEST, lambda p: _dict_with(p, format=FORMAT)),

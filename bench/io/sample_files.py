@@ -53,7 +53,7 @@ from platebench.scenes.camera import Camera
 from platebench.scenes.naming import CAMERAS, IMAGE_NAMES
 from platebench.scenes.pattern import Feature, Pattern
 from platebench.scenes.projector import Projector
-from platebench.scenes.rig import StereoRig
+from platebench.scenes.rig import PosedPair, StereoRig
 
 if TYPE_CHECKING:
     import trimesh  # imported by read_mesh: a sample's images, calibration and pattern need none
@@ -71,14 +71,28 @@ def _mesh_ply_bytes(mesh: trimesh.Trimesh) -> bytes:
     return mesh.export(file_type="ply", encoding="binary")
 
 
+def pair_disparity(gt_left, pair) -> np.ndarray:
+    """Left disparity ``u_left - u_right`` (px, float32, inf off the plate) of a pair as really posed: each
+    left pixel's true surface point projected into the true right camera (for a conventional rig this
+    is ``f B / Z``; for a pair a robot took, the disparity its images really have)."""
+    disp = np.full(gt_left.mask.shape, np.inf, np.float32)
+    vv, uu = np.nonzero(gt_left.mask)
+    uv_r = pair.right.project(gt_left.points[vv, uu].astype(np.float64))
+    disp[vv, uu] = uu - uv_r[:, 0]
+    disp[~np.isfinite(disp)] = np.inf
+    return disp
+
+
 def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> Path:
     """Write a rendered sample (``bench.run.render.RenderedSample``) atomically; returns the sample
     directory. ``into``: ``out`` is an empty directory of an output that is already staged (a command
     stages its whole output first with ``staged_output``, so that a bad ``--out`` fails before the
     render): the files are written straight into it. Otherwise the sample gets its stamp
-    (``bench.io.outputs.write_stamp``: the sha256 of its files, which readers check)."""
+    (``bench.io.outputs.write_stamp``: the sha256 of its files, which readers check). Under realism
+    (``s.told``), calib.json holds the rig the method is told and gt/cameras.json the cameras really posed."""
     out = Path(out)
-    rig = s.scene.rig
+    told = getattr(s, "told", None)
+    rig = told if told is not None else s.scene.rig
     with (contextlib.nullcontext(out) if into else staged_directory(out, overwrite=overwrite)) as d:
         (d / "images").mkdir()
         (d / "gt").mkdir()
@@ -99,7 +113,14 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
             write_exr(d / "gt" / f"{cam}_normal.exr", g.normals)
             write_exr(d / "gt" / f"{cam}_proj.exr", g.proj_uv)
             write_png(d / "gt" / f"{cam}_feature.png", (g.feature + 1).astype(np.uint16))
-        disp = np.where(s.gt["left"].mask, rig.disparity(s.gt["left"].depth64), np.inf).astype(np.float32)
+        if told is None:
+            disp = np.where(s.gt["left"].mask, rig.disparity(s.gt["left"].depth64), np.inf).astype(np.float32)
+        else:
+            disp = pair_disparity(s.gt["left"], s.scene.rig)
+            write_json(d / "gt" / "cameras.json", {"left": s.scene.rig.left.to_dict(),
+                                                   "right": s.scene.rig.right.to_dict(),
+                                                   "what": "the cameras really posed (realism); calib.json holds "
+                                                           "the rig the method is told"})
         write_pfm(d / "gt" / "disp0GT.pfm", disp)
         write_text(d / "calib.txt", calib_txt(rig, disp))
         write_json(d / "gt" / "visibility.json", {c: v.to_dict() for c, v in s.visibility.items()})
@@ -107,6 +128,8 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
                 "packages": package_versions(), "timings_s": s.timings_s,
                 "false_boundary_gt": any(v.false_boundary for v in s.visibility.values()),
                 "images": {n: hashlib.sha256(s.digital[n].tobytes()).hexdigest() for n in IMAGE_NAMES}}
+        if getattr(s, "acquisition", None) is not None:
+            meta["acquisition"] = s.acquisition
         write_json(d / "sample.json", meta)
         if not into:  # a command's staged output gets its stamp when the whole output is complete
             write_stamp(d, "sample")
@@ -217,6 +240,18 @@ class GroundTruthFiles:
     disparity: np.ndarray
     visibility: dict
     meta: dict
+
+
+def load_true_cameras(sample_dir: Path):
+    """The cameras really posed (a ``PosedPair``) when they differ from calib.json's (realism), else None."""
+    path = Path(sample_dir) / "gt" / "cameras.json"
+    if not path.is_file():
+        return None
+    d = read_json(path)
+    try:
+        return PosedPair(Camera.from_dict(d["left"]), Camera.from_dict(d["right"]))
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError) as e:
+        raise _bad(path, e, "bad camera poses") from None
 
 
 def load_ground_truth(sample_dir: Path) -> GroundTruthFiles:

@@ -28,7 +28,7 @@ from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
            "plot_metric_vs_axis", "error_map_data", "bend_bins", "compare_error_figure", "plot_output_error_map",
-           "output_file"]
+           "output_file", "plot_accuracy_study"]
 
 DPI = 100
 _DIRECTION_STYLE = {"up": "-", "down": "--"}
@@ -968,3 +968,61 @@ def compare_error_figure(cmp) -> bytes:
     fig.savefig(buf, format="png", dpi=110)
     return buf.getvalue()
 
+
+
+# ----------------------------------------------------------------------------- accuracy study
+def plot_accuracy_study(doc: dict, path) -> Path:
+    """The accuracy study (``bench.run.accuracy``): per target, each draw's worst corner with every source
+    on beside the paper's bound (top), and the error budget: the median worst corner of each budget row
+    with its 5-95 % spread over the draws (bottom). Millimetres."""
+    targets = list(doc.get("summary", {}))
+    paper = doc.get("paper", {})
+    fig = _figure(6.5 * max(len(targets), 1), 9.0)
+    if not targets:
+        ax = fig.add_subplot(1, 1, 1)
+        ax.text(0.5, 0.5, "no trials", ha="center", va="center")
+        ax.set_axis_off()
+        return _save(fig, path)
+    rows = doc.get("rows", [])
+    grid = fig.add_gridspec(2, len(targets), height_ratios=[1.0, 1.6])
+    for j, target in enumerate(targets):
+        summary = doc["summary"][target]
+        top = fig.add_subplot(grid[0, j])
+        allc = [c for c, v in summary.items() if v.get("kind") == "all"]
+        trials = [r for r in rows if r["target"] == target and allc and r["config"] == allc[0] and r["status"] == "ok"]
+        for k, (key, label, color, bound) in enumerate((("worst_depth_mm", "depth", "C0", paper.get("depth_mm")),
+                                                         ("worst_xy_mm", "x/y", "C1", paper.get("xy_mm")))):
+            v = np.array([r[key] for r in trials], float)
+            x = np.full(v.size, float(k)) + np.linspace(-0.25, 0.25, max(v.size, 1))[:v.size]
+            top.plot(x, v, "o", color=color, ms=4, alpha=0.7)
+            if v.size:
+                top.hlines(np.median(v), k - 0.35, k + 0.35, color=color, lw=2)
+            if bound:
+                top.hlines(bound, k - 0.45, k + 0.45, color="k", ls="--", lw=1)
+                top.text(k + 0.46, bound, f"paper {bound:g}", va="center", fontsize=8)
+        top.set_xticks([0, 1], ["depth", "x/y"])
+        top.set_xlim(-0.6, 1.9)
+        top.set_ylabel("worst corner of a trial (mm)")
+        top.set_title(f"{target}: every source on, {len(trials)} draws (bar: median)", fontsize=10)
+        ax = fig.add_subplot(grid[1, j])
+        labels = list(summary)
+        y = np.arange(len(labels))
+        for k, (m, color, dy) in enumerate((("depth", "C0", -0.18), ("xy", "C1", 0.18))):
+            med = np.array([summary[c].get(m, {}).get("worst_median_mm", np.nan) for c in labels], float)
+            lo = np.array([summary[c].get(m, {}).get("worst_quantiles_mm", {}).get("q05", np.nan) for c in labels])
+            hi = np.array([summary[c].get(m, {}).get("worst_quantiles_mm", {}).get("q95", np.nan) for c in labels])
+            ax.barh(y + dy, med, height=0.34, color=color, label="depth" if m == "depth" else "x/y")
+            ax.errorbar(med, y + dy, xerr=[np.nan_to_num(med - lo), np.nan_to_num(hi - med)], fmt="none",
+                        ecolor="k", lw=0.8, capsize=2)
+        for bound, style in ((paper.get("depth_mm"), "--"), (paper.get("xy_mm"), ":")):
+            if bound:
+                ax.axvline(bound, color="k", ls=style, lw=1)
+        ax.set_yticks(y, labels, fontsize=8)
+        ax.invert_yaxis()
+        ax.set_xlabel("worst corner, median over draws (mm); whiskers 5-95 %\npaper: -- depth, : x/y")
+        ax.set_title(f"{target}: error budget", fontsize=10)
+        ax.legend(fontsize=8, loc="lower right")
+    rz = doc.get("settings", {}).get("realism", {}).get("preset", "")
+    fig.suptitle(f"Accuracy test (paper V-D) under realism {rz}", fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)

@@ -21,12 +21,14 @@ __all__ = ["reconstruct_sample", "reconstruct_dir", "name_the_file"]
 
 
 def reconstruct_sample(sample, options: PipelineOptions | None = None) -> Reconstruction:
-    """The pipeline on a ``RenderedSample`` (true calibration) or a sample directory."""
+    """The pipeline on a ``RenderedSample`` (the calibration it was written with: the true rig, or under
+    realism the rig the method is told) or a sample directory."""
     if isinstance(sample, (str, Path)):
         return reconstruct_dir(Path(sample), options)[0]
     scene = sample.scene
     rays = projector_feature_rays(scene.projector.camera, scene.projector.pattern)
-    return reconstruct(sample.digital, scene.rig, rays, scene.projector.pattern, options or PipelineOptions())
+    return reconstruct(sample.digital, sample.calibration_rig, rays, scene.projector.pattern,
+                       options or PipelineOptions())
 
 
 def reconstruct_dir(sample_dir: Path, options: PipelineOptions | None = None, calibration=None):

@@ -4,6 +4,11 @@
 ``PlateRenderer`` (pass it back for the next sample: kernels are reused, the plate and the
 scene are swapped by parameter update) and casts the ground truth. ``posed_scene`` re-places
 the rig for a sweep's pose axes. Writing the sample is ``bench.io.sample_files.write_sample``.
+
+Under a realism preset with a robot or estimates (``cfg.realism``, ``bench.config.realism``), the
+commanded rig is acquired as a real rig would acquire it (``bench.run.realism.realise``, draw
+``cfg.realism.seed``): the images and the ground truth come from the cameras really placed, and the
+sample's calibration is what the method is told (the commanded poses, the estimated intrinsics).
 """
 from __future__ import annotations
 
@@ -14,10 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.run.realism import realise_sample
 from platebench.plates import Plate, build_plate
 from platebench.scenes.naming import IMAGE_NAMES, image_seed
 from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.rig import StereoRig
 from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
 
 __all__ = ["RenderedSample", "render_sample", "render_images", "ground_truth_at", "posed_scene"]
@@ -41,6 +48,13 @@ class RenderedSample:
     visibility: dict  # camera -> BoundaryVisibility
     timings_s: dict
     variant: str
+    told: StereoRig | None = None  # the rig the method is told, when it is not the one rendered (realism)
+    acquisition: dict | None = None  # what the realism's draw missed by (``bench.run.realism.Acquisition.report``)
+
+    @property
+    def calibration_rig(self) -> StereoRig:
+        """The conventional rig a method is given: the told rig, or the rendered one."""
+        return self.told if self.told is not None else self.scene.rig
 
 
 def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, progress=None,
@@ -50,13 +64,21 @@ def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, prog
     Pass the ``renderer`` of a previous sample to reuse its compiled kernels (plate and
     scene are swapped by parameter update). ``progress(step_name)`` is called per step.
     ``scene`` (a SceneSpec) replaces ``cfg.scene.build()``: a rig placed by the sensing loop.
+    Without ``scene``, a realism preset that moves the camera or estimates the calibration acquires
+    the commanded rig with its errors (see the module doc).
     """
     step = progress or (lambda name: None)
     t0 = time.perf_counter()
     timings = {}
     step("plate")
     plate = build_plate(cfg.plate)
-    scene = scene if scene is not None else cfg.scene.build()
+    told = report = None
+    if scene is None:
+        scene = cfg.scene.build()
+        if not cfg.realism.is_ideal:
+            step("realism")
+            acq = realise_sample(cfg, scene.rig)
+            scene, told, report = scene.with_rig(acq.taken), acq.told, acq.report
     timings["plate_s"] = time.perf_counter() - t0
     t = time.perf_counter()
     if renderer is None:
@@ -79,7 +101,8 @@ def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, prog
     gt, vis = caster.all()
     timings["ground_truth_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t0
-    return RenderedSample(cfg, plate, scene, radiance, digital, gt, vis, timings, renderer.variant), renderer
+    return RenderedSample(cfg, plate, scene, radiance, digital, gt, vis, timings, renderer.variant, told,
+                          report), renderer
 
 
 

@@ -17,6 +17,7 @@ from platebench.bench.io.sample_files import (
     load_calibration,
     load_ground_truth,
     load_pattern,
+    load_true_cameras,
 )
 from platebench.evaluation.score import (
     ReconstructionData,
@@ -49,7 +50,8 @@ def truth_from_files(sample_dir: Path) -> tuple[SampleTruth, dict]:
     gt = load_ground_truth(sample_dir)
     calib = load_calibration(sample_dir)
     ids, centres = _feature_table(load_pattern(sample_dir))
-    truth = SampleTruth(gt.mesh, gt.boundary, gt.mask, gt.feature, calib.rig, calib.projector_camera, ids, centres,
+    rig = load_true_cameras(sample_dir) or calib.rig  # the cameras really posed (realism), else calib.json's
+    truth = SampleTruth(gt.mesh, gt.boundary, gt.mask, gt.feature, rig, calib.projector_camera, ids, centres,
                         gt.visibility)
     return truth, gt.meta
 

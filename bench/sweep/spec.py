@@ -99,7 +99,19 @@ full_well_e        shot noise: electrons at full scale (0 = none)
 read_noise_dn      Gaussian read noise, DN
 bit_depth          8 or 16
 gamma              response curve exponent
+realism            "ideal", "1995", "modern" (``bench.config.realism``): the camera
+                   preset (resolution, sensor) and the error sources of a real rig;
+                   applied first, so resolution/noise axes change its camera
+realism_seed       the draw of the realism's error sources (robot errors, estimates)
+realism_SOURCE     one error source's magnitude, x its sourced value (0 turns it
+                   off): realism_distortion, realism_pixel_aspect,
+                   realism_defocus, realism_line_jitter, realism_noise,
+                   realism_robot_repeatability, realism_robot_accuracy,
+                   realism_hand_eye, realism_calibration
 =================  ==========================================================
+
+Every results row records the realism preset, its draw and each source's magnitude (columns
+``realism``, ``realism_seed``, ``realism_SOURCE``; ideal rows: "ideal", 0 and 0).
 
 Any dotted path into the sample configuration is an axis too, quoted in TOML:
 ``"plate.deformation.sag_m" = [0.001, 0.002]``, ``"scene.material.alpha" = [0.1, 0.3]``
@@ -138,6 +150,9 @@ import numpy as np
 
 from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml_text
 from platebench.bench.config.axes import AXES as AXIS_INFO
+from platebench.bench.config.presets import with_realism
+from platebench.bench.config.realism import CAMERA_SOURCES, MAX_SCALE, REALISM_PRESETS, Realism, RealismError, realism_preset
+from platebench.bench.config.realism import SOURCES as _SOURCES
 from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
 from platebench.bench.run.plugins import check_time_limit
@@ -210,6 +225,17 @@ def _table(key: str, v) -> dict:
     return dict(v)
 
 
+def _realism_names() -> tuple:
+    return tuple(REALISM_PRESETS)
+
+
+def _scale(key: str, v) -> float:
+    x = _num(key, v)
+    if not 0 <= x <= MAX_SCALE:
+        raise SpecError(f"{key} = {v!r} is out of range: allowed 0 (off) to {MAX_SCALE:g} (x the sourced magnitude)")
+    return x
+
+
 def _deformation(d: dict) -> dict:
     return d["plate"]["deformation"]
 
@@ -263,6 +289,37 @@ def _apply_pose(name: str):
     return apply
 
 
+def _apply_realism(d: dict, v, state: dict) -> None:
+    """A realism preset: its camera (resolution, sensor) and its table; the draw (seed) is kept."""
+    cfg = SampleConfig.from_dict(copy.deepcopy(d))
+    new = with_realism(cfg, realism_preset(v).with_seed(cfg.realism.seed)).to_dict()
+    d.clear()
+    d.update(new)
+
+
+def _apply_source(source: str):
+    """A realism source's magnitude (x its sourced value; 0 turns it off). Robot and hand/eye sources do not
+    apply to a preset without a robot, camera sources not to one without camera hardware (the axis is
+    ignored for that sample)."""
+    def apply(d: dict, v, state: dict) -> None:
+        try:
+            r = Realism.from_dict(copy.deepcopy(d.get("realism") or {}))
+            if (r.robot is None and source in ("robot_repeatability", "robot_accuracy", "hand_eye")) or \
+                    (r.camera == "ideal" and source in CAMERA_SOURCES):
+                raise _NotApplicable  # the ideal preset has no robot and no camera hardware
+            scales = {k: x for k, x in r.scales.items() if k != source}
+            if v > 0:
+                scales[source] = float(v)
+            r = dataclasses.replace(r, sources=tuple(s for s in r.sources if s != source) + ((source,) if v > 0 else ()),
+                        scales=scales)
+        except RealismError as e:
+            raise ConfigError(str(e)) from None
+        new = with_realism(SampleConfig.from_dict(copy.deepcopy(d)), r).to_dict()  # the camera follows its sources
+        d.clear()
+        d.update(new)
+    return apply
+
+
 def _parse_resolution(key: str, v):
     if isinstance(v, str):
         parts = v.lower().split("x")
@@ -307,7 +364,7 @@ class Axis:
 
 _CHOICES = {"family": tuple(_DEFORMATION_FIELDS), "direction": ("up", "down"), "metal": ("Al", "Fe"),
             "projector_kind": ("pinhole", "spot")}
-_INTEGER_AXES = {"width_px", "height_px", "spp", "seed", "bit_depth"}
+_INTEGER_AXES = {"width_px", "height_px", "spp", "seed", "bit_depth", "realism_seed"}
 _DEGREE_AXES = {"bend_deg", "axis_deg"}  # spec values in degrees, the configuration in radians
 _SPECIAL_AXES = {  # axes whose value is a table or sets several keys
     "family": Axis("family", lambda k, v: _str(k, v, _CHOICES["family"]), _apply_family),
@@ -315,6 +372,8 @@ _SPECIAL_AXES = {  # axes whose value is a table or sets several keys
     "pattern": Axis("pattern", _table, _set_path("scene", "pattern"), table_valued=True),
     "resolution": Axis("resolution", _parse_resolution, _apply_resolution, table_valued=True),
     "noise": Axis("noise", _parse_noise, _apply_noise, table_valued=True),
+    "realism": Axis("realism", lambda k, v: _str(k, v, _realism_names()), _apply_realism),
+    **{f"realism_{s}": Axis(f"realism_{s}", lambda k, v: _scale(k, v), _apply_source(s)) for s in _SOURCES},
 }
 
 
@@ -339,7 +398,7 @@ def _registry_axis(name: str) -> Axis:
 _AXIS_LIST = tuple(_registry_axis(name) for name in AXIS_INFO)
 AXES: dict[str, Axis] = {a.name: a for a in _AXIS_LIST}
 _AXIS_ORDER = {a.name: i for i, a in enumerate(_AXIS_LIST)}
-_DOTTED_ROOTS = ("plate", "scene", "render", "sensor")
+_DOTTED_ROOTS = ("plate", "scene", "render", "sensor", "realism")
 POSE_LIMITS = {"tilt_deg": (0.0, 75.0), "azimuth_deg": (-360.0, 360.0)}
 
 

@@ -1,0 +1,333 @@
+"""The paper's accuracy test (section V-D) as a Monte Carlo study, with an error budget.
+
+The paper measured, with passive stereo, the corners of a square on the hand/eye target block at about
+40 cm and reported the error in the block's frame: depth (z) within 2 mm, x and y within 1 mm. One
+trial here does the same under a realism preset (``bench.config.realism``):
+
+* ``block``: the target block's central square (``hardware_robot.TARGET``), white on a dark ground,
+  at the world origin turned by the cell's yaw, seen by the commanded rig 0.40 m above it. One draw
+  (``bench.run.realism.realise``) places the camera where the robot really puts it for each view,
+  with the estimates of the mount, the block's pose and the intrinsics; the passive pair is rendered
+  from the poses really taken and digitised by the camera's sensor. The paper's pipeline pieces find
+  the square (``reconstruction.paper.squares.extract_squares``: Tsai's moment-preserving threshold,
+  contour following, corners by ``approxPolyDP`` refined by ``cornerSubPix``); its corners are
+  triangulated in the commanded conventional geometry (``triangulate_rectified``: Z = f B / d) into
+  the world, and taken into the block's frame through the block pose the calibration estimated.
+  Error = measured minus true corner in the block frame: depth = z, and x, y.
+* ``plate``: the reference experiment's plate and its 16 projected squares under the same draws; the
+  paper's pipeline up to the square centres (``pipeline.passive_stereo`` for the plate regions,
+  ``pipeline.square_stereo``: squares, arrays, matching, triangulation; the surface is not needed) on
+  the four images, every square centre compared with the true one (its projector ray's hit on the
+  plate), in the world frame (the plate's).
+
+A draw whose estimates cannot be used (a calibration that fits a lens folding over inside the image,
+views that do not determine the mount) is recorded as failed with the reason, in every target.
+
+Statistics. Per trial: the worst corner (or centre) in depth and in x/y (the larger of |x| and |y|),
+because the paper's "within" is one trial's worst. Over the draws: the median of those worst values
+and its quantiles, and over all corners of all draws the RMS, the 95th percentile and the maximum.
+
+Error budget (``budget_configs``): no source, each source alone, every source, and every source but
+one, all on the same draws (each source draws the same numbers whichever others are on).
+
+Cost: the calibration views are simulated (their corners projected, with the corner noise measured
+once on rendered target images: ``RealismSetup.prepare``), so a draw costs one IK per robot move and
+two (block) or four (plate) renders. The renders' Monte Carlo noise sits at the edges the block's
+corners are fitted to (pixel coverage sampled ``spp`` times): it is part of the "no source" row, the
+floor every other row stands on, and shrinks with ``spp`` (module ``bench.cli.study``: the measured
+floor at spp 4, 16, 64). Units: metres in code and JSON keys ending _m; millimetres only in
+keys ending _mm.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+import trimesh
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET
+from platebench.bench.config.presets import with_realism
+from platebench.bench.config.realism import SOURCES, Realism
+from platebench.bench.run.realism import RealismSetup, realise
+from platebench.bench.run.render import render_images
+from platebench.evaluation.truth import true_feature_points
+from platebench.plates import build_plate
+from platebench.reconstruction.paper.pipeline import passive_stereo, square_stereo
+from platebench.reconstruction.calibration.hand_eye import HandEyeError
+from platebench.reconstruction.calibration.stereo import CalibrationError
+from platebench.reconstruction.calibration.undistort import undistort_views
+from platebench.reconstruction.paper.passive_boundary import outline_edges
+from platebench.reconstruction.paper.plate_region import ReconstructionError, extract_plate_region, order_corners
+from platebench.scenes.camera import triangulate_rectified
+from platebench.scenes.naming import IMAGE_NAMES
+from platebench.scenes.render.renderer import PlateRenderer
+from platebench.scenes.robot import invert_pose
+from platebench.scenes.scene_spec import RenderSettings
+
+__all__ = ["PAPER_DEPTH_MM", "PAPER_XY_MM", "TARGETS", "AccuracySettings", "BudgetConfig", "budget_configs",
+           "run_accuracy_study", "SquareTarget", "summarise", "dominant_sources", "accuracy_csv"]
+
+PAPER_DEPTH_MM = 2.0  # paper V-D: "the error in depth ... is within 2 mm"
+PAPER_XY_MM = 1.0  # paper V-D: "the error in the x and y coordinates is within 1 mm"
+TARGETS = ("block", "plate")
+QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
+MATCH_M = 5e-3  # a measured plate centre is compared with the nearest true one, if within 5 mm (centres lie 16 mm+ apart)
+
+
+@dataclass(frozen=True)
+class AccuracySettings:
+    """What the study runs: the realism preset, the number of draws (seeds ``seed0 .. seed0 + draws -
+    1``), the targets, whether to run the error budget (else only every source on), samples per pixel,
+    the Mitsuba variant."""
+
+    realism: Realism
+    draws: int = 30
+    targets: tuple = ("block",)
+    budget: bool = True
+    spp: int = 16
+    seed0: int = 0
+    variant: str | None = None
+
+    def to_dict(self) -> dict:
+        return {"realism": self.realism.to_dict(), "draws": self.draws, "targets": list(self.targets),
+                "budget": self.budget, "spp": self.spp, "seed0": self.seed0, "variant": self.variant}
+
+
+@dataclass(frozen=True)
+class BudgetConfig:
+    """One row of the error budget: a label, its kind (none / alone / all_but / all) and the realism."""
+
+    label: str
+    kind: str
+    realism: Realism
+
+
+def budget_configs(realism: Realism, budget: bool = True) -> list[BudgetConfig]:
+    """The budget's configurations of ``realism``'s sources: none, each alone, all but each, all
+    (``budget`` False: all only)."""
+    on = list(realism.sources)
+    if not on:
+        return [BudgetConfig("no source", "none", realism)]
+    allc = BudgetConfig("all sources", "all", realism)
+    if not budget:
+        return [allc]
+    out = [BudgetConfig("no source", "none", realism.with_sources([], f"{realism.name}: no source"))]
+    out += [BudgetConfig(f"{s} alone", "alone", realism.only(s)) for s in on]
+    if len(on) > 1:
+        out += [BudgetConfig(f"all but {s}", "all_but", realism.without(s)) for s in on]
+    return out + [allc]
+
+
+@dataclass(frozen=True, eq=False)
+class SquareTarget:
+    """The measured square as the renderer wants a plate: a white square mesh (what ``PlateRenderer``
+    needs of a plate: ``mesh``) of the target block's square, on the block's top face in the world."""
+
+    mesh: trimesh.Trimesh
+    corners_world: np.ndarray  # (4, 3)
+
+    @classmethod
+    def of(cls, T_world_block: np.ndarray, corners_block: np.ndarray) -> "SquareTarget":
+        c = corners_block @ T_world_block[:3, :3].T + T_world_block[:3, 3]
+        return cls(trimesh.Trimesh(c, np.array([[0, 1, 2], [0, 2, 3]]), process=False), c)
+
+
+# -- one trial -------------------------------------------------------------------------
+def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> dict:
+    scene = cfg.scene.build().with_rig(acq.taken)
+    square = SquareTarget.of(acq.T_world_block, TARGET.square_block())
+    renderer.set_scene(scene)
+    renderer.set_plate(square)
+    settings = RenderSettings(cfg.render.spp, seed)
+    images = {f"{cam}_passive": cfg.sensor.digitize(renderer.render(cam, "passive", settings),
+                                                    seed=(seed * 7919 + len(cam)) % 2 ** 31) for cam in ("left", "right")}
+    images, told = undistort_views(images, acq.told)  # through the lens the method is told, as the pipeline does
+    corners = {}
+    for cam in ("left", "right"):
+        img = images[f"{cam}_passive"]
+        corners[cam] = outline_edges(img, extract_plate_region(img, f"{cam}_passive")).corners  # TL, TR, BR, BL
+    ul, ur = corners["left"], corners["right"]
+    p_world = triangulate_rectified(ul[:, 0], 0.5 * (ul[:, 1] + ur[:, 1]), ur[:, 0], told.left, told.baseline_m)
+    T_block_world = invert_pose(acq.T_world_block_est)
+    p_block = p_world @ T_block_world[:3, :3].T + T_block_world[:3, 3]
+    # the true corners in the order the images give them (TL, TR, BR, BL in the true left image)
+    true_uv = acq.taken.left.project(square.corners_world)
+    order = [int(np.argmin(np.linalg.norm(true_uv - c, axis=1))) for c in order_corners(true_uv)]
+    return {"errors_m": p_block - TARGET.square_block()[order], "points": 4}
+
+
+def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: int) -> dict:
+    base = cfg.scene.build()
+    scene = base.with_rig(acq.taken)
+    proj = base.projector
+    c = replace(cfg, render=RenderSettings(cfg.render.spp, seed))
+    _, digital, _, _ = render_images(c, renderer, scene, plate, IMAGE_NAMES)
+    passive = passive_stereo(digital["left_passive"], digital["right_passive"], acq.told)
+    rec = square_stereo(digital, {k: passive.regions[k].mask for k in ("left", "right")}, acq.told)
+    centres = np.array([f.center for f in proj.pattern.features], float).reshape(-1, 2)
+    truth = true_feature_points(plate.mesh, proj.camera, centres)
+    truth = truth[np.all(np.isfinite(truth), axis=1)]
+    d = np.linalg.norm(rec.points[:, None, :] - truth[None], axis=2) if len(rec.points) and len(truth) else None
+    if d is None:
+        raise ReconstructionError("no square centre measured")
+    near = d.argmin(axis=1)
+    ok = d[np.arange(len(near)), near] <= MATCH_M
+    if not ok.any():
+        raise ReconstructionError(f"no square centre lies within {MATCH_M * 1e3:g} mm of a true one")
+    errs = rec.points[ok] - truth[near[ok]]
+    return {"errors_m": errs, "points": int(ok.sum()), "matched": int(len(rec.points))}
+
+
+def _trial_row(target: str, conf: BudgetConfig, seed: int, out: dict | None, error: str | None) -> dict:
+    row = {"target": target, "config": conf.label, "kind": conf.kind, "realism": conf.realism.name,
+           "sources": " ".join(conf.realism.sources), "seed": seed}
+    if out is None:
+        return {**row, "status": "failed", "error": error}
+    e = np.asarray(out["errors_m"], float)
+    row.update(status="ok", error=None, points=int(out["points"]),
+               worst_depth_mm=float(np.max(np.abs(e[:, 2])) * 1e3),
+               worst_xy_mm=float(np.max(np.abs(e[:, :2])) * 1e3),
+               rms_depth_mm=float(np.sqrt(np.mean(e[:, 2] ** 2)) * 1e3),
+               rms_xy_mm=float(np.sqrt(np.mean(e[:, :2] ** 2)) * 1e3),
+               mean_depth_mm=float(np.mean(e[:, 2]) * 1e3),
+               errors_mm=np.round(e * 1e3, 5).tolist())
+    return row
+
+
+# -- statistics ------------------------------------------------------------------------
+def summarise(rows: list[dict]) -> dict:
+    """Statistics of one configuration's trials (see the module doc); millimetres."""
+    ok = [r for r in rows if r["status"] == "ok"]
+    out = {"draws": len(rows), "failed": len(rows) - len(ok)}
+    if not ok:
+        return out
+    e = np.concatenate([np.asarray(r["errors_mm"], float) for r in ok])
+    depth, xy = np.abs(e[:, 2]), np.abs(e[:, :2]).ravel()
+    for name, worst, pooled in (("depth", [r["worst_depth_mm"] for r in ok], depth),
+                                ("xy", [r["worst_xy_mm"] for r in ok], xy)):
+        w = np.asarray(worst)
+        out[name] = {"worst_median_mm": float(np.median(w)),
+                     "worst_quantiles_mm": {f"q{int(q * 100):02d}": float(np.quantile(w, q)) for q in QUANTILES},
+                     "rms_mm": float(np.sqrt(np.mean(pooled ** 2))), "p95_mm": float(np.quantile(pooled, 0.95)),
+                     "max_mm": float(pooled.max()),
+                     "within_paper_frac": float(np.mean(w <= (PAPER_DEPTH_MM if name == "depth" else PAPER_XY_MM)))}
+    out["depth"]["mean_signed_mm"] = float(np.mean(e[:, 2]))
+    return out
+
+
+# -- the study ---------------------------------------------------------------------------
+def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
+    """Run every budget configuration on every target for every draw; the study's JSON document.
+    ``progress(row)`` is called after each trial with its row."""
+    t0 = time.perf_counter()
+    rz = settings.realism
+    start = SampleConfig(render=RenderSettings(settings.spp, settings.seed0), variant=settings.variant)
+    base = with_realism(start, rz)
+    confs = budget_configs(rz, settings.budget)
+    noise_cache: dict = {}  # corner noise per camera (lens, aperture, sensor): measured once
+    renderers: dict = {}  # one renderer per scene structure (a thin lens, a distorting lens): kernels kept
+    plate = build_plate(base.plate) if "plate" in settings.targets else None
+    rows, setups = [], {}
+    for conf in confs:
+        cfg = with_realism(start, conf.realism)
+        scene = cfg.scene.build()
+        rig = scene.rig
+        key = json.dumps([cfg.scene.to_dict(), cfg.sensor.to_dict()], sort_keys=True)
+        if conf.realism.estimates and key not in noise_cache:
+            noise_cache[key] = RealismSetup.prepare(conf.realism, cfg).corner_noise_px
+        setup = RealismSetup.prepare(conf.realism, cfg, corner_noise_px=noise_cache.get(key, 0.0))
+        setups[conf.label] = setup
+        rkey = (scene.aperture_radius_m > 0, rig.left.distortion is not None, rig.left.K[0, 0] != rig.left.K[1, 1])
+        if rkey not in renderers:
+            renderers[rkey] = PlateRenderer(scene, plate or SquareTarget.of(np.eye(4), TARGET.square_block()),
+                                            settings.variant)
+        renderer = renderers[rkey]
+        for k in range(settings.draws):
+            seed = settings.seed0 + k
+            try:
+                acq = realise(setup, rig, seed)
+            except (CalibrationError, HandEyeError) as e:  # the draw's estimates cannot be used: said, not hidden
+                for target in settings.targets:
+                    row = _trial_row(target, conf, seed, None, str(e).splitlines()[0])
+                    row.update(time_s=0.0, acquisition=None)
+                    rows.append(row)
+                    if progress:
+                        progress(row)
+                continue
+            for target in settings.targets:
+                t = time.perf_counter()
+                try:
+                    out = _block_trial(cfg, acq, renderer, seed) if target == "block" else \
+                        _plate_trial(cfg, acq, renderer, plate, seed)
+                    row = _trial_row(target, conf, seed, out, None)
+                except ReconstructionError as e:
+                    row = _trial_row(target, conf, seed, None, str(e).splitlines()[0])
+                row["time_s"] = time.perf_counter() - t
+                row["acquisition"] = acq.report
+                rows.append(row)
+                if progress:
+                    progress(row)
+    summary = {t: {c.label: {"kind": c.kind, "sources": list(c.realism.sources),
+                             **summarise([r for r in rows if r["target"] == t and r["config"] == c.label])}
+                   for c in confs} for t in settings.targets}
+    return {"study": "accuracy", "settings": settings.to_dict(),
+            "paper": {"depth_mm": PAPER_DEPTH_MM, "xy_mm": PAPER_XY_MM, "distance_m": base.scene.distance_m,
+                      "what": "one trial's worst corner of a square on the hand/eye target block, in the block's frame "
+                              "(paper section V-D)"},
+            "camera": _camera_dict(base),
+            "target_block": {"squares_x": TARGET.squares_x, "squares_y": TARGET.squares_y,
+                             "square_m": TARGET.square_m, "yaw_rad": CELL.target_yaw_rad},
+            "robot": None if rz.robot is None else {"name": rz.robot, "description": ROBOTS[rz.robot].description,
+                                                   **_model_dict(setups[confs[-1].label])},
+            "corner_noise_px": {c.label: setups[c.label].corner_noise_px for c in confs if c.realism.estimates},
+            "sources": {s: SOURCES[s] for s in rz.sources},
+            "summary": summary, "rows": rows, "time_s": time.perf_counter() - t0}
+
+
+def _camera_dict(cfg: SampleConfig) -> dict:
+    scene = cfg.scene.build()
+    left = scene.rig.left
+    return {"name": cfg.realism.camera, "width_px": left.width, "height_px": left.height, "fx_px": float(left.K[0, 0]),
+            "fy_px": float(left.K[1, 1]), "baseline_m": scene.rig.baseline_m, "distance_m": cfg.scene.distance_m,
+            "distortion_k1_k2_p1_p2_k3": None if left.distortion is None else left.distortion.as_opencv().tolist(),
+            "aperture_radius_m": scene.aperture_radius_m, "line_jitter_px": cfg.sensor.line_jitter_px,
+            "full_well_e": cfg.sensor.full_well_e, "read_noise_dn": cfg.sensor.read_noise_dn,
+            "bit_depth": cfg.sensor.bit_depth}
+
+
+def _model_dict(setup: RealismSetup) -> dict:
+    m = setup.robot_model
+    if m is None:
+        return {}
+    return {"joint_sigma_rad": m.joint_sigma_rad, "kinematic_sigma_angle_rad": m.sigma_angle_rad,
+            "kinematic_sigma_length_m": m.sigma_length_m}
+
+
+def dominant_sources(summary: dict, measure: str = "depth") -> list[tuple[str, float]]:
+    """Sources ranked by what each adds alone to the method's own floor (median worst error of the
+    source alone minus that of no source, mm), largest first."""
+    floor = next((v[measure]["worst_median_mm"] for v in summary.values() if v.get("kind") == "none" and measure in v),
+                 0.0)
+    alone = [(c.replace(" alone", ""), v[measure]["worst_median_mm"] - floor) for c, v in summary.items()
+             if v.get("kind") == "alone" and measure in v]
+    return sorted(alone, key=lambda t: -t[1])
+
+
+CSV_FIELDS = ("target", "config", "kind", "realism", "sources", "seed", "status", "points", "worst_depth_mm",
+              "worst_xy_mm", "rms_depth_mm", "rms_xy_mm", "mean_depth_mm", "time_s", "error")
+
+
+def accuracy_csv(rows: list[dict]) -> str:
+    """One line per trial: the realism preset, the draw's seed and the errors (mm)."""
+    import csv  # noqa: PLC0415
+    import io  # noqa: PLC0415
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=CSV_FIELDS, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: r.get(k) for k in CSV_FIELDS})
+    return buf.getvalue()

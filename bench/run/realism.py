@@ -1,0 +1,265 @@
+"""A stereo acquisition under a realism preset: what the robot really did, and what the method is told.
+
+``RealismSetup.prepare(realism, rig)`` does, once per error model, what does not change between draws:
+the robot's error model from its datasheet figures (``hardware_robot.robot_error_model``) and the
+corner-localisation noise of the calibration views, measured on rendered target images of this
+camera (``measure_corner_noise``). ``realise(setup, rig, seed)`` then draws one acquisition:
+
+1. the robot: its real kinematics (a seeded ``KinematicErrors`` draw, absolute accuracy) and every
+   move's joint error (repeatability);
+2. calibration views: the robot is commanded to the cell's hand/eye views (flange poses, from the
+   mount as drawn); the camera really stands where the real arm put it; the target block's corners
+   are projected through the true camera and located with the measured noise;
+3. estimates, each only when its source is on (else the truth, the oracle): the camera's intrinsics
+   (``cv2.calibrateCamera`` on those views, through ``reconstruction.calibration.calibrate_camera``),
+   the mount and the target block's pose in the world (``reconstruction.calibration.hand_eye``, from
+   the COMMANDED flange poses and the target's pose in each view);
+4. the stereo pair: the loop asks for the commanded conventional rig; the robot moves the camera
+   there through the estimated mount, once per view (or once for a rigid head), with its errors.
+
+Returns the rig the method is told (commanded poses, estimated intrinsics), the pair that was really
+taken (a ``PosedPair``: render it and cast ground truth from it) and the target pose estimate; and
+what each estimate missed by (``report``), against the truth. Seeds: ``numpy.random.default_rng([seed,
+k])`` with a fixed k per stream (robot, moves, corner noise), so that each source draws the same
+numbers whether or not the others are on (an error budget compares like with like).
+Units: metres and radians; pixels for image points.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import cv2
+import numpy as np
+
+from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET, Cell, TargetBlock, nominal_arm, robot_error_model
+from platebench.bench.config.realism import Realism
+from platebench.reconstruction.calibration.hand_eye import solve_hand_eye
+from platebench.reconstruction.calibration.stereo import (
+    BoardDetection,
+    CalibrationError,
+    calibrate_camera,
+    distortion_is_needed,
+)
+from platebench.scenes.camera import Camera, look_at_rotation
+from platebench.scenes.lens import BrownConrady
+from platebench.scenes.rig import PosedPair, StereoRig
+from platebench.scenes.robot import (
+    EyeInHand,
+    Robot,
+    RobotErrorModel,
+    camera_from_pose,
+    camera_pose,
+    invert_pose,
+    pose_difference,
+    pose_matrix,
+)
+from platebench.scenes.scene_spec import RenderSettings
+
+__all__ = ["RealismSetup", "Acquisition", "realise", "realise_sample", "measure_corner_noise", "calibration_view_cameras",
+           "STREAM_ROBOT", "STREAM_MOVES", "STREAM_CORNERS"]
+
+STREAM_ROBOT, STREAM_MOVES, STREAM_CORNERS = 1, 2, 3
+MIN_VIEW_CORNERS = 8  # a calibration view with fewer visible corners is not used
+CORNER_MARGIN_PX = 3.0
+CORNER_NOISE_VIEWS = 4  # rendered views of the target for the corner-noise measurement
+
+
+@dataclass(frozen=True)
+class RealismSetup:
+    """What one error model needs before any draw: the realism, the cell and target, the robot's error
+    model (None: no robot) and the corner-localisation noise (px per axis; 0 when nothing is estimated)."""
+
+    realism: Realism
+    cell: Cell
+    target: TargetBlock
+    robot_model: RobotErrorModel | None
+    corner_noise_px: float
+
+    @classmethod
+    def prepare(cls, realism: Realism, cfg, cell: Cell = CELL, target: TargetBlock = TARGET,
+                corner_noise_px: float | None = None, spp: int = 16) -> "RealismSetup":
+        """Everything that does not change between draws. ``cfg``: the sample configuration under this
+        realism (``presets.with_realism``: its camera, lens and sensor). ``corner_noise_px`` None: measured
+        on rendered views of the target through that camera (only when an estimate needs it)."""
+        model = None
+        if realism.robot is not None:
+            hw = ROBOTS[realism.robot]
+            q_views = [nominal_arm(hw, cell).ik(T, cell.q_seed) for T in calibration_flange_poses(cell, target)]
+            model = robot_error_model(hw, cell, q_sample=[cell.q_seed, *q_views],
+                                      repeatability=realism.on("robot_repeatability"),
+                                      accuracy=realism.on("robot_accuracy"),
+                                      repeatability_scale=realism.scale("robot_repeatability"),
+                                      accuracy_scale=realism.scale("robot_accuracy"))
+        if corner_noise_px is None:
+            corner_noise_px = measure_corner_noise(cfg, target, spp) if realism.estimates else 0.0
+        return cls(realism, cell, target, model, float(corner_noise_px))
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """One draw: ``told`` (the conventional rig the method is given: commanded poses, estimated K),
+    ``taken`` (the pair really taken: render this), the target block's pose in the world as the method
+    knows it (``T_world_block_est``) and as it is (``T_world_block``), and ``report`` (what each
+    estimate missed by, and how far each view was from its command)."""
+
+    told: StereoRig
+    taken: StereoRig | PosedPair
+    T_world_block_est: np.ndarray
+    T_world_block: np.ndarray
+    report: dict = field(default_factory=dict)
+
+
+def _rng(seed: int, stream: int) -> np.random.Generator:
+    return np.random.default_rng([int(seed), stream])
+
+
+def calibration_view_cameras(cell: Cell, target: TargetBlock, K, width: int, height: int) -> list[Camera]:
+    """The cell's hand/eye views as cameras looking at the target block's centre (the design)."""
+    out = []
+    for tilt, az, dist, roll in cell.calibration_views:
+        t, a = np.radians(tilt), np.radians(az)
+        eye = target.center_world(cell) + dist * np.array([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)])
+        R = look_at_rotation(eye, target.center_world(cell), (-1.0, 0.0, 0.0) if tilt < 89 else (0.0, 0.0, 1.0))
+        c, s = np.cos(np.radians(roll)), np.sin(np.radians(roll))
+        R = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ R  # roll about the optical axis
+        out.append(Camera(K, R, -R @ eye, width, height))
+    return out
+
+
+def calibration_flange_poses(cell: Cell, target: TargetBlock) -> list[np.ndarray]:
+    """The flange commands of the hand/eye views (through the mount as drawn)."""
+    cams = calibration_view_cameras(cell, target, np.diag([1.0, 1.0, 1.0]), 16, 16)
+    return [camera_pose(c) @ invert_pose(cell.mount_design) for c in cams]
+
+
+def _observe(cam: Camera, pts_world: np.ndarray, noise_px: float, rng) -> tuple[np.ndarray, np.ndarray]:
+    """(indices, (M,2) pixels) of the target corners a camera sees, located with Gaussian noise."""
+    uv = cam.project(pts_world)
+    ok = np.isfinite(uv[:, 0]) & cam.in_image(uv, CORNER_MARGIN_PX)
+    noise = rng.normal(0.0, noise_px, uv.shape) if noise_px > 0 else np.zeros_like(uv)
+    return np.nonzero(ok)[0], (uv + noise)[ok]
+
+
+def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
+    """One draw of the acquisition of the commanded conventional ``rig`` (see the module doc)."""
+    rz = setup.realism
+    cell, target = setup.cell, setup.target
+    T_world_block = target.pose_world(cell)
+    K_true, W, H = rig.left.K, rig.left.width, rig.left.height
+    moves = setup.robot_model is not None and not setup.robot_model.exact
+    if not moves and not rz.estimates:  # the robot goes where it is told, the method is told the truth
+        return Acquisition(rig, rig, T_world_block, T_world_block, {"exact": True})
+    report: dict = {"exact": False}
+    robot = None
+    if moves:
+        hw = ROBOTS[rz.robot]
+        robot = Robot.build(nominal_arm(hw, cell), setup.robot_model, cell.q_seed, _rng(seed, STREAM_ROBOT))
+    move_rng = _rng(seed, STREAM_MOVES)
+    mount_est, T_block_est, K_est, lens_est = cell.mount, T_world_block, K_true, rig.left.distortion
+    if rz.estimates:
+        corners_block = target.corners_block()
+        corners_world = corners_block @ T_world_block[:3, :3].T + T_world_block[:3, 3]
+        noise = _rng(seed, STREAM_CORNERS)
+        eye_cal = EyeInHand(robot, cell.mount, cell.mount, rig.left) if robot is not None else None
+        flanges, dets = [], []
+        for F in calibration_flange_poses(cell, target):
+            cam = eye_cal.move_flange(F, move_rng) if eye_cal is not None else camera_from_pose(F @ cell.mount, rig.left)
+            idx, uv = _observe(cam, corners_world, setup.corner_noise_px, noise)
+            flanges.append(F)
+            dets.append(BoardDetection(idx, uv, corners_block[idx]) if len(idx) >= MIN_VIEW_CORNERS else None)
+        used = [i for i, d in enumerate(dets) if d is not None]
+        if rz.on("calibration"):
+            fixed = calibrate_camera(dets, (W, H), fix_distortion=True)
+            free = calibrate_camera(dets, (W, H), fix_distortion=False)
+            cal = free if distortion_is_needed({"camera": fixed}, {"camera": free}) else fixed
+            K_est = cal.K
+            lens_est = None if cal.fix_distortion else BrownConrady.from_opencv(cal.dist)
+            poses = [pose_matrix(cv2.Rodrigues(r)[0], t) for r, t in zip(cal.rvecs, cal.tvecs)]
+            used = list(cal.views)
+            report["calibration"] = {"fx_error_px": float(K_est[0, 0] - K_true[0, 0]),
+                                     "fy_error_px": float(K_est[1, 1] - K_true[1, 1]),
+                                     "cx_error_px": float(K_est[0, 2] - K_true[0, 2]),
+                                     "cy_error_px": float(K_est[1, 2] - K_true[1, 2]),
+                                     "reprojection_rms_px": cal.rms_px, "views": len(used),
+                                     "distortion_estimated": not cal.fix_distortion,
+                                     "distortion_k1_k2_p1_p2_k3": cal.dist.tolist()}
+        else:
+            poses = []
+            for i in used:
+                ok, rv, tv = cv2.solvePnP(dets[i].object_points, dets[i].image_points, K_true, _opencv_dist(rig.left),
+                                          flags=cv2.SOLVEPNP_ITERATIVE)
+                poses.append(pose_matrix(cv2.Rodrigues(rv)[0], tv))
+        if rz.on("hand_eye"):
+            he = solve_hand_eye([flanges[i] for i in used], poses)
+            mount_est, T_block_est = he.T_flange_camera, he.T_base_target
+            dp, da = pose_difference(mount_est, cell.mount)
+            bp, ba = pose_difference(T_block_est, T_world_block)
+            report["hand_eye"] = {"mount_position_error_m": dp, "mount_rotation_error_rad": da,
+                                  "target_position_error_m": bp, "target_rotation_error_rad": ba,
+                                  "residual_rotation_rms_rad": he.rotation_rms_rad,
+                                  "residual_translation_rms_m": he.translation_rms_m, "views": len(used)}
+        report["corner_noise_px"] = setup.corner_noise_px
+    try:
+        told = StereoRig(replace(rig.left, K=K_est, distortion=lens_est),
+                         replace(rig.right, K=K_est, distortion=lens_est), rig.baseline_m)
+    except ValueError as e:  # e.g. an estimated lens that folds over inside the image: the draw cannot be measured
+        raise CalibrationError(f"draw {seed}: the estimated calibration is unusable: {str(e).splitlines()[0]}") from None
+    if robot is None and not rz.on("hand_eye"):
+        return Acquisition(told, rig, T_block_est, T_world_block, report)
+    eye = EyeInHand(robot or _exact_robot(rz, cell), cell.mount, mount_est, rig.left)
+    head = None
+    if rz.rigid_head:
+        head = invert_pose(camera_pose(rig.left)) @ camera_pose(rig.right)  # the head's true left -> right pose
+    taken = eye.executed_pair(rig, move_rng, head)
+    report["views"] = {c: dict(zip(("position_error_m", "rotation_error_rad"),
+                                   pose_difference(camera_pose(taken.cameras[c]), camera_pose(rig.cameras[c]))))
+                       for c in ("left", "right")}
+    return Acquisition(told, taken, T_block_est, T_world_block, report)
+
+
+def realise_sample(cfg, rig: StereoRig) -> Acquisition:
+    """One acquisition of ``rig`` under a sample configuration's realism (its draw: ``cfg.realism.seed``;
+    its camera: ``cfg``'s; the corner noise measured with it)."""
+    return realise(RealismSetup.prepare(cfg.realism, cfg), rig, cfg.realism.seed)
+
+
+def _opencv_dist(cam: Camera) -> np.ndarray:
+    return np.zeros(5) if cam.distortion is None else cam.distortion.as_opencv()
+
+
+def _exact_robot(rz: Realism, cell: Cell) -> Robot:
+    """A robot that goes exactly where it is told (robot sources off, the mount still estimated)."""
+    hw = ROBOTS[rz.robot]
+    return Robot.build(nominal_arm(hw, cell), RobotErrorModel(), cell.q_seed, None)
+
+
+# -- corner-localisation noise, measured on renders ----------------------------------------
+def measure_corner_noise(cfg, target: TargetBlock = TARGET, spp: int = 16, seed: int = 0) -> float:
+    """RMS per-axis error (px) of corners located (``detect_charuco``) on rendered images of a ChArUco board
+    with the target's square size, seen by ``cfg``'s left camera (its lens, aperture and sensor, line
+    jitter included) in a few of the bench's calibration poses (``board_renderer.calibration_poses``),
+    against their exact projections through that camera."""
+    from platebench.reconstruction.calibration.stereo import detect_charuco  # noqa: PLC0415
+    from platebench.scenes.render.board_renderer import BoardRenderer, calibration_poses  # noqa: PLC0415
+
+    scene = cfg.scene.build()
+    rig, camera = scene.rig, scene.rig.left
+    spec = target.charuco()
+    centre = camera.center + camera.R[2] * float(camera.depth(np.zeros((1, 3)))[0])
+    picks = [p for p in calibration_poses(rig, spec, target=centre)
+             if p.name in ("flat", "tilt+x", "diag++", "roll45")][:CORNER_NOISE_VIEWS]
+    br = BoardRenderer(rig, spec, cfg.variant, cfg.sensor, scene.aperture_radius_m,
+                       scene.focus_m if scene.aperture_radius_m > 0 else None)
+    board = spec.board()
+    errs = []
+    for i, pose in enumerate(picks):
+        br.set_pose(pose)
+        img = cfg.sensor.digitize(br.render("left", RenderSettings(spp, seed), i), seed=seed * 101 + i)
+        det = detect_charuco(img, board)
+        if det is None:
+            continue
+        errs.append(det.image_points - camera.project(pose.to_world(det.object_points)))
+    if not errs:
+        raise ValueError("corner noise: no board corners found in the rendered views")
+    e = np.concatenate(errs)
+    return float(np.sqrt(np.mean(e ** 2)))

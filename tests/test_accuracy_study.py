@@ -1,0 +1,90 @@
+"""The paper's accuracy test as a study (``platebench study accuracy``) and realism in rendered samples:
+real renders, few draws."""
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from platebench.bench.config import SampleConfig
+from platebench.bench.config.presets import with_realism
+from platebench.bench.config.realism import REALISM_PRESETS, SOURCES
+from platebench.bench.run.accuracy import AccuracySettings, budget_configs, run_accuracy_study
+from tests.conftest import run_cli
+
+pytestmark = pytest.mark.render
+
+
+def test_budget_rows_are_none_each_alone_all_but_each_and_all():
+    confs = budget_configs(REALISM_PRESETS["1995"])
+    kinds = [c.kind for c in confs]
+    n = len(SOURCES)
+    assert kinds == ["none"] + ["alone"] * n + ["all_but"] * n + ["all"]
+    assert [c.realism.sources for c in confs if c.kind == "alone"] == [(s,) for s in SOURCES]
+    assert [c.label for c in budget_configs(REALISM_PRESETS["ideal"])] == ["no source"]
+
+
+def test_a_small_accuracy_study_runs_end_to_end(tmp_path):
+    out = tmp_path / "acc"
+    p = run_cli("study", "accuracy", "--realism", "1995", "--draws", "2", "--spp", "4", "--out", out)
+    assert p.returncode == 0, p.stderr
+    doc = json.loads((out / "accuracy.json").read_text())
+    rows = doc["rows"]
+    assert len(rows) == 2 * (2 * len(SOURCES) + 2) and all(r["status"] == "ok" for r in rows)
+    assert {r["seed"] for r in rows} == {0, 1} and all(r["realism"].startswith("1995") for r in rows)
+    s = doc["summary"]["block"]["all sources"]
+    assert s["draws"] == 2 and 0 < s["depth"]["worst_median_mm"] < 10 and 0 < s["xy"]["worst_median_mm"] < 10
+    assert doc["paper"] == {**doc["paper"], "depth_mm": 2.0, "xy_mm": 1.0}
+    with open(out / "accuracy.csv") as f:
+        table = list(csv.DictReader(f))
+    assert len(table) == len(rows) and {"realism", "seed", "worst_depth_mm", "worst_xy_mm"} <= set(table[0])
+    assert (out / "accuracy.png").stat().st_size > 10_000
+    assert "paper (V-D): depth <= 2 mm" in p.stdout and "added to the no-source floor alone (depth" in p.stdout
+
+
+def test_the_ideal_study_measures_the_methods_floor_in_the_true_block_frame():
+    """Every source off: the corners are triangulated by the true rig and the block's true pose, so the errors
+    are the corner method's alone: well inside the paper's bound, and the plate's centres at the bench's
+    noise-free level."""
+    doc = run_accuracy_study(AccuracySettings(REALISM_PRESETS["ideal"], draws=2, targets=("block", "plate"), spp=4))
+    assert {r["config"] for r in doc["rows"]} == {"no source"}
+    block, plate = doc["summary"]["block"]["no source"], doc["summary"]["plate"]["no source"]
+    assert block["depth"]["max_mm"] < 1.0 and block["xy"]["max_mm"] < 0.2
+    assert plate["depth"]["rms_mm"] < 0.03 and plate["xy"]["max_mm"] < 0.05
+    assert all(r["acquisition"] == {"exact": True} for r in doc["rows"])
+
+
+def test_render_under_realism_renders_the_pair_really_taken_and_tells_the_commanded_rig(tmp_path):
+    out = tmp_path / "s95"
+    p = run_cli("render", "--realism", "1995", "--realism-seed", "4", "--spp", "2", "--out", out)
+    assert p.returncode == 0, p.stderr
+    from platebench.bench.io.images import read_pfm
+    from platebench.bench.io.sample_files import load_calibration, load_ground_truth, load_true_cameras
+
+    told, taken = load_calibration(out).rig, load_true_cameras(out)
+    commanded = with_realism(SampleConfig(), "1995").scene.build().rig
+    assert np.allclose(told.left.R, commanded.left.R) and np.allclose(told.left.t, commanded.left.t)
+    assert not np.allclose(told.left.K, commanded.left.K)  # the estimated intrinsics
+    assert not np.allclose(taken.left.t, commanded.left.t, atol=1e-5)  # the robot put the camera elsewhere
+    meta = json.loads((out / "sample.json").read_text())
+    assert meta["config"]["realism"]["preset"] == "1995" and meta["config"]["realism"]["seed"] == 4
+    assert set(meta["acquisition"]) >= {"views", "hand_eye", "calibration"}
+    # the disparity truth is the images' own: left ground-truth points seen by the true right camera
+    gt = load_ground_truth(out)
+    disp = read_pfm(out / "gt" / "disp0GT.pfm")
+    vv, uu = np.nonzero(gt.mask["left"])
+    k = np.linspace(0, len(vv) - 1, 50).astype(int)
+    ur = taken.right.project(gt.points["left"][vv[k], uu[k]].astype(np.float64))[:, 0]
+    assert np.allclose(disp[vv[k], uu[k]], uu[k] - ur, atol=1e-3)
+
+
+def test_posed_pair_disparity_of_a_conventional_rig_is_f_b_over_z(small_sample):
+    from platebench.bench.io.sample_files import pair_disparity
+
+    sample, _ = small_sample
+    rig, g = sample.scene.rig, sample.gt["left"]
+    d = pair_disparity(g, rig)
+    assert np.allclose(d[g.mask], rig.disparity(g.depth64[g.mask]), atol=2e-3)  # float32 points
+    assert np.all(np.isinf(d[~g.mask]))
