@@ -36,6 +36,9 @@ class Tolerances:
                                         # (rad) and its offset moves less (fraction of the boundary's size)
     subpixel_eps_px: float = 1e-5   # OpenCV cornerSubPix stops when a corner moves less (px)
     solver_eps: float = 1e-12       # OpenCV's iterative calibration stops when its error changes less
+    ik_position_m: float = 1e-9     # a robot's inverse kinematics must put the flange this close (m, and rad)
+    ik_solver_eps: float = 1e-15    # its Levenberg-Marquardt steps stop when they change x, f or g less
+    fd_step: float = 1e-7           # central-difference step of a Jacobian (m for lengths, rad for angles)
     inside_outline: float = 1e-6    # a grid node this close to the outline (fraction of the grid step) is inside
     sup_refine: float = 1e-4        # a boundary distance's supremum is refined to this fraction of the spacing
     tiny: float = 1e-30             # floor of a denominator that may be zero (a degenerate triangle, no noise)

@@ -41,6 +41,7 @@ from scipy.spatial.transform import Rotation
 
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import PosedPair, StereoRig
+from platebench.tolerances import tol
 
 __all__ = ["DHLink", "SerialArm", "KinematicErrors", "RobotErrorModel", "Robot", "EyeInHand",
            "pose_matrix", "invert_pose", "camera_pose", "camera_from_pose", "pose_difference",
@@ -142,7 +143,7 @@ class SerialArm:
             T = T @ link.transform(qi)
         return T
 
-    def ik(self, T_world_flange, q_seed, max_error_m: float = 1e-9) -> np.ndarray:
+    def ik(self, T_world_flange, q_seed, max_error_m: float = tol.ik_position_m) -> np.ndarray:
         """Joint angles that put the flange at ``T_world_flange``, solved from ``q_seed`` (the
         configuration family: elbow, wrist) by Levenberg-Marquardt on the position and rotation
         residuals. Raises IKError when the pose is out of reach (residual above ``max_error_m``)."""
@@ -154,15 +155,15 @@ class SerialArm:
             dr = Rotation.from_matrix(T[:3, :3] @ Rt.T).as_rotvec()
             return np.concatenate([T[:3, 3] - target[:3, 3], dr])
 
-        sol = least_squares(residual, np.asarray(q_seed, float), method="lm", xtol=1e-15, ftol=1e-15,
-                            gtol=1e-15, max_nfev=400)
+        sol = least_squares(residual, np.asarray(q_seed, float), method="lm", xtol=tol.ik_solver_eps,
+                            ftol=tol.ik_solver_eps, gtol=tol.ik_solver_eps, max_nfev=400)
         err = np.abs(residual(sol.x))
         if not (np.all(err[:3] < max_error_m) and np.all(err[3:] < max_error_m)):
             raise IKError(f"{self.name}: commanded pose out of reach from the seed configuration "
                           f"(residual {np.max(err[:3]) * 1e3:.3g} mm, {np.max(err[3:]) * 1e3:.3g} mrad)")
         return sol.x
 
-    def jacobian(self, q, step: float = 1e-7) -> np.ndarray:
+    def jacobian(self, q, step: float = tol.fd_step) -> np.ndarray:
         """(6, 6) Jacobian of (flange position, flange rotation vector) in the world by central
         differences (metres and radians per radian)."""
         q = np.asarray(q, float)
@@ -343,7 +344,7 @@ _LENGTHS = ("a", "d")
 _ANGLES = ("alpha", "theta0", "beta")
 
 
-def _parameter_jacobians(arm: SerialArm, q, step: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
+def _parameter_jacobians(arm: SerialArm, q, step: float = tol.fd_step) -> tuple[np.ndarray, np.ndarray]:
     """(6, 12) and (6, 18): flange (position, rotation vector) per unit change of every length and every
     angle parameter of ``arm`` at ``q`` (central differences)."""
     T0 = arm.fk(q)
