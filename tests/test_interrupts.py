@@ -5,8 +5,10 @@ sweep ends the command with status 130 or 143 and leaves no half-written output.
 machine, from a complete run of it), each one a fresh ``platebench`` process signalled by PID, three at
 a time. A moment before PlateBench's handlers exist (Python's own start-up, the first ~15 ms on an idle
 machine: read from the process's caught-signal mask, /proc/PID/status SigCgt, as the signal is sent)
-meets the signal's default action, which the shell reports as 130 / 143 too; those runs must have
-written nothing and are counted apart, and at least 80 % of the moments must fall after it. Library
+meets the signal's default action, which the shell reports as 130 / 143 too, and so does a moment in
+Python's finalisation, after the command finished and Python put the default actions back; those runs
+must have written nothing, or their complete output, and are counted apart, and at least 80 % of the
+moments must fall while the handlers are in place. Library
 code that swallows the exception (trimesh guards its optional imports with ``except BaseException``)
 is covered by ``bench.interrupts``; the unit tests below provoke it on purpose.
 """
@@ -75,8 +77,11 @@ def test_an_interrupt_at_any_moment_ends_130_or_143_with_nothing_half_written(ma
         trials = list(pool.map(lambda a: _trial(w, argv[a[1]], *a), plan))
     early = [t for t in trials if not t["run"].finished_first and not t["run"].started]
     signalled = [t for t in trials if not t["run"].finished_first and t["run"].started]
-    bad = [f"#{t['i']} {t['name']} before start-up: exit {t['run'].rc}, wrote {t['out']}" for t in early
-           if t["run"].rc not in (-t["sig"], STATUS[t["sig"]], 1) or t["out"].exists()]
+    bad = []
+    for t in early:  # before start-up, or in Python's finalisation once the command had finished
+        why = half_written(t["out"], w / f"ref-{t['name']}", t["name"])
+        if t["run"].rc not in (-t["sig"], STATUS[t["sig"]], 1) or why:
+            bad.append(f"#{t['i']} {t['name']} without handlers: exit {t['run'].rc}; {why or 'output complete'}")
     if len(signalled) < 0.8 * MOMENTS:
         bad.append(f"only {len(signalled)} of {MOMENTS} runs were going with PlateBench's handlers in place "
                    f"({len(early)} before)")
