@@ -134,6 +134,15 @@ _FAMILY_MAPS = {Flat: _flat, CylindricalBend: _bend, Fold: _bend, Twist: _twist,
                 Dome: _dome, Dent: _dent}
 
 
+def _surface_map(spec: PlateSpec):
+    """The exact map of the spec's family (ValueError for a family without one: never a guess)."""
+    try:
+        return _FAMILY_MAPS[type(spec.deformation)]
+    except KeyError:
+        raise ValueError(f"deformation family {type(spec.deformation).__name__} has no exact surface: "
+                         "allowed " + ", ".join(c.__name__ for c in _FAMILY_MAPS)) from None
+
+
 def surface_derivatives(spec: PlateSpec, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Top-surface point r and partial derivatives r_u, r_v at material coords uv.
 
@@ -141,20 +150,20 @@ def surface_derivatives(spec: PlateSpec, uv: np.ndarray) -> tuple[np.ndarray, np
     r_u and r_v dimensionless (metres per metre of u or v).
     """
     uv, _ = _as_uv(uv)
-    return _FAMILY_MAPS[type(spec.deformation)](spec, uv)
+    return _surface_map(spec)(spec, uv)
 
 
 def surface_point(spec: PlateSpec, uv: np.ndarray) -> np.ndarray:
     """Top-surface point (world frame, metres) at material coords uv ((N, 2) -> (N, 3), (2,) -> (3,))."""
     uv, single = _as_uv(uv)
-    r = _FAMILY_MAPS[type(spec.deformation)](spec, uv)[0]
+    r = _surface_map(spec)(spec, uv)[0]
     return r[0] if single else r
 
 
 def surface_normal(spec: PlateSpec, uv: np.ndarray) -> np.ndarray:
     """Unit top-surface normal (world frame) at material coords uv; +Z on a flat plate."""
     uv, single = _as_uv(uv)
-    _, r_u, r_v = _FAMILY_MAPS[type(spec.deformation)](spec, uv)
+    _, r_u, r_v = _surface_map(spec)(spec, uv)
     n = np.cross(r_u, r_v)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     return n[0] if single else n
