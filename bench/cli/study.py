@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams, parse_grid
+from platebench.bench.cli.sense import add_verify_grid_flag, verify_grid_arg
 from platebench.bench.config.ranges import parse_range_text
 from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
@@ -13,7 +14,6 @@ from platebench.scenes.scene_spec import RenderSettings
 # bench.run.study (the sensing loop, the renderer) is imported where it is used: by add_parser (the
 # default bends) only when 'study' is the command (see main.build_parser)
 HELP = "studies; 'study false-boundary' runs the sensing loop on plates of every family"
-DEFAULT_GRID = "6x12@12"
 MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
 MAX_PERTURB_AXIS_DEG = 10.0  # --perturb: small shifts only (the study's plates, moved a little)
 MAX_PERTURB_MM = 50.0
@@ -22,7 +22,7 @@ MAX_WORKERS = 64
 
 
 def add_parser(sub) -> None:
-    from platebench.bench.run.study import DEFAULT_BENDS_DEG  # noqa: PLC0415
+    from platebench.bench.run.study import DEFAULT_BENDS_DEG, REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: PLC0415
 
     p = sub.add_parser("study", help=HELP,
                        description="false-boundary: the sensing loop (stages 1-3, verification views, cures) on "
@@ -38,11 +38,22 @@ def add_parser(sub) -> None:
     p.add_argument("--bend", default=",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG),
                    help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
                         + ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG) + "; allowed 0 to 350)")
-    p.add_argument("--families", default="all", help="comma list of families to keep (flat, cylinder, fold, "
-                   "twist, dome, dent) or 'all' (default)")
+    p.add_argument("--families", default="all", help="comma list of deformation families to run (flat, cylinder, "
+                   "fold, twist, dome, dent, ...: every key of plates.spec.FAMILIES; a family outside the default "
+                   "set adds its own example plates) or 'all' (default: the 61 plates)")
+    p.add_argument("--axes", default=",".join(f"{a:g}" for a in STUDY_AXES_DEG),
+                   help="the cylinders' bend axes in DEGREES from the plate's width direction, a,b,c or "
+                        "START:STOP:STEP (default " + ",".join(f"{a:g}" for a in STUDY_AXES_DEG)
+                        + "; allowed 0 to 179.9)")
+    p.add_argument("--aspect", type=float, default=REFERENCE_ASPECT,
+                   help=f"length / width of the plates at the reference plate's area (default {REFERENCE_ASPECT:.3f}, "
+                        "the paper's plate; allowed 0.25 to 8); the second aspect ratio's and the second "
+                        "distance's few plates keep theirs")
     p.add_argument("--limit", type=int, help="run only the first N plates of the set")
-    p.add_argument("--grid", metavar="ROWSxCOLS@PX", default=DEFAULT_GRID,
-                   help=f"projected square grid (default {DEFAULT_GRID}; the paper's is 4x4@40)")
+    p.add_argument("--grid", metavar="ROWSxCOLS@PX",
+                   help="stage 3's projected square grid (default: the paper's 16 squares, as sense projects them; "
+                        "4x4@40 spaces their rows twice as far)")
+    add_verify_grid_flag(p)
     p.add_argument("--l-bends", default="", help="convex bends (deg) for the L-formula check (default none; "
                    "e.g. 120,150,165,172)")
     p.add_argument("--width", type=int, default=640, help="image width in px (default 640; f scales with it)")
@@ -66,6 +77,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
     from platebench.bench.run.study import perturbed_cases, study_cases, write_study  # noqa: PLC0415
 
     bends = parse_range_text(args.bend, "--bend", 0.0, 350.0, max_count=MAX_BENDS)
@@ -82,22 +94,27 @@ def run(args) -> int:
     if not (1 <= args.workers <= MAX_WORKERS):
         raise UserValueError(f"--workers = {args.workers} is out of range: allowed 1 to {MAX_WORKERS}")
     axis_deg, distance_mm = parse_perturb(args.perturb)
-    cases = study_cases(bends)
     fams = [f.strip() for f in args.families.split(",") if f.strip()]
     if fams != ["all"]:
-        known = {c.family for c in study_cases()}
-        bad = [f for f in fams if f not in known]
+        from platebench.plates.spec import FAMILIES  # noqa: PLC0415
+        bad = [f for f in fams if f not in FAMILIES]
         if bad:
-            raise UserValueError(f"--families value {bad[0]!r} is unknown: allowed all or " + ", ".join(sorted(known)))
-        cases = [c for c in cases if c.family in fams]
+            raise UserValueError(f"--families value {bad[0]!r} is unknown: allowed all or " + ", ".join(FAMILIES))
+    axes = parse_range_text(args.axes, "--axes", 0.0, 179.9, max_count=MAX_BENDS)
+    if not (0.25 <= args.aspect <= 8.0):
+        raise UserValueError(f"--aspect = {args.aspect} is out of range: allowed 0.25 to 8")
+    cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect)
     if args.limit is not None:
         if args.limit < 1:
             raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
         cases = cases[:args.limit]
     cases = perturbed_cases(cases, axis_deg, distance_mm)
-    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4, pattern=parse_grid(args.grid)),
-                        render=render)
-    settings = {"bends_deg": bends, "families": fams, "grid": args.grid, "width_px": args.width,
+    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
+                                          pattern=parse_grid(args.grid) if args.grid else {}), render=render)
+    verify_grid = verify_grid_arg(args.verify_grid)
+    options = SensingOptions(verify_grid=verify_grid)
+    settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams, "grid": args.grid or "paper's 4x4 (sense's default)",
+                "verify_grid": verify_grid or "stage 3's", "width_px": args.width,
                 "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
                 "workers": args.workers}
@@ -113,7 +130,7 @@ def run(args) -> int:
             sys.stdout.flush()  # a plate's line as it finishes, also through a pipe (tee, a log, a test)
         try:
             doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
-                              args.resume)
+                              args.resume, options)
         except (KeyboardInterrupt, Exception):
             if ran and journal_path(args.out).exists():
                 print(f"platebench: {ran} finished plates are kept in {journal_path(args.out)}; "

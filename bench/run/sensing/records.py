@@ -27,6 +27,14 @@ OUTCOME_TEXT = {
                    "issue counts it), but the loop could not confirm it and says so",
 }
 HIDDEN_BELOW = 0.995  # ground truth "hides part of the boundary": a camera sees less than this fraction
+# The square grid the verification views and cures project (ROWSxCOLS@SQUARE_PX, ``bench.config.parse_grid``):
+# 6 arrays of 12 squares of 12 projector pixels (3 mm at 0.4 m; rows 48 px apart). Stage 3 keeps the
+# sample's own pattern (the paper's 16 squares by default) for the paper's pipeline and its counting
+# test. The verdict's front check and its confirmations need square centres up to the plate's edges:
+# measured over the false-boundary study's 61 plates (README, "What the bench measures"), this grid
+# verifies the boundary on nearly every plate pairs of reachable poses can verify, where the paper's
+# 16 squares at every pose verify none of them.
+VERIFY_GRID = "6x12@12"
 
 
 def outcome_class(hidden_first: bool, hidden_final: bool, verified: bool, cured_or_raised: bool) -> str:
@@ -65,6 +73,9 @@ class SensingOptions:
     # ``active_views.projector_pose``) and measures its centres: the merged reconstruction's points
     # and surface (``active_views``).
     active_views: bool = True
+    # The square grid the verification views and cures project (``VERIFY_GRID``); None: the sample's
+    # own pattern, as stage 3.
+    verify_grid: str | None = VERIFY_GRID
     write_stages: bool = True
     reach: Reach = field(default_factory=Reach)
     # For scoring only: cast ground truth's boundary visibility from every pose the loop could reach
@@ -210,6 +221,8 @@ class SensingResult:
     notes: tuple[str, ...]
     time_s: float
     views: tuple[ViewOutline, ...] = ()  # every measuring pose's outline (not in sensing.json: multiview.npz)
+    # the projected patterns (``Pattern.description``): stage 3's, and the verification views' and cures'
+    patterns: dict = field(default_factory=dict)
 
     @property
     def cures(self) -> int:
@@ -221,4 +234,4 @@ class SensingResult:
                 "verification_views": [v.to_dict() for v in self.verification_views],
                 "cures": self.cures, "cure_views": [v.to_dict() for v in self.cure_views],
                 "verdict": self.verdict.to_dict(), "notes": list(self.notes),
-                "final": self.final.to_dict(), "time_s": self.time_s}
+                "patterns": self.patterns, "final": self.final.to_dict(), "time_s": self.time_s}
