@@ -11,6 +11,8 @@ The formulas (conventions in plates/spec.py):
   r = (sin(phi)/k) e + t g + ((1 - cos phi)/k) Z, e = (cos a, sin a, 0), g = (-sin a, cos a, 0).
 - Fold: same profile with phi = k * clip(s - s0, 0, band), s0 = position - band/2, the
   part s < s0 left in place and straight continuations beyond the band.
+- SCurve: the cylinder's profile of |s| with k = +-2 angle/S, odd in s: r = sign(s) (sin(k|s|)/k e
+  + ((1 - cos k|s|)/k) Z) + t g, tangent angle phi = k|s|.
 - Twist: r = (u, v cos(ku), v sin(ku)), k = angle/L.
 - Dome: height field z = -c rho^2 / (1 + sqrt(1 - c^2 rho^2)), c = 2 sag / (D^2 + sag^2).
 - Dent: height field z = -depth (1 - q)^3 for q = |uv - centre|^2 / R^2 < 1, else 0.
@@ -29,6 +31,7 @@ from .spec import (
     Flat,
     Fold,
     PlateSpec,
+    SCurve,
     Twist,
     bending_extent_m,
 )
@@ -59,6 +62,11 @@ def _bend_profile(spec: PlateSpec, s: np.ndarray):
         k = sign * d.angle_rad / bending_extent_m(spec.length_m, spec.width_m, d.axis_rad)
         p, z = _arc(s, k)
         return p, z, k * s
+    if isinstance(d, SCurve):
+        k = sign * 2.0 * d.angle_rad / bending_extent_m(spec.length_m, spec.width_m, d.axis_rad)
+        a, odd = np.abs(s), np.sign(s)
+        p, z = _arc(a, k)
+        return odd * p, odd * z, k * a
     k = sign * d.angle_rad / d.band_m
     s0 = d.position_m - 0.5 * d.band_m
     dist = s - s0
@@ -131,7 +139,7 @@ def _flat(spec: PlateSpec, uv: np.ndarray):
 
 
 _FAMILY_MAPS = {Flat: _flat, CylindricalBend: _bend, Fold: _bend, Twist: _twist,
-                Dome: _dome, Dent: _dent}
+                Dome: _dome, Dent: _dent, SCurve: _bend}
 
 
 def _surface_map(spec: PlateSpec):

@@ -31,7 +31,7 @@ from typing import Any, ClassVar, Mapping
 from platebench.errors import UserValueError
 
 __all__ = [
-    "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent",
+    "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent", "SCurve",
     "Deformation", "DeformationFamily", "PlateSpec", "reference_spec", "FAMILIES", "SweepKey", "Ruling",
     "family_class", "family_sweep_keys",
 ]
@@ -39,6 +39,7 @@ __all__ = [
 MAX_BEND_RAD = math.radians(350.0)
 MAX_FOLD_RAD = math.radians(180.0)
 MAX_TWIST_RAD = math.radians(90.0)
+MAX_S_CURVE_RAD = math.radians(180.0)  # each half of an S-curve a half circle at most
 DIRECTIONS = ("up", "down")
 DEFAULT_ANGLE_RAD = math.radians(10.0)  # a family's default bend or twist (the paper's plate: 10 degrees)
 
@@ -193,7 +194,7 @@ class DeformationFamily(abc.ABC):
 
 def _arcs_ruling(d, length_m: float, width_m: float, arcs: int) -> Ruling:
     """The ruling of a bend of ``arcs`` equal circular arcs over the whole plate, each turning by
-    ``d.angle_rad`` (a cylinder: 1; more meet at equal steps of s): radius S / (arcs angle)."""
+    ``d.angle_rad`` (a cylinder: 1; an S-curve: 2, meeting at s = 0): radius S / (arcs angle)."""
     if d.angle_rad == 0:
         return Ruling(d.axis_rad)
     S = bending_extent_m(length_m, width_m, d.axis_rad)
@@ -449,9 +450,54 @@ class Dent(DeformationFamily):
         return (("dent 3 mm centre", cls(0.003, 0.02)), ("dent 3 mm off-centre", cls(0.003, 0.015, 0.03, 0.015)))
 
 
-Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent
+@dataclass(frozen=True)
+class SCurve(DeformationFamily):
+    """S-curve: two circular arcs of opposite curvature meeting at the plate's middle, arc length
+    preserved, ruled along the bend axis like ``CylindricalBend``.
+
+    On the bending coordinate s the curvature is +-k for s > 0 and -+k for s < 0, k =
+    2 angle_rad / S (S: the plate's extent along s), so the tangent turns by angle_rad from the
+    middle to either end and the two ends stay parallel: the profile is point-symmetric about
+    the plate centre, which stays at the origin with normal +Z (a C1 curve, its curvature
+    jumping at s = 0). angle_rad 0 to 180 deg (at 180 each half is a half circle).
+    direction: "up" (the s > 0 half rises toward +Z, the other falls) or "down"; axis_rad as
+    in CylindricalBend.
+    """
+
+    angle_rad: float
+    direction: str = "up"
+    axis_rad: float = 0.0
+    family: ClassVar[str] = "s_curve"
+    label: ClassVar[str] = "S-curve"
+    layout: ClassVar[str] = "strips"
+    in_default_study: ClassVar[bool] = False  # not among the study's 61 default plates: study --families s_curve
+
+    def __post_init__(self) -> None:
+        _check(self, "angle_rad", 0.0, MAX_S_CURVE_RAD, unit="rad")
+        _check_direction(self)
+        _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
+
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return _arcs_ruling(self, length_m, width_m, 2).curvature_per_m
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "SCurve":
+        return cls(DEFAULT_ANGLE_RAD, "up", 0.0)
+
+    def ruling(self, length_m: float, width_m: float) -> Ruling:
+        return _arcs_ruling(self, length_m, width_m, 2)
+
+    @classmethod
+    def study_examples(cls):
+        return (("s-curve 60 up axis 0", cls(math.radians(60.0), "up", 0.0)),
+                ("s-curve 120 down axis 90", cls(math.radians(120.0), "down", math.radians(90.0))),
+                ("s-curve 170 up axis 30", cls(math.radians(170.0), "up", math.radians(30.0))))
+
+
+Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent | SCurve
 # every family, in the order tables show them (a family is known by being listed here)
-FAMILIES: dict[str, type[DeformationFamily]] = {c.family: c for c in (Flat, CylindricalBend, Fold, Twist, Dome, Dent)}
+FAMILIES: dict[str, type[DeformationFamily]] = {c.family: c for c in (Flat, CylindricalBend, Fold, Twist, Dome, Dent,
+                                                                      SCurve)}
 
 
 def family_class(family: str) -> type[DeformationFamily]:
@@ -495,7 +541,7 @@ class PlateSpec:
     thickness_m from 0 to a tenth of the smaller side and, for a curved plate, to half
     the smallest radius of curvature (so the bottom offset surface stays smooth).
     deformation: one of the families of ``FAMILIES`` (Flat, CylindricalBend, Fold, Twist, Dome,
-    Dent).
+    Dent, SCurve).
     """
 
     length_m: float

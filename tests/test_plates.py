@@ -21,6 +21,7 @@ from platebench.plates import (
     Plate,
     PlateSpec,
     PlateSpecError,
+    SCurve,
     Twist,
     build_plate,
     reference_spec,
@@ -51,6 +52,7 @@ EVERY_FAMILY = {
     "dome": spec(Dome(0.008)),
     "bowl": spec(Dome(-0.005)),
     "dent": spec(Dent(0.002, 0.012, 0.02, -0.01)),
+    "s_curve": spec(SCurve(130 * DEG, "down", 0.4)),
 }
 THICK = {
     "flat": spec(Flat(), 0.002),
@@ -60,8 +62,9 @@ THICK = {
     "twist": spec(Twist(45 * DEG), 0.002),
     "dome": spec(Dome(0.006), 0.002),
     "dent": spec(Dent(0.002, 0.012, -0.05, 0.03), 0.001),
+    "s_curve": spec(SCurve(90 * DEG, "up", 1.3), 0.002),
 }
-ISOMETRIC = ("flat", "cylinder", "cylinder_oblique_down", "fold", "fold_oblique_down")
+ISOMETRIC = ("flat", "cylinder", "cylinder_oblique_down", "fold", "fold_oblique_down", "s_curve")
 
 
 @pytest.fixture(scope="module")
