@@ -204,4 +204,5 @@ def mesh_layout(spec: PlateSpec, tol_m: float, refine: float = 1.0) -> tuple[np.
         return _grid_layout(spec, tol_m, refine)
     if layout == "strips":
         return _strip_layout(spec, tol_m, refine)
-    raise ValueError(f"deformation family {spec.deformation.family!r} has layout {layout!r}: allowed 'strips' or 'grid'")
+    raise ValueError(f"deformation family {spec.deformation.family!r} has layout {layout!r}: "
+                     "allowed 'strips' or 'grid'")

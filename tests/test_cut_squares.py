@@ -37,8 +37,9 @@ def test_a_square_cut_by_the_outline_or_the_threshold_is_named_from_the_image():
 
 def _oblique(bend_deg, direction, axis_deg, distance_m, seed=0):
     from platebench.bench.run.render import render_sample
-    cfg = with_overrides(SampleConfig(scene=SceneParams(width=640, height=480), render=RenderSettings(spp=2, seed=seed)),
-                         bend_deg=bend_deg, bend_direction=direction, bend_axis_deg=axis_deg, distance_m=distance_m)
+    base = SampleConfig(scene=SceneParams(width=640, height=480), render=RenderSettings(spp=2, seed=seed))
+    cfg = with_overrides(base, bend_deg=bend_deg, bend_direction=direction, bend_axis_deg=axis_deg,
+                         distance_m=distance_m)
     return render_sample(cfg)[0]
 
 
@@ -110,3 +111,21 @@ def test_cut_centres_are_kept_apart_in_files_and_reported_by_evaluate(tmp_path):
     assert score["points"]["y_max_mm"] <= PAPER_XY_MM
     assert max(score["cut_points"]["x_max_mm"], score["cut_points"]["y_max_mm"]) > PAPER_XY_MM
     assert score["paper_bound"]["all_points"] is False  # 16 expected, fewer kept: said, not hidden
+
+
+@pytest.mark.render
+def test_the_cut_squares_study_counts_centres_outside_the_bound_kept_and_set_apart(tmp_path):
+    """``study cut-squares`` on two oblique plates at 0.5 m: with the cut squares kept, centres break
+    the paper's bound; with them set apart (the default), none of the kept does, and every one that
+    broke it is among those set apart."""
+    out = tmp_path / "cs"
+    p = run_cli("study", "cut-squares", "--bend", "40", "--axes", "31", "--distances", "0.495", "--width", "640",
+                "--spp", "2", "--out", out)
+    assert p.returncode == 0, p.stderr[-2000:]
+    doc = json.loads((out / "cut_study.json").read_text())
+    t = doc["totals"]
+    assert t["plates"] == 2 and t["errors"] == 0 and t["centres"] == t["kept"] + t["cut"]
+    assert t["outside_before"] >= 2 and t["outside_kept"] == 0 and t["outside_cut"] == t["outside_before"]
+    assert "totals: 2 plates" in p.stdout
+    p = run_cli("study", "cut-squares", "--distances", "5", "--out", tmp_path / "bad")
+    assert p.returncode == 2 and "--distances value 5 is out of range: allowed 0.2 to 2" in p.stderr, p.stderr

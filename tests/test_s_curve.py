@@ -32,7 +32,7 @@ def circle_distance(P: np.ndarray, d: SCurve, length=L, width=W) -> np.ndarray:
     e, g, Z = frame(d.axis_rad)
     R = bending_extent_m(length, width, d.axis_rad) / (2 * d.angle_rad)
     up = 1.0 if d.direction == "up" else -1.0
-    half = np.where(P @ e < 0, -1.0, 1.0)  # p(s) = sin(k|s|)/k sign(s): the side of the middle (both circles touch there)
+    half = np.where(P @ e < 0, -1.0, 1.0)  # p(s) = sin(k|s|)/k sign(s): the side of the middle (circles meet there)
     centre = (half * up * R)[:, None] * Z
     rel = P - (P @ g)[:, None] * g - centre  # in the (e, Z) plane of the profile
     return np.abs(np.linalg.norm(rel, axis=1) - R)

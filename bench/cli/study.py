@@ -32,16 +32,18 @@ def add_parser(sub) -> None:
                                    "detector's precision and recall against ground truth (per bend and per family), "
                                    "the targets, the smallest hiding bend and the L formula. Writes study.json and "
                                    "study.csv.")
-    p.add_argument("which", choices=["false-boundary"], help="the study to run")
+    p.add_argument("which", choices=["false-boundary", "cut-squares"],
+                   help="the study to run; cut-squares: the paper's pipeline on oblique bends (--bend, --axes, "
+                        "--distances; default 40,60,90,120 deg about 20,30,45,60,75 deg at 0.40,0.45,0.50 m), the "
+                        "centres of cut squares set apart and kept, each scored against the paper's bound")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--overwrite", action="store_true")
-    p.add_argument("--bend", default=",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG),
-                   help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
+    p.add_argument("--bend", help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
                         + ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG) + "; allowed 0 to 350)")
     p.add_argument("--families", default="all", help="comma list of deformation families to run (flat, cylinder, "
                    "fold, twist, dome, dent, ...: every key of plates.spec.FAMILIES; a family outside the default "
                    "set adds its own example plates) or 'all' (default: the 61 plates)")
-    p.add_argument("--axes", default=",".join(f"{a:g}" for a in STUDY_AXES_DEG),
+    p.add_argument("--axes",
                    help="the cylinders' bend axes in DEGREES from the plate's width direction, a,b,c or "
                         "START:STOP:STEP (default " + ",".join(f"{a:g}" for a in STUDY_AXES_DEG)
                         + "; allowed 0 to 179.9)")
@@ -49,6 +51,8 @@ def add_parser(sub) -> None:
                    help=f"length / width of the plates at the reference plate's area (default {REFERENCE_ASPECT:.3f}, "
                         "the paper's plate; allowed 0.25 to 8); the second aspect ratio's and the second "
                         "distance's few plates keep theirs")
+    p.add_argument("--distances", help="cut-squares: rig distances in METRES, a,b,c (default 0.40,0.45,0.50; "
+                   "allowed 0.2 to 2)")
     p.add_argument("--limit", type=int, help="run only the first N plates of the set")
     p.add_argument("--grid", metavar="ROWSxCOLS@PX",
                    help="stage 3's projected square grid (default: the paper's 16 squares, as sense projects them; "
@@ -78,9 +82,13 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
+    from platebench.bench.run.study import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
     from platebench.bench.run.study import perturbed_cases, study_cases, write_study  # noqa: PLC0415
 
-    bends = parse_range_text(args.bend, "--bend", 0.0, 350.0, max_count=MAX_BENDS)
+    if args.which == "cut-squares":
+        return run_cut_squares(args)
+    bends = parse_range_text(args.bend or ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG), "--bend", 0.0, 350.0,
+                             max_count=MAX_BENDS)
     l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
         if args.l_bends.strip() else []
     if not (160 <= args.width <= 4096):
@@ -100,7 +108,8 @@ def run(args) -> int:
         bad = [f for f in fams if f not in FAMILIES]
         if bad:
             raise UserValueError(f"--families value {bad[0]!r} is unknown: allowed all or " + ", ".join(FAMILIES))
-    axes = parse_range_text(args.axes, "--axes", 0.0, 179.9, max_count=MAX_BENDS)
+    axes = parse_range_text(args.axes or ",".join(f"{a:g}" for a in STUDY_AXES_DEG), "--axes", 0.0, 179.9,
+                            max_count=MAX_BENDS)
     if not (0.25 <= args.aspect <= 8.0):
         raise UserValueError(f"--aspect = {args.aspect} is out of range: allowed 0.25 to 8")
     cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect)
@@ -113,7 +122,8 @@ def run(args) -> int:
                                           pattern=parse_grid(args.grid) if args.grid else {}), render=render)
     verify_grid = verify_grid_arg(args.verify_grid)
     options = SensingOptions(verify_grid=verify_grid)
-    settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams, "grid": args.grid or "paper's 4x4 (sense's default)",
+    settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams,
+                "grid": args.grid or "paper's 4x4 (sense's default)",
                 "verify_grid": verify_grid or "stage 3's", "width_px": args.width,
                 "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
@@ -141,6 +151,42 @@ def run(args) -> int:
     for line in table_lines(doc):
         print(line)
     print(f"written         {args.out / 'study.json'}, {args.out / 'study.csv'}")
+    return 0
+
+
+def run_cut_squares(args) -> int:
+    """``study cut-squares`` (``bench.run.cut_study``): its flags checked, the study run and printed."""
+    from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.cut_study import (  # noqa: PLC0415
+        CUT_AXES_DEG,
+        CUT_BENDS_DEG,
+        CUT_DISTANCES_M,
+        table_lines,
+        write_cut_study,
+    )
+
+    def values(text, key, default, lo, hi):
+        return parse_range_text(text or ",".join(f"{v:g}" for v in default), key, lo, hi, max_count=MAX_BENDS)
+    bends = values(args.bend, "--bend", CUT_BENDS_DEG, 0.0, 350.0)
+    axes = values(args.axes, "--axes", CUT_AXES_DEG, 0.0, 179.9)
+    distances = values(args.distances, "--distances", CUT_DISTANCES_M, 0.2, 2.0)
+    if not (160 <= args.width <= 4096):
+        raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
+    try:
+        render = RenderSettings(spp=args.spp, seed=args.seed)
+    except ValueError as e:
+        raise UserValueError(f"--{e}") from None
+    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
+                                          pattern=parse_grid(args.grid) if args.grid else {}), render=render)
+    settings = {"bends_deg": bends, "axes_deg": axes, "distances_m": distances, "width_px": args.width,
+                "spp": args.spp, "seed": args.seed, "grid": args.grid or "paper's 4x4"}
+    n = len(bends) * 2 * len(axes) * len(distances)
+    with bar(n, "study cut-squares", unit="plate") as pbar:
+        doc = write_cut_study(args.out, base, args.overwrite, lambda row: pbar.update(1), settings,
+                              bends_deg=bends, axes_deg=axes, distances_m=distances)
+    for line in table_lines(doc):
+        print(line)
+    print(f"written         {args.out / 'cut_study.json'}")
     return 0
 
 

@@ -10,8 +10,9 @@ say when it is not sure.
    beside the rig, centres checked by the projector's calibration: ``reconstruction.strategy.active_views``).
    The verification views and cures project the verification pattern (``SensingOptions.verify_grid``,
    denser than the paper's 16 squares: the verdict's front check needs square centres up to the
-   plate's edges), and so does the stage-2 pose once more (``stage2_verification``); stage 3
-   keeps the sample's pattern, the paper's by default, for the paper's pipeline and its test.
+   plate's edges), and stage 3's shot is taken once more under it, the loop planning from that
+   reconstruction (``stage2_verification``); stage 3 keeps the sample's pattern, the paper's by
+   default, for the paper's pipeline and its test.
 3. The verdict (``reconstruction.strategy.multiview.verify``): outline points confirmed by a second,
    turned pose; pieces that close into one loop mean a verified boundary. The detectors of a false
    boundary at stage 2 are reported one by one (``reconstruction.strategy.detectors``).
@@ -326,11 +327,11 @@ class Measurements:
         With fewer (the paper's 4x4, ``--verify-grid stage3`` or ``4x4@40``), the centres are too
         sparse for that, and two poses that both see a sheet from behind where its front is
         unknown confirm its edge as two that see its front do (a fold's flap: the study with the
-        paper's grid at every pose was silent on 3 plates of 61). So the front is oriented again from the centres at their own spacing
-        (``sparse_front_side``); where their normals turn by more than ``SPARSE_MAX_TURN_RAD``
-        between neighbours (a crease, a tight curl) it is not trusted and the boundary is not
-        verified; otherwise the boundary is confirmed again, now only where one pose of a pair
-        sees the known front."""
+        paper's grid at every pose was silent on 3 plates of 61). So the front is oriented again
+        from the centres at their own spacing (``sparse_front_side``); where their normals turn by
+        more than ``SPARSE_MAX_TURN_RAD`` between neighbours (a crease, a tight curl) it is not
+        trusted and the boundary is not verified; otherwise the boundary is confirmed again, now
+        only where one pose of a pair sees the known front."""
         v = self.verdict
         if self.squares > SPARSE_GRID_MAX_SQUARES:
             return v.verified, v.reason, self.front.oriented_share(v.merged), ()

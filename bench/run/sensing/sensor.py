@@ -79,9 +79,10 @@ class SimulatedSensor:
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
         proj = self.base.projector
-        self.verify_base = self.base if verify_grid is None else replace(
-            self.base, projector=proj.with_pattern(square_grid(proj.pattern.width, proj.pattern.height,
-                                                               **parse_grid(verify_grid))))
+        grid = None if verify_grid is None else square_grid(proj.pattern.width, proj.pattern.height,
+                                                             **parse_grid(verify_grid))
+        same = grid is None or grid.description == proj.pattern.description
+        self.verify_base = self.base if same else replace(self.base, projector=proj.with_pattern(grid))
         self.plate = build_plate(cfg.plate)
         self.camera = self.base.rig.left
         self.projector_camera = self.base.projector.camera
