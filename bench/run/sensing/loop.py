@@ -61,7 +61,13 @@ from platebench.bench.run.sensing.scoring import (
 )
 from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, SimulatedSensor, measure_outline
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
-from platebench.reconstruction.paper.pipeline import Reconstruction, passive_stereo, projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.pipeline import (
+    PipelineOptions,
+    Reconstruction,
+    passive_stereo,
+    projector_feature_rays,
+    reconstruct,
+)
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.reconstruction.strategy.active_views import (
     ActivePoints,
@@ -203,8 +209,9 @@ def stage2_verification(sensor: SimulatedSensor, first: FirstStages, rays_for) -
     images = {**{n: first.sample3.digital[n] for n in PASSIVE}, **shot.digital}
     view = PlannedView("stage 2", first.pose2, "verification", "verification pattern",
                        "stage 3's shot again under the verification pattern: the square centres the loop plans from")
-    try:
-        rec = reconstruct(images, shot.scene.rig, rays_for(shot.scene), shot.scene.projector.pattern)
+    try:  # every centre, cut squares' too, as at every later pose: the projector check below judges them
+        rec = reconstruct(images, shot.scene.rig, rays_for(shot.scene), shot.scene.projector.pattern,
+                          PipelineOptions(keep_cut_squares=True))
     except ReconstructionError as e:
         record = ViewRecord(view, 0, "", gt_visibility_dict(first.view2.gt_visibility), f"active stage failed: {e}")
         return replace(first, records=first.records + (record,),
