@@ -286,7 +286,9 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     f = s.final
     assert f.outcome == "clean" and s.cures == 0 and f.boundary_verified and not f.unverified_parts
     assert len(s.verification_views) >= 4 and not f.hidden_first
-    assert f.accuracy["points_scored"] == 16 and f.accuracy["depth_rms_mm"] < 2.0  # 320 x 240: the paper's 2 mm
+    st3 = s.steps[2]  # at 320 x 240 an outer square's edge can touch the plate's outline: set apart, never lost
+    assert st3.matched + st3.cut == 16 and f.accuracy["points_scored"] == st3.matched >= 12
+    assert f.accuracy["depth_rms_mm"] < 2.0  # 320 x 240: the paper's 2 mm
     assert f.merged["boundary_mean_mm"] < 1.5
     stages = [st.stage for st in s.steps if hasattr(st, "stage")]
     assert stages[:3] == [1, 2, 3] and s.steps[0].pose.distance_m > s.steps[1].pose.distance_m
@@ -296,7 +298,8 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     # stage 3 projects the paper's 16 squares, the later poses (and the stage-2 pose once more) the verification grid
     pat = doc["patterns"]
     assert (pat["stage3"]["rows"], pat["stage3"]["cols"]) == (4, 4)
-    assert (pat["verification"]["rows"], pat["verification"]["cols"], pat["verification"]["square_px"]) == (6, 12, 12)
+    # 6 x 12 squares, 24 projector px at 320 x 240 (12 at 640 x 480): a square keeps about 7 camera pixels
+    assert (pat["verification"]["rows"], pat["verification"]["cols"], pat["verification"]["square_px"]) == (6, 12, 24)
     again = [st for st in doc["steps"] if st.get("stage") == "view" and st["name"] == "stage 2"]
     assert len(again) == 1 and again[0]["active"]["points"] > 16
     assert set(fin["gt_visibility"]) == {"left", "right"}
@@ -320,7 +323,7 @@ def test_the_papers_loop_alone_does_not_claim_a_verified_boundary():
     assert s.verification_views == () and s.cures == 0 and len(s.views) == 1
     assert not s.final.boundary_verified and s.final.unverified_parts
     assert s.steps[-1].kind == "stop" and s.steps[-1].reason.startswith("verification views off")
-    assert s.final.accuracy["points_scored"] == 16
+    assert s.final.accuracy["points_scored"] + s.steps[2].cut == 16
 
 
 @pytest.mark.render

@@ -42,9 +42,9 @@ def add_verify_grid_flag(p) -> None:
     from platebench.bench.run.sensing.records import VERIFY_GRID  # noqa: PLC0415
 
     p.add_argument("--verify-grid", metavar="ROWSxCOLS@PX", default=VERIFY_GRID,
-                   help=f"square grid projected by the verification views and cures (default {VERIFY_GRID}: "
-                        "fine enough to orient the plate's front up to its edges, see README); 'stage3' projects "
-                        "stage 3's grid (--grid) there too")
+                   help="square grid projected by the verification views and cures (default auto: 6x12@12 at 640 "
+                        "px wide and more, larger squares on narrower images; fine enough to orient the plate's "
+                        "front up to its edges, see README); 'stage3' projects stage 3's grid (--grid) there too")
 
 
 def verify_grid_arg(text: str) -> str | None:
@@ -55,10 +55,12 @@ def verify_grid_arg(text: str) -> str | None:
 
     if text.strip() == "stage3":
         return None
+    if text.strip() == "auto":
+        return "auto"
     try:
         square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **parse_grid(text))
     except UserValueError as e:
-        raise UserValueError(str(e).replace("--grid", "--verify-grid") + " or 'stage3'") from None
+        raise UserValueError(str(e).replace("--grid", "--verify-grid") + ", 'auto' or 'stage3'") from None
     except ValueError as e:  # the grid does not fit the projector's image
         raise UserValueError(f"--verify-grid = {text!r}: {e}") from None
     return text.strip()
@@ -85,7 +87,8 @@ def step_lines(s: SensingResult) -> list[str]:
             else:
                 why = [n for flag, n in ((fb.counting_test, "counting test"), (fb.arrays_disagree, "arrays disagree"))
                        if flag]
-                what = (f"{st.matched} points; squares L/R {fb.detected.get('left_active')}/"
+                cut = f" (and {st.cut} of cut squares, set apart)" if st.cut else ""
+                what = (f"{st.matched} points{cut}; squares L/R {fb.detected.get('left_active')}/"
                         f"{fb.detected.get('right_active')} of {fb.expected} expected; paper's test: false boundary "
                         + ("DETECTED (" + ", ".join(why) + ")" if why else "not detected"))
             out.append(f"stage 3: {what}; GT boundary visible L/R {_pct(st.gt_visibility)}")
@@ -110,9 +113,8 @@ def summary_lines(s: SensingResult) -> list[str]:
     if len(f.unverified_parts) > 6:
         lines.append(f"  ... {len(f.unverified_parts) - 6} more unverified parts (sensing.json)")
     if s.verdict.verified and not f.boundary_verified:  # the loop closed, the front check overturned it
-        from platebench.bench.run.sensing.records import VERIFY_GRID  # noqa: PLC0415
         lines.append("  hint: the verification views' grid is too sparse to tell the plate's front from its back "
-                     f"near the boundary; --verify-grid {VERIFY_GRID} measures enough square centres "
+                     "near the boundary; the default --verify-grid auto (6x12@12) measures enough square centres "
                      "(README: false-boundary study)")
     lines.append("patterns: stage 3 " + grid_text(s.patterns.get("stage3")) + ", verification views and cures "
                  + grid_text(s.patterns.get("verification")))

@@ -121,6 +121,9 @@ def run(args) -> int:
     base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
                                           pattern=parse_grid(args.grid) if args.grid else {}), render=render)
     verify_grid = verify_grid_arg(args.verify_grid)
+    if verify_grid == "auto":
+        from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
+        verify_grid = auto_verify_grid(args.width)
     options = SensingOptions(verify_grid=verify_grid)
     settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams,
                 "grid": args.grid or "paper's 4x4 (sense's default)",

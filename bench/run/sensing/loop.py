@@ -187,7 +187,7 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
         notes.append(error)
     r3 = ActiveRecord(pose2, proj_pose, None if rec is None else rec.false_boundary,
                       0 if rec is None else len(rec.points), () if rec is None else tuple(rec.unmatched),
-                      gt_visibility_dict(vis3), error)
+                      gt_visibility_dict(vis3), error, 0 if rec is None else len(rec.cut))
     # the stage-2 pose's own outline, measured by the general outline stereo (as every later pose's)
     view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.scene, s2.digital), s2.scene.rig.left,
                         s2.gt_visibility)

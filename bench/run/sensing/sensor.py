@@ -16,6 +16,7 @@ import numpy as np
 
 from platebench.bench.config import SampleConfig, parse_grid
 from platebench.bench.run.render import ground_truth_at, render_images
+from platebench.bench.run.sensing.records import auto_verify_grid
 from platebench.plates import build_plate
 from platebench.reconstruction.paper.outline_stereo import match_outlines
 from platebench.reconstruction.paper.plate_region import ReconstructionError, plate_mask
@@ -71,14 +72,16 @@ def measure_outline(name: str, scene: SceneSpec, digital: dict, masks: dict | No
 class SimulatedSensor:
     """The rig of ``cfg``'s scene on a robot; the passive light rides with it (``follows_rig``).
     Stage 3 projects ``cfg``'s pattern; the measuring poses after it (``passive_view``) project
-    ``verify_grid`` ('ROWSxCOLS@SQUARE_PX', ``parse_grid``; None: ``cfg``'s pattern too), from the
-    same projector."""
+    ``verify_grid`` ('ROWSxCOLS@SQUARE_PX', ``parse_grid``; "auto": ``records.auto_verify_grid`` of
+    the image width; None: ``cfg``'s pattern too), from the same projector."""
 
     def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None):
         self.cfg = cfg
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
         proj = self.base.projector
+        if verify_grid == "auto":
+            verify_grid = auto_verify_grid(self.base.rig.left.width)
         grid = None if verify_grid is None else square_grid(proj.pattern.width, proj.pattern.height,
                                                              **parse_grid(verify_grid))
         same = grid is None or grid.description == proj.pattern.description
