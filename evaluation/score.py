@@ -84,6 +84,10 @@ class ReconstructionData:
     boundary: np.ndarray
     surface_vertices: np.ndarray | None
     false_boundary: dict  # recon.json's false_boundary section
+    # the centres the method set apart as cut squares (scored apart, in ``Score.cut_points``): (K,3), (K,2), (K,2)
+    cut_points: np.ndarray | None = None
+    cut_uv_left: np.ndarray | None = None
+    cut_uv_right: np.ndarray | None = None
 
 
 def _mm(x: float | None) -> float | None:
@@ -225,6 +229,10 @@ class Score:
     false_boundary: FalseBoundaryVerdict
     paper_bound: PaperBound | None
     goals: Goals | None
+    # the centres of squares the method found cut and set apart (not in ``points``, the bound or
+    # the goals): their errors against the true centres; None when it set none apart
+    cut_points: PointErrors | None = None
+    cut_count: int = 0
 
     def to_dict(self) -> dict:
         out: dict = {"points": self.points.to_dict() if self.points else {"count": 0},
@@ -238,6 +246,8 @@ class Score:
             out["paper_bound"] = self.paper_bound.to_dict()
         if self.goals is not None:
             out["goals"] = self.goals.to_dict()
+        if self.cut_count:
+            out["cut_points"] = {"count": self.cut_count, **(self.cut_points.to_dict() if self.cut_points else {})}
         return out
 
 
@@ -253,12 +263,18 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
     gid_r = feature_at_pixels(truth.feature_maps["right"], rec.uv_right)
     correct = (gid_l == gid_r) & (gid_l >= 0)
 
-    points = None
-    known = np.array([g in id_index and np.all(np.isfinite(true_pts[id_index[g]])) for g in gid_l], bool)
-    if known.any():
-        stats = score_points(rec.points[known], true_pts[[id_index[g] for g in gid_l[known]]], truth.rig.left.R)
-        d_surf = point_to_surface_distance(rec.points, truth.mesh)  # exact; trimesh's is off in metres
-        points = PointErrors(stats, float(np.sqrt(np.mean(d_surf ** 2))), float(d_surf.max()))
+    def point_errors(P, uv_left):
+        """The points' errors against the true centre of the feature lighting their left pixel."""
+        gid = feature_at_pixels(truth.feature_maps["left"], uv_left)
+        known = np.array([g in id_index and np.all(np.isfinite(true_pts[id_index[g]])) for g in gid], bool)
+        if not known.any():
+            return None
+        stats = score_points(P[known], true_pts[[id_index[g] for g in gid[known]]], truth.rig.left.R)
+        d_surf = point_to_surface_distance(P, truth.mesh)  # exact; trimesh's is off in metres
+        return PointErrors(stats, float(np.sqrt(np.mean(d_surf ** 2))), float(d_surf.max()))
+    points = point_errors(rec.points, rec.uv_left)
+    n_cut = 0 if rec.cut_points is None else len(rec.cut_points)
+    cut_points = point_errors(rec.cut_points, rec.cut_uv_left) if n_cut else None
     fb = rec.false_boundary
     matching = Matching(
         matched_count=int(len(rec.points)), correct_match_count=int(correct.sum()),
@@ -282,7 +298,7 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
                                  points.count == matching.expected_count_gt)
         goals = Goals(_mm(points.stats.depth.rms), _mm(points.xy_per_axis_rms_m),
                       _mm(boundary_3d.mean_sym) if boundary_3d is not None else float("nan"))
-    return Score(points, matching, boundary_3d, boundary_image, surface, verdict, paper_bound, goals)
+    return Score(points, matching, boundary_3d, boundary_image, surface, verdict, paper_bound, goals, cut_points, n_cut)
 
 
 def format_table(score: Score) -> str:
@@ -306,6 +322,12 @@ def format_table(score: Score) -> str:
         s = score.surface
         lines.append(f"{'surface':16s} RMS {_mm(s.dist.rms):.4g} mm, max {_mm(s.dist.max):.4g} mm, "
                      f"coverage {s.coverage_frac:.4g}")
+    if score.cut_count:
+        c = score.cut_points
+        errs = "" if c is None else (f"; their depth max {_mm(c.stats.depth.max):.4f} mm, x/y max "
+                                     f"{_mm(c.xy_per_axis_max_m):.4f} mm")
+        lines.append(f"{'cut squares':16s} {score.cut_count} centres set apart (squares cut in either image by the "
+                     f"plate's outline or the threshold), not in the points, the surface or the bound{errs}")
     fb = score.false_boundary
     lines.append(f"{'false boundary':16s} truth {fb.ground_truth_any}, detected {fb.detected}, "
                  f"{'agree' if fb.agrees else 'DISAGREE'}")

@@ -15,9 +15,10 @@ from .spec import (
                    Fold,
                    PlateSpec,
                    PlateSpecError,
+                   SCurve,
                    Twist,
                    reference_spec,
 )
 
 __all__ = ["PlateSpec", "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome",
-           "Dent", "Plate", "build_plate", "reference_spec"]
+           "Dent", "SCurve", "Plate", "build_plate", "reference_spec"]

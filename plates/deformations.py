@@ -11,6 +11,8 @@ The formulas (conventions in plates/spec.py):
   r = (sin(phi)/k) e + t g + ((1 - cos phi)/k) Z, e = (cos a, sin a, 0), g = (-sin a, cos a, 0).
 - Fold: same profile with phi = k * clip(s - s0, 0, band), s0 = position - band/2, the
   part s < s0 left in place and straight continuations beyond the band.
+- SCurve: the cylinder's profile of |s| with k = +-2 angle/S, odd in s: r = sign(s) (sin(k|s|)/k e
+  + ((1 - cos k|s|)/k) Z) + t g, tangent angle phi = k|s|.
 - Twist: r = (u, v cos(ku), v sin(ku)), k = angle/L.
 - Dome: height field z = -c rho^2 / (1 + sqrt(1 - c^2 rho^2)), c = 2 sag / (D^2 + sag^2).
 - Dent: height field z = -depth (1 - q)^3 for q = |uv - centre|^2 / R^2 < 1, else 0.
@@ -29,6 +31,7 @@ from .spec import (
     Flat,
     Fold,
     PlateSpec,
+    SCurve,
     Twist,
     bending_extent_m,
 )
@@ -59,6 +62,11 @@ def _bend_profile(spec: PlateSpec, s: np.ndarray):
         k = sign * d.angle_rad / bending_extent_m(spec.length_m, spec.width_m, d.axis_rad)
         p, z = _arc(s, k)
         return p, z, k * s
+    if isinstance(d, SCurve):
+        k = sign * 2.0 * d.angle_rad / bending_extent_m(spec.length_m, spec.width_m, d.axis_rad)
+        a, odd = np.abs(s), np.sign(s)
+        p, z = _arc(a, k)
+        return odd * p, odd * z, k * a
     k = sign * d.angle_rad / d.band_m
     s0 = d.position_m - 0.5 * d.band_m
     dist = s - s0
@@ -131,7 +139,16 @@ def _flat(spec: PlateSpec, uv: np.ndarray):
 
 
 _FAMILY_MAPS = {Flat: _flat, CylindricalBend: _bend, Fold: _bend, Twist: _twist,
-                Dome: _dome, Dent: _dent}
+                Dome: _dome, Dent: _dent, SCurve: _bend}
+
+
+def _surface_map(spec: PlateSpec):
+    """The exact map of the spec's family (ValueError for a family without one: never a guess)."""
+    try:
+        return _FAMILY_MAPS[type(spec.deformation)]
+    except KeyError:
+        raise ValueError(f"deformation family {type(spec.deformation).__name__} has no exact surface: "
+                         "allowed " + ", ".join(c.__name__ for c in _FAMILY_MAPS)) from None
 
 
 def surface_derivatives(spec: PlateSpec, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -141,20 +158,20 @@ def surface_derivatives(spec: PlateSpec, uv: np.ndarray) -> tuple[np.ndarray, np
     r_u and r_v dimensionless (metres per metre of u or v).
     """
     uv, _ = _as_uv(uv)
-    return _FAMILY_MAPS[type(spec.deformation)](spec, uv)
+    return _surface_map(spec)(spec, uv)
 
 
 def surface_point(spec: PlateSpec, uv: np.ndarray) -> np.ndarray:
     """Top-surface point (world frame, metres) at material coords uv ((N, 2) -> (N, 3), (2,) -> (3,))."""
     uv, single = _as_uv(uv)
-    r = _FAMILY_MAPS[type(spec.deformation)](spec, uv)[0]
+    r = _surface_map(spec)(spec, uv)[0]
     return r[0] if single else r
 
 
 def surface_normal(spec: PlateSpec, uv: np.ndarray) -> np.ndarray:
     """Unit top-surface normal (world frame) at material coords uv; +Z on a flat plate."""
     uv, single = _as_uv(uv)
-    _, r_u, r_v = _FAMILY_MAPS[type(spec.deformation)](spec, uv)
+    _, r_u, r_v = _surface_map(spec)(spec, uv)
     n = np.cross(r_u, r_v)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     return n[0] if single else n

@@ -4,17 +4,18 @@ Units: metres. Everything here works in the material (uv) plane: a layout is
 (uv, faces) with uv (V, 2) in metres and faces (F, 3) int, counter-clockwise seen
 from +Z (so the mapped faces' normals agree with the top normal r_u x r_v).
 
-Two layouts:
+Two layouts, each family naming its own (``DeformationFamily.layout``):
 - strips (Flat, CylindricalBend, Fold): those surfaces are ruled along the bend axis,
   so the plate is cut by lines of constant bending coordinate s (through every
   corner and every curvature break) into trapezoids. Straight lines of constant s
   stay straight on the surface, so the facet error depends only on the s-spacing:
-  fine only where the plate is curved, at any axis angle.
+  fine only where the plate is curved, at any axis angle (``DeformationFamily.ruling``: the axis,
+  the curved band, the curvature breaks and the smallest radius).
 - grid (Twist, Dome, Dent): a tensor-product grid with per-axis spacing chosen from
   bounds on |r_uu|, |r_uv|, |r_vv| of the top and bottom surfaces (the P1
   interpolation error on a right triangle with legs hu, hv is about
-  <= (M_uu hu^2 + 2 M_uv hu hv + M_vv hv^2) / 8); a Dent is refined only over its
-  support.
+  <= (M_uu hu^2 + 2 M_uv hu hv + M_vv hv^2) / 8), refined only over the family's
+  ``curved_support`` (a Dent's disc).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from platebench.tolerances import ceil_count, tol
 
 from .deformations import surface_derivatives
-from .spec import CylindricalBend, Dent, Dome, Fold, PlateSpec, Twist, bending_extent_m
+from .spec import PlateSpec, bending_extent_m
 
 __all__ = ["mesh_layout", "MIN_SEGMENTS", "MAX_VERTICES"]
 
@@ -79,23 +80,19 @@ def _zip_strip(ta: np.ndarray, tb: np.ndarray, ia: np.ndarray, ib: np.ndarray) -
 
 
 def _strip_layout(spec: PlateSpec, tol_m: float, refine: float):
-    d, L, W = spec.deformation, spec.length_m, spec.width_m
-    a = getattr(d, "axis_rad", 0.0)
+    L, W = spec.length_m, spec.width_m
+    ruling = spec.deformation.ruling(L, W)
+    a = ruling.axis_rad
     ca, sa = math.cos(a), math.sin(a)
     S = bending_extent_m(L, W, a)
     corners = [(x * ca + y * sa) for x in (-L / 2, L / 2) for y in (-W / 2, W / 2)]
-    breaks = [-S / 2, S / 2] + corners
+    breaks = [-S / 2, S / 2] + corners + list(ruling.breaks_m)
     coarse = S / MIN_SEGMENTS / refine
     curved = (-S / 2, S / 2)
     fine = coarse
-    if isinstance(d, (CylindricalBend, Fold)) and d.angle_rad > 0:
-        if isinstance(d, Fold):
-            curved = (d.position_m - d.band_m / 2, d.position_m + d.band_m / 2)
-            breaks += list(curved)
-            radius = d.band_m / d.angle_rad
-        else:
-            radius = S / d.angle_rad
-        fine = min(coarse, _arc_spacing(radius, spec.thickness_m, tol_m) / refine)
+    if ruling.curved_m is not None:
+        curved = ruling.curved_m
+        fine = min(coarse, _arc_spacing(ruling.radius_m, spec.thickness_m, tol_m) / refine)
     span = curved[1] - curved[0]
     s_nodes = _nodes(breaks, lambda lo, hi: fine if (lo >= curved[0] - tol.relative * S
                                                      and hi <= curved[1] + tol.relative * S
@@ -125,13 +122,8 @@ def _strip_layout(spec: PlateSpec, tol_m: float, refine: float):
 
 
 def _support(spec: PlateSpec) -> tuple[tuple[float, float], tuple[float, float]]:
-    """((u0, u1), (v0, v1)): the part of the plate that is curved (all of it but for a Dent)."""
-    d, L, W = spec.deformation, spec.length_m, spec.width_m
-    if isinstance(d, Dent):
-        u0, u1 = d.centre_u_m - d.radius_m, d.centre_u_m + d.radius_m
-        v0, v1 = d.centre_v_m - d.radius_m, d.centre_v_m + d.radius_m
-        return (max(u0, -L / 2), min(u1, L / 2)), (max(v0, -W / 2), min(v1, W / 2))
-    return (-L / 2, L / 2), (-W / 2, W / 2)
+    """((u0, u1), (v0, v1)): the part of the plate that is curved (the family's ``curved_support``)."""
+    return spec.deformation.curved_support(spec.length_m, spec.width_m)
 
 
 def _second_derivative_bounds(spec: PlateSpec, samples: int = 65) -> tuple[float, float, float]:
@@ -207,6 +199,10 @@ def mesh_layout(spec: PlateSpec, tol_m: float, refine: float = 1.0) -> tuple[np.
     shrinks every spacing by that factor (used when a measured error is too large).
     The spacing accounts for the bottom offset surface when thickness_m > 0.
     """
-    if isinstance(spec.deformation, (Twist, Dome, Dent)):
+    layout = spec.deformation.layout
+    if layout == "grid":
         return _grid_layout(spec, tol_m, refine)
-    return _strip_layout(spec, tol_m, refine)
+    if layout == "strips":
+        return _strip_layout(spec, tol_m, refine)
+    raise ValueError(f"deformation family {spec.deformation.family!r} has layout {layout!r}: "
+                     "allowed 'strips' or 'grid'")

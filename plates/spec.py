@@ -22,6 +22,7 @@ camera side); "down" is the mirror image.
 
 from __future__ import annotations
 
+import abc
 import math
 import numbers
 from dataclasses import MISSING, dataclass, field, fields
@@ -30,14 +31,17 @@ from typing import Any, ClassVar, Mapping
 from platebench.errors import UserValueError
 
 __all__ = [
-    "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent",
-    "Deformation", "PlateSpec", "reference_spec", "FAMILIES",
+    "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent", "SCurve",
+    "Deformation", "DeformationFamily", "PlateSpec", "reference_spec", "FAMILIES", "SweepKey", "Ruling",
+    "family_class", "family_sweep_keys",
 ]
 
 MAX_BEND_RAD = math.radians(350.0)
 MAX_FOLD_RAD = math.radians(180.0)
 MAX_TWIST_RAD = math.radians(90.0)
+MAX_S_CURVE_RAD = math.radians(180.0)  # each half of an S-curve a half circle at most
 DIRECTIONS = ("up", "down")
+DEFAULT_ANGLE_RAD = math.radians(10.0)  # a family's default bend or twist (the paper's plate: 10 degrees)
 
 
 class PlateSpecError(UserValueError):
@@ -90,14 +94,139 @@ def _check_direction(obj: Any) -> None:
 
 
 @dataclass(frozen=True)
-class Flat:
-    """No deformation: the plate stays in z = 0."""
+class SweepKey:
+    """A sweep-spec axis of one family: its key (unit in the name), the deformation field it sets,
+    its help text, and whether the spec gives it in degrees (the field is in radians)."""
 
-    family: ClassVar[str] = "flat"
+    name: str
+    field: str
+    help: str
+    degrees: bool = False
 
 
 @dataclass(frozen=True)
-class CylindricalBend:
+class Ruling:
+    """A ruled family's meshing layout (``meshing`` "strips"): the bend axis (radians, as
+    ``CylindricalBend.axis_rad``), the curved band of the bending coordinate s ((lo, hi) metres;
+    None when nothing is curved), its breaks in curvature (s values, metres) and its smallest
+    radius of curvature (metres; inf when flat)."""
+
+    axis_rad: float
+    curved_m: tuple[float, float] | None = None
+    breaks_m: tuple[float, ...] = ()
+    radius_m: float = math.inf
+
+    @property
+    def curvature_per_m(self) -> float:
+        """The largest curvature (1/m): 1 / ``radius_m``, 0 when flat."""
+        return 0.0 if math.isinf(self.radius_m) else 1.0 / self.radius_m
+
+
+class DeformationFamily(abc.ABC):
+    """What the bench asks of a deformation family; every family's dataclass derives from it and
+    ``FAMILIES`` lists them, in the order tables show them.
+
+    Class attributes: ``family`` (its key in configs, specs, tables), ``label`` (its name in
+    words), ``layout`` ("strips": ruled along a bend axis, meshed by ``ruling``; "grid": meshed on
+    a tensor grid over ``curved_support``), ``sweep_keys`` (its own sweep-spec axes, applied in
+    this order after the shared bend_deg / direction / axis_deg), ``by_bend`` (tables per bend
+    angle: the family's plates differ by ``angle_rad``), ``in_default_study`` (the false-boundary
+    study's default plates include ``study_examples``). A family missing one of them, or one of
+    the abstract methods, cannot be defined or made (never a silent default)."""
+
+    family: ClassVar[str]
+    label: ClassVar[str]
+    layout: ClassVar[str]
+    sweep_keys: ClassVar[tuple[SweepKey, ...]] = ()
+    by_bend: ClassVar[bool] = False
+    in_default_study: ClassVar[bool] = True
+    LAYOUTS: ClassVar[tuple[str, ...]] = ("strips", "grid")
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        for name in ("family", "label", "layout"):
+            if not isinstance(getattr(cls, name, None), str):
+                raise TypeError(f"deformation family {cls.__name__} does not set {name!r}")
+        if cls.layout not in cls.LAYOUTS:
+            raise TypeError(f"deformation family {cls.__name__}.layout = {cls.layout!r}: allowed "
+                            + ", ".join(cls.LAYOUTS))
+
+    @abc.abstractmethod
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        """Upper bound (1/m) on the top surface's principal curvatures on an L x W plate."""
+
+    @classmethod
+    @abc.abstractmethod
+    def defaults(cls, length_m: float, width_m: float) -> "DeformationFamily":
+        """The family with default parameters for an L x W plate (a sweep switching to it)."""
+
+    def check_fit(self, length_m: float, width_m: float) -> None:
+        """Raise PlateSpecError when the deformation does not fit an L x W plate."""
+
+    def ruling(self, length_m: float, width_m: float) -> Ruling:
+        """The strips layout of a ruled family (``layout`` "strips")."""
+        raise TypeError(f"deformation family {self.family!r} is not ruled (layout {self.layout!r})")
+
+    def curved_support(self, length_m: float, width_m: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((u0, u1), (v0, v1)) metres: the part of an L x W plate that is curved (grid layout)."""
+        return (-length_m / 2, length_m / 2), (-width_m / 2, width_m / 2)
+
+    def study_label(self) -> str:
+        """The family a plate of this deformation counts under in the study's tables (a key of
+        ``FAMILIES``; a cylinder bent 0 degrees is flat)."""
+        return self.family
+
+    def bend_deg(self) -> float | None:
+        """The bend angle the study's tables show (degrees), None for a family without one."""
+        angle = getattr(self, "angle_rad", None)
+        return None if angle is None else round(math.degrees(angle), 9)
+
+    @classmethod
+    def study_examples(cls) -> tuple[tuple[str, "DeformationFamily"], ...]:
+        """Named plates of this family for the false-boundary study (families the study does not
+        sweep by bend: cylinders and folds are built from its --bend list)."""
+        return ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict with a "family" key (what ``PlateSpec.to_dict`` nests)."""
+        return {"family": self.family, **{f.name: getattr(self, f.name) for f in fields(self)}}
+
+
+def _arcs_ruling(d, length_m: float, width_m: float, arcs: int) -> Ruling:
+    """The ruling of a bend of ``arcs`` equal circular arcs over the whole plate, each turning by
+    ``d.angle_rad`` (a cylinder: 1; an S-curve: 2, meeting at s = 0): radius S / (arcs angle)."""
+    if d.angle_rad == 0:
+        return Ruling(d.axis_rad)
+    S = bending_extent_m(length_m, width_m, d.axis_rad)
+    breaks = tuple(-S / 2 + S * k / arcs for k in range(1, arcs))
+    return Ruling(d.axis_rad, (-S / 2, S / 2), breaks, S / (arcs * d.angle_rad))
+
+
+@dataclass(frozen=True)
+class Flat(DeformationFamily):
+    """No deformation: the plate stays in z = 0."""
+
+    family: ClassVar[str] = "flat"
+    label: ClassVar[str] = "flat plate"
+    layout: ClassVar[str] = "strips"
+    by_bend: ClassVar[bool] = True
+
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return 0.0
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "Flat":
+        return cls()
+
+    def ruling(self, length_m: float, width_m: float) -> Ruling:
+        return Ruling(0.0)
+
+    def bend_deg(self) -> float | None:
+        return 0.0
+
+
+@dataclass(frozen=True)
+class CylindricalBend(DeformationFamily):
     """Uniform cylindrical bend, arc length preserved.
 
     angle_rad: angle between the end tangents of the extreme material lines, 0 to
@@ -111,15 +240,31 @@ class CylindricalBend:
     direction: str = "up"
     axis_rad: float = 0.0
     family: ClassVar[str] = "cylinder"
+    label: ClassVar[str] = "cylindrical bend"
+    layout: ClassVar[str] = "strips"
+    by_bend: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         _check(self, "angle_rad", 0.0, MAX_BEND_RAD, unit="rad")
         _check_direction(self)
         _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
 
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return _arcs_ruling(self, length_m, width_m, 1).curvature_per_m
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "CylindricalBend":
+        return cls(DEFAULT_ANGLE_RAD, "up", 0.0)
+
+    def ruling(self, length_m: float, width_m: float) -> Ruling:
+        return _arcs_ruling(self, length_m, width_m, 1)
+
+    def study_label(self) -> str:
+        return "flat" if self.angle_rad == 0 else self.family
+
 
 @dataclass(frozen=True)
-class Fold:
+class Fold(DeformationFamily):
     """Off-centre fold: a circular arc of total angle angle_rad inside a band.
 
     The band has width band_m and is centred at bending coordinate position_m; the
@@ -137,6 +282,11 @@ class Fold:
     direction: str
     axis_rad: float = 0.0
     family: ClassVar[str] = "fold"
+    label: ClassVar[str] = "fold"
+    layout: ClassVar[str] = "strips"
+    by_bend: ClassVar[bool] = True
+    sweep_keys: ClassVar[tuple[SweepKey, ...]] = (SweepKey("fold_position_m", "position_m", "fold band centre, m"),
+                                                 SweepKey("fold_band_m", "band_m", "fold band width, m"))
 
     def __post_init__(self) -> None:
         _check(self, "angle_rad", 0.0, MAX_FOLD_RAD, unit="rad")
@@ -145,9 +295,35 @@ class Fold:
         _check_direction(self)
         _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
 
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return self.angle_rad / self.band_m
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "Fold":
+        return cls(DEFAULT_ANGLE_RAD, 0.0, 0.25 * length_m, "up", 0.0)
+
+    def check_fit(self, length_m: float, width_m: float) -> None:
+        size = _size(length_m, width_m)
+        S = bending_extent_m(length_m, width_m, self.axis_rad)
+        if self.band_m > S:
+            raise PlateSpecError(
+                f"Fold.band_m = {_fmt(self.band_m)} is out of range for {size}: allowed > 0 to "
+                f"{_fmt(S)} m (the plate's extent along the bending direction)")
+        lim = 0.5 * (S - self.band_m)
+        if abs(self.position_m) > lim:
+            raise PlateSpecError(
+                f"Fold.position_m = {_fmt(self.position_m)} is out of range for band_m = "
+                f"{_fmt(self.band_m)} on {size}: allowed {_fmt(-lim)} to {_fmt(lim)} m")
+
+    def ruling(self, length_m: float, width_m: float) -> Ruling:
+        if self.angle_rad == 0:
+            return Ruling(self.axis_rad)
+        band = (self.position_m - self.band_m / 2, self.position_m + self.band_m / 2)
+        return Ruling(self.axis_rad, band, band, self.band_m / self.angle_rad)
+
 
 @dataclass(frozen=True)
-class Twist:
+class Twist(DeformationFamily):
     """Helicoidal twist about the X axis: (u, v cos(k u), v sin(k u)), k = angle_rad / L.
 
     angle_rad is the signed total twist between the two ends (u = -L/2 and u = +L/2),
@@ -157,13 +333,26 @@ class Twist:
 
     angle_rad: float
     family: ClassVar[str] = "twist"
+    label: ClassVar[str] = "twist"
+    layout: ClassVar[str] = "grid"
 
     def __post_init__(self) -> None:
         _check(self, "angle_rad", -MAX_TWIST_RAD, MAX_TWIST_RAD, unit="rad")
 
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return abs(self.angle_rad) / length_m
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "Twist":
+        return cls(DEFAULT_ANGLE_RAD)
+
+    @classmethod
+    def study_examples(cls):
+        return (("twist 45", cls(math.radians(45.0))), ("twist -80", cls(math.radians(-80.0))))
+
 
 @dataclass(frozen=True)
-class Dome:
+class Dome(DeformationFamily):
     """Spherical cap as a height field over the flat plate: z = z(u, v), (x, y) = (u, v).
 
     The sphere touches z = 0 at the plate centre (normal +Z there). sag_m is the
@@ -175,13 +364,35 @@ class Dome:
 
     sag_m: float
     family: ClassVar[str] = "dome"
+    label: ClassVar[str] = "dome or bowl"
+    layout: ClassVar[str] = "grid"
+    sweep_keys: ClassVar[tuple[SweepKey, ...]] = (SweepKey("sag_m", "sag_m", "dome sag, m"),)
 
     def __post_init__(self) -> None:
         _check(self, "sag_m", -math.inf, math.inf, allowed="a finite number of metres")
 
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        half_diag = 0.5 * math.hypot(length_m, width_m)
+        return 2.0 * abs(self.sag_m) / (half_diag**2 + self.sag_m**2)
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "Dome":
+        return cls(0.02 * math.hypot(length_m, width_m))
+
+    def check_fit(self, length_m: float, width_m: float) -> None:
+        lim = 0.125 * math.hypot(length_m, width_m)
+        if abs(self.sag_m) > lim:
+            raise PlateSpecError(
+                f"Dome.sag_m = {_fmt(self.sag_m)} is out of range for {_size(length_m, width_m)}: allowed "
+                f"{_fmt(-lim)} to {_fmt(lim)} m (a quarter of the half-diagonal)")
+
+    @classmethod
+    def study_examples(cls):
+        return (("dome 12 mm", cls(0.012)), ("bowl 12 mm", cls(-0.012)))
+
 
 @dataclass(frozen=True)
-class Dent:
+class Dent(DeformationFamily):
     """Local smooth dent in -Z as a height field: z = -depth_m (1 - r^2/R^2)^3 for r < R.
 
     r is the material distance from (centre_u_m, centre_v_m), R = radius_m; the
@@ -195,6 +406,10 @@ class Dent:
     centre_u_m: float = 0.0
     centre_v_m: float = 0.0
     family: ClassVar[str] = "dent"
+    label: ClassVar[str] = "dent"
+    layout: ClassVar[str] = "grid"
+    sweep_keys: ClassVar[tuple[SweepKey, ...]] = (SweepKey("dent_depth_m", "depth_m", "dent depth, m"),
+                                                 SweepKey("dent_radius_m", "radius_m", "dent radius, m"))
 
     def __post_init__(self) -> None:
         _check(self, "radius_m", 0.0, math.inf, lo_open=True)
@@ -203,9 +418,105 @@ class Dent:
         _check(self, "centre_u_m", -math.inf, math.inf, allowed="a finite number of metres")
         _check(self, "centre_v_m", -math.inf, math.inf, allowed="a finite number of metres")
 
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return 6.0 * self.depth_m / self.radius_m**2
 
-Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent
-FAMILIES: dict[str, type] = {c.family: c for c in (Flat, CylindricalBend, Fold, Twist, Dome, Dent)}
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "Dent":
+        s = min(length_m, width_m)
+        return cls(0.02 * s, 0.25 * s, 0.0, 0.0)
+
+    def check_fit(self, length_m: float, width_m: float) -> None:
+        size = _size(length_m, width_m)
+        lim = 0.05 * min(length_m, width_m)
+        if self.depth_m > lim:
+            raise PlateSpecError(
+                f"Dent.depth_m = {_fmt(self.depth_m)} is out of range for {size}: allowed > 0 to "
+                f"{_fmt(lim)} m (a twentieth of the smaller side)")
+        for name, half in (("centre_u_m", length_m / 2), ("centre_v_m", width_m / 2)):
+            value = getattr(self, name)
+            if abs(value) > half:
+                raise PlateSpecError(
+                    f"Dent.{name} = {_fmt(value)} is out of range for {size}: allowed "
+                    f"{_fmt(-half)} to {_fmt(half)} m")
+
+    def curved_support(self, length_m: float, width_m: float):
+        u0, u1 = self.centre_u_m - self.radius_m, self.centre_u_m + self.radius_m
+        v0, v1 = self.centre_v_m - self.radius_m, self.centre_v_m + self.radius_m
+        return (max(u0, -length_m / 2), min(u1, length_m / 2)), (max(v0, -width_m / 2), min(v1, width_m / 2))
+
+    @classmethod
+    def study_examples(cls):
+        return (("dent 3 mm centre", cls(0.003, 0.02)), ("dent 3 mm off-centre", cls(0.003, 0.015, 0.03, 0.015)))
+
+
+@dataclass(frozen=True)
+class SCurve(DeformationFamily):
+    """S-curve: two circular arcs of opposite curvature meeting at the plate's middle, arc length
+    preserved, ruled along the bend axis like ``CylindricalBend``.
+
+    On the bending coordinate s the curvature is +-k for s > 0 and -+k for s < 0, k =
+    2 angle_rad / S (S: the plate's extent along s), so the tangent turns by angle_rad from the
+    middle to either end and the two ends stay parallel: the profile is point-symmetric about
+    the plate centre, which stays at the origin with normal +Z (a C1 curve, its curvature
+    jumping at s = 0). angle_rad 0 to 180 deg (at 180 each half is a half circle).
+    direction: "up" (the s > 0 half rises toward +Z, the other falls) or "down"; axis_rad as
+    in CylindricalBend.
+    """
+
+    angle_rad: float
+    direction: str = "up"
+    axis_rad: float = 0.0
+    family: ClassVar[str] = "s_curve"
+    label: ClassVar[str] = "S-curve"
+    layout: ClassVar[str] = "strips"
+    in_default_study: ClassVar[bool] = False  # not among the study's 61 default plates: study --families s_curve
+
+    def __post_init__(self) -> None:
+        _check(self, "angle_rad", 0.0, MAX_S_CURVE_RAD, unit="rad")
+        _check_direction(self)
+        _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
+
+    def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        return _arcs_ruling(self, length_m, width_m, 2).curvature_per_m
+
+    @classmethod
+    def defaults(cls, length_m: float, width_m: float) -> "SCurve":
+        return cls(DEFAULT_ANGLE_RAD, "up", 0.0)
+
+    def ruling(self, length_m: float, width_m: float) -> Ruling:
+        return _arcs_ruling(self, length_m, width_m, 2)
+
+    @classmethod
+    def study_examples(cls):
+        return (("s-curve 60 up axis 0", cls(math.radians(60.0), "up", 0.0)),
+                ("s-curve 120 down axis 90", cls(math.radians(120.0), "down", math.radians(90.0))),
+                ("s-curve 170 up axis 30", cls(math.radians(170.0), "up", math.radians(30.0))))
+
+
+Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent | SCurve
+# every family, in the order tables show them (a family is known by being listed here)
+FAMILIES: dict[str, type[DeformationFamily]] = {c.family: c for c in (Flat, CylindricalBend, Fold, Twist, Dome, Dent,
+                                                                      SCurve)}
+
+
+def family_class(family: str) -> type[DeformationFamily]:
+    """The family's dataclass; PlateSpecError naming the known families for any other name."""
+    if family not in FAMILIES:
+        raise PlateSpecError(f"deformation family = {family!r} is unknown: allowed families " + ", ".join(FAMILIES))
+    return FAMILIES[family]
+
+
+def family_sweep_keys() -> tuple[tuple[str, SweepKey], ...]:
+    """(family, key) of every family's own sweep-spec axes, families in ``FAMILIES`` order, each
+    family's keys in its order (a key two families share is listed once, under the first)."""
+    out, seen = [], set()
+    for name, cls in FAMILIES.items():
+        for k in cls.sweep_keys:
+            if k.name not in seen:
+                seen.add(k.name)
+                out.append((name, k))
+    return tuple(out)
 
 
 def bending_extent_m(length_m: float, width_m: float, axis_rad: float) -> float:
@@ -214,20 +525,13 @@ def bending_extent_m(length_m: float, width_m: float, axis_rad: float) -> float:
 
 
 def max_curvature_per_m(spec: "PlateSpec") -> float:
-    """Upper bound (1/m) on the top surface's principal curvatures; 0 for a flat plate."""
-    d, L, W = spec.deformation, spec.length_m, spec.width_m
-    if isinstance(d, CylindricalBend):
-        return d.angle_rad / bending_extent_m(L, W, d.axis_rad)
-    if isinstance(d, Fold):
-        return d.angle_rad / d.band_m
-    if isinstance(d, Twist):
-        return abs(d.angle_rad) / L
-    if isinstance(d, Dome):
-        half_diag = 0.5 * math.hypot(L, W)
-        return 2.0 * abs(d.sag_m) / (half_diag**2 + d.sag_m**2)
-    if isinstance(d, Dent):
-        return 6.0 * d.depth_m / d.radius_m**2
-    return 0.0
+    """Upper bound (1/m) on the top surface's principal curvatures; 0 for a flat plate (the
+    family's own ``max_curvature_per_m``)."""
+    return spec.deformation.max_curvature_per_m(spec.length_m, spec.width_m)
+
+
+def _size(length_m: float, width_m: float) -> str:
+    return f"a {_fmt(length_m)} m x {_fmt(width_m)} m plate"
 
 
 @dataclass(frozen=True)
@@ -236,7 +540,8 @@ class PlateSpec:
 
     thickness_m from 0 to a tenth of the smaller side and, for a curved plate, to half
     the smallest radius of curvature (so the bottom offset surface stays smooth).
-    deformation: one of Flat, CylindricalBend, Fold, Twist, Dome, Dent.
+    deformation: one of the families of ``FAMILIES`` (Flat, CylindricalBend, Fold, Twist, Dome,
+    Dent, SCurve).
     """
 
     length_m: float
@@ -248,7 +553,7 @@ class PlateSpec:
         _check(self, "length_m", 0.0, math.inf, lo_open=True)
         _check(self, "width_m", 0.0, math.inf, lo_open=True)
         _check(self, "thickness_m", 0.0, math.inf)
-        if not isinstance(self.deformation, tuple(FAMILIES.values())):
+        if not isinstance(self.deformation, DeformationFamily) or type(self.deformation) not in FAMILIES.values():
             raise PlateSpecError(
                 f"PlateSpec.deformation = {self.deformation!r} is not a deformation: allowed "
                 + ", ".join(c.__name__ for c in FAMILIES.values()))
@@ -264,45 +569,13 @@ class PlateSpec:
                 f"{_fmt(limit)} m ({why})")
 
     def _check_fit(self) -> None:
-        """Cross-field checks: the deformation must fit this plate size."""
-        d, L, W = self.deformation, self.length_m, self.width_m
-        size = f"a {_fmt(L)} m x {_fmt(W)} m plate"
-        if isinstance(d, Fold):
-            S = bending_extent_m(L, W, d.axis_rad)
-            if d.band_m > S:
-                raise PlateSpecError(
-                    f"Fold.band_m = {_fmt(d.band_m)} is out of range for {size}: allowed > 0 to "
-                    f"{_fmt(S)} m (the plate's extent along the bending direction)")
-            lim = 0.5 * (S - d.band_m)
-            if abs(d.position_m) > lim:
-                raise PlateSpecError(
-                    f"Fold.position_m = {_fmt(d.position_m)} is out of range for band_m = "
-                    f"{_fmt(d.band_m)} on {size}: allowed {_fmt(-lim)} to {_fmt(lim)} m")
-        elif isinstance(d, Dome):
-            lim = 0.125 * math.hypot(L, W)
-            if abs(d.sag_m) > lim:
-                raise PlateSpecError(
-                    f"Dome.sag_m = {_fmt(d.sag_m)} is out of range for {size}: allowed "
-                    f"{_fmt(-lim)} to {_fmt(lim)} m (a quarter of the half-diagonal)")
-        elif isinstance(d, Dent):
-            lim = 0.05 * min(L, W)
-            if d.depth_m > lim:
-                raise PlateSpecError(
-                    f"Dent.depth_m = {_fmt(d.depth_m)} is out of range for {size}: allowed > 0 to "
-                    f"{_fmt(lim)} m (a twentieth of the smaller side)")
-            for name, half in (("centre_u_m", L / 2), ("centre_v_m", W / 2)):
-                value = getattr(d, name)
-                if abs(value) > half:
-                    raise PlateSpecError(
-                        f"Dent.{name} = {_fmt(value)} is out of range for {size}: allowed "
-                        f"{_fmt(-half)} to {_fmt(half)} m")
+        """Cross-field checks: the deformation must fit this plate size (the family's ``check_fit``)."""
+        self.deformation.check_fit(self.length_m, self.width_m)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dict; the deformation is a nested dict with a "family" key."""
-        deformation = {"family": self.deformation.family}
-        deformation.update({f.name: getattr(self.deformation, f.name) for f in fields(self.deformation)})
         return {"length_m": self.length_m, "width_m": self.width_m,
-                "thickness_m": self.thickness_m, "deformation": deformation}
+                "thickness_m": self.thickness_m, "deformation": self.deformation.to_dict()}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "PlateSpec":
@@ -328,11 +601,7 @@ def _check_keys(owner: str, d: Mapping[str, Any], allowed: set[str], required: s
 def _deformation_from_dict(d: Any) -> Deformation:
     if not isinstance(d, Mapping):
         raise PlateSpecError(f"PlateSpec.deformation = {d!r} is not a mapping")
-    family = d.get("family")
-    if family not in FAMILIES:
-        raise PlateSpecError(
-            f"deformation family = {family!r} is unknown: allowed families " + ", ".join(FAMILIES))
-    cls = FAMILIES[family]
+    cls = family_class(d.get("family"))
     names = {f.name for f in fields(cls)}
     required = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
     _check_keys(cls.__name__, d, names | {"family"}, required)

@@ -136,7 +136,7 @@ def test_merged_reconstruction_of_a_240_degree_curl_is_measured_from_every_pose(
                        render=RenderSettings(spp=2))
     cfg = replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(math.radians(240), "down",
                                                                             math.radians(axis_deg))))
-    s = run_sensing(cfg, tmp_path, SensingOptions(working_distance_m=distance_m))
+    s = run_sensing(cfg, tmp_path, SensingOptions(working_distance_m=distance_m, verify_grid=None))  # 5x10@18 everywhere
     m = s.final.merged
     assert m["points"] > s.final.accuracy["points_scored"] if s.final.accuracy else m["points"] > 0
     assert m["points_rms_mm"] < 0.5

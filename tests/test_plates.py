@@ -21,10 +21,12 @@ from platebench.plates import (
     Plate,
     PlateSpec,
     PlateSpecError,
+    SCurve,
     Twist,
     build_plate,
     reference_spec,
 )
+from platebench.plates.spec import FAMILIES
 from platebench.plates.deformations import (
     surface_derivatives,
     surface_normal,
@@ -50,6 +52,7 @@ EVERY_FAMILY = {
     "dome": spec(Dome(0.008)),
     "bowl": spec(Dome(-0.005)),
     "dent": spec(Dent(0.002, 0.012, 0.02, -0.01)),
+    "s_curve": spec(SCurve(130 * DEG, "down", 0.4)),
 }
 THICK = {
     "flat": spec(Flat(), 0.002),
@@ -59,8 +62,9 @@ THICK = {
     "twist": spec(Twist(45 * DEG), 0.002),
     "dome": spec(Dome(0.006), 0.002),
     "dent": spec(Dent(0.002, 0.012, -0.05, 0.03), 0.001),
+    "s_curve": spec(SCurve(90 * DEG, "up", 1.3), 0.002),
 }
-ISOMETRIC = ("flat", "cylinder", "cylinder_oblique_down", "fold", "fold_oblique_down")
+ISOMETRIC = ("flat", "cylinder", "cylinder_oblique_down", "fold", "fold_oblique_down", "s_curve")
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +131,7 @@ def test_dict_round_trip_every_family(name):
     s = EVERY_FAMILY[name] if name in EVERY_FAMILY else THICK[name[len("thick_"):]]
     d = json.loads(json.dumps(s.to_dict()))
     assert PlateSpec.from_dict(d) == s
-    assert d["deformation"]["family"] in ("flat", "cylinder", "fold", "twist", "dome", "dent")
+    assert d["deformation"]["family"] in FAMILIES and type(s.deformation) is FAMILIES[d["deformation"]["family"]]
 
 
 def test_from_dict_defaults_to_flat_sheet():

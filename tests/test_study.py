@@ -23,7 +23,7 @@ from tests.conftest import run_cli
 def test_the_default_plate_set_covers_every_family_axis_direction_aspect_and_distance():
     cases = study_cases()
     assert len(cases) >= 60 and len({c.name for c in cases}) == len(cases)
-    assert {c.family for c in cases} == set(FAMILIES)
+    assert {c.family for c in cases} == {f for f, cls in FAMILIES.items() if cls.in_default_study}
     cyl = [c for c in cases if c.family == "cylinder"]
     assert {c.axis_deg for c in cyl} == {0.0, 30.0, 60.0, 90.0} and {c.direction for c in cyl} == {"up", "down"}
     assert min(c.bend_deg for c in cyl) <= 60 and max(c.bend_deg for c in cyl) == 300
@@ -39,6 +39,22 @@ def test_bend_list_chooses_the_cylinders():
     cases = study_cases((200.0,))
     assert {c.bend_deg for c in cases if c.family == "cylinder"} == {200.0}
     assert not any(c.family == "flat" and c.bend_deg == 0 for c in cases if c.family == "cylinder")
+
+
+def test_axes_aspect_and_families_choose_plates_outside_the_default_set():
+    """--axes, --aspect and --families give other plates: every cylinder about the given axes, every
+    plate of the main set at the given aspect (the second aspect's and second distance's few plates
+    keep theirs), a family's own examples at that aspect."""
+    from platebench.bench.run.study import REFERENCE_ASPECT
+    cases = study_cases((150.0, 270.0), ["cylinder", "fold", "dome"], (15.0, 50.0, 80.0), 2.2)
+    cyl = [c for c in cases if c.family == "cylinder" and c.aspect == 2.2]
+    assert len(cyl) == 12 and {c.axis_deg for c in cyl} == {15.0, 50.0, 80.0}
+    assert {c.aspect for c in cases} == {2.2, OTHER_ASPECT, REFERENCE_ASPECT}
+    assert all(c.distance_m == OTHER_DISTANCE_M for c in cases if c.aspect == REFERENCE_ASPECT)
+    assert [c.name for c in cases if c.family == "dome"] == ["dome 12 mm aspect 2.2", "bowl 12 mm aspect 2.2"]
+    from platebench.bench.config import SampleConfig
+    plate = cyl[0].config(SampleConfig()).plate
+    assert plate.length_m / plate.width_m == pytest.approx(2.2) and len({c.name for c in cases}) == len(cases)
 
 
 def _row(family, bend, hidden, reachable, outcome, **det):
@@ -85,7 +101,10 @@ def test_study_cli_refuses_bad_flags_and_writes_nothing(tmp_path):
     for flags, msg in ((["--bend", "0:400:10"], "--bend value 360 is out of range: allowed 0 to 350"),
                        (["--families", "cube"], "--families value 'cube' is unknown"),
                        (["--limit", "0"], "--limit = 0 is out of range"),
-                       (["--workers", "0"], "--workers = 0 is out of range: allowed 1 to 64")):
+                       (["--workers", "0"], "--workers = 0 is out of range: allowed 1 to 64"),
+                       (["--aspect", "20"], "--aspect = 20.0 is out of range: allowed 0.25 to 8"),
+                       (["--axes", "0,180"], "--axes value 180 is out of range"),
+                       (["--verify-grid", "9x9@0"], "--verify-grid SQUARE_PX = 0 is out of range")):
         p = run_cli("study", "false-boundary", "--out", tmp_path / "t", *flags)
         assert p.returncode == 2 and msg in p.stderr, p.stderr
     assert not (tmp_path / "t").exists()
@@ -110,11 +129,11 @@ def test_a_small_study_runs_and_reports(tmp_path):
                                             "occluding_contour", "end_tangents"}
     assert "time:" in p.stdout and "2 workers" in p.stdout and "targets:" in p.stdout and (out / "study.csv").is_file()
     assert doc["settings"]["workers"] == 2
-    from platebench.bench.config import SampleConfig, SceneParams, parse_grid
+    assert doc["settings"]["verify_grid"] == "6x12@12" and "paper" in doc["settings"]["grid"]
+    from platebench.bench.config import SampleConfig, SceneParams
     from platebench.bench.run.study import run_study
     from platebench.scenes.scene_spec import RenderSettings
-    base = SampleConfig(scene=SceneParams(width=320, height=240, pattern=parse_grid("6x12@12")),
-                        render=RenderSettings(spp=2, seed=0))
+    base = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2, seed=0))
     alone = run_study([c for c in study_cases() if c.family == "dome"][:1], base, workers=1).rows[0]
     pooled = doc["rows"][1]
     for k in ("case", "outcome", "cures", "views", "boundary_verified", "gt_visible_final", "merged_boundary_mean_mm",

@@ -111,12 +111,12 @@ def _run(args, out: Path, final: Path) -> int:
 
     print("\n== 4. false-boundary study (the sensing loop on a few bent plates; the L formula)")
     from platebench.bench.cli.study import table_lines  # noqa: PLC0415
-    from platebench.bench.config import SceneParams, parse_grid  # noqa: PLC0415
+    from platebench.bench.config import SceneParams  # noqa: PLC0415
     from platebench.bench.run.study import REFERENCE_ASPECT, study_cases, write_study  # noqa: PLC0415
     from platebench.scenes.scene_spec import RenderSettings  # noqa: PLC0415
     cases = [c for c in study_cases((170.0, 200.0)) if c.family == "cylinder" and c.axis_deg in (0.0, 90.0)
              and c.aspect == REFERENCE_ASPECT and c.distance_m == 0.40]
-    base = SampleConfig(scene=SceneParams(width=480, height=360, pattern=parse_grid("6x12@12")),
+    base = SampleConfig(scene=SceneParams(width=480, height=360),
                         render=RenderSettings(spp=4))
     with bar(len(cases), "study", unit="plate") as pbar:
         doc = write_study(out / "study", cases, base, overwrite=True, progress=lambda row: pbar.update(1),

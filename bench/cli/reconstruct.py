@@ -82,7 +82,11 @@ def print_summary(r, out) -> None:
     print(f"boundary        {len(r.boundary)} points; plane normal {np.round(r.boundary_plane.normal, 4).tolist()}, "
           f"L1 offset {r.boundary_plane.offset * 1e3:.3f} mm (least squares {r.least_squares_plane.offset * 1e3:.3f} mm)")
     print(f"squares         left {fb.detected['left_active']}, right {fb.detected['right_active']}, "
-          f"expected inside boundary {fb.expected}, matched {len(r.points)}")
+          f"expected inside boundary {fb.expected}, matched {len(r.points) + len(r.cut)}")
+    if len(r.cut):
+        print(f"cut squares     {len(r.cut)} matched centres set apart (left {fb.cut.get('left_active', 0)}, right "
+              f"{fb.cut.get('right_active', 0)} squares cut by the plate's outline or the threshold): "
+              f"cut_points.csv, not in the points or the surface")
     print(f"false boundary  {'DETECTED' if fb.false_boundary_detected else 'not detected'}")
     for name, chk in r.fig6.items():
         if chk.violations:

@@ -33,8 +33,38 @@ def add_parser(sub) -> None:
                    help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to 20)")
     p.add_argument("--workspace-mm", type=float, default=150.0,
                    help="radius of the workspace stage 1 must cover, in MILLIMETRES (default 150)")
+    add_verify_grid_flag(p)
     add_sample_flags(p)
     p.set_defaults(run=run)
+
+
+def add_verify_grid_flag(p) -> None:
+    """``--verify-grid``: the square grid the verification views and cures project (sense, study)."""
+    from platebench.bench.run.sensing.records import VERIFY_GRID  # noqa: PLC0415
+
+    p.add_argument("--verify-grid", metavar="ROWSxCOLS@PX", default=VERIFY_GRID,
+                   help="square grid projected by the verification views and cures (default auto: 6x12@12 at 640 "
+                        "px wide and more, larger squares on narrower images; fine enough to orient the plate's "
+                        "front up to its edges, see README); 'stage3' projects stage 3's grid (--grid) there too")
+
+
+def verify_grid_arg(text: str) -> str | None:
+    """``--verify-grid``'s value checked (``parse_grid``): the grid, or None for 'stage3'."""
+    from platebench.bench.config import parse_grid  # noqa: PLC0415
+    from platebench.scenes.pattern import square_grid  # noqa: PLC0415
+    from platebench.scenes.scene_spec import REFERENCE  # noqa: PLC0415
+
+    if text.strip() == "stage3":
+        return None
+    if text.strip() == "auto":
+        return "auto"
+    try:
+        square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **parse_grid(text))
+    except UserValueError as e:
+        raise UserValueError(str(e).replace("--grid", "--verify-grid") + ", 'auto' or 'stage3'") from None
+    except ValueError as e:  # the grid does not fit the projector's image
+        raise UserValueError(f"--verify-grid = {text!r}: {e}") from None
+    return text.strip()
 
 
 def _pct(gv: dict) -> str:
@@ -58,7 +88,8 @@ def step_lines(s: SensingResult) -> list[str]:
             else:
                 why = [n for flag, n in ((fb.counting_test, "counting test"), (fb.arrays_disagree, "arrays disagree"))
                        if flag]
-                what = (f"{st.matched} points; squares L/R {fb.detected.get('left_active')}/"
+                cut = f" (and {st.cut} of cut squares, set apart)" if st.cut else ""
+                what = (f"{st.matched} points{cut}; squares L/R {fb.detected.get('left_active')}/"
                         f"{fb.detected.get('right_active')} of {fb.expected} expected; paper's test: false boundary "
                         + ("DETECTED (" + ", ".join(why) + ")" if why else "not detected"))
             out.append(f"stage 3: {what}; GT boundary visible L/R {_pct(st.gt_visibility)}")
@@ -83,8 +114,11 @@ def summary_lines(s: SensingResult) -> list[str]:
     if len(f.unverified_parts) > 6:
         lines.append(f"  ... {len(f.unverified_parts) - 6} more unverified parts (sensing.json)")
     if s.verdict.verified and not f.boundary_verified:  # the loop closed, the front check overturned it
-        lines.append("  hint: the projected grid is too sparse to tell the plate's front from its back near the "
-                     "boundary; --grid 6x12@12 measures enough square centres (README: false-boundary study)")
+        lines.append("  hint: the verification views' grid is too sparse to tell the plate's front from its back "
+                     "near the boundary; the default --verify-grid auto (6x12@12) measures enough square centres "
+                     "(README: false-boundary study)")
+    lines.append("patterns: stage 3 " + grid_text(s.patterns.get("stage3")) + ", verification views and cures "
+                 + grid_text(s.patterns.get("verification")))
     lines.append("detectors at stage 2: " + ", ".join(
         f"{d.name} {'-' if d.fired is None else ('FIRED' if d.fired else 'quiet')}" for d in s.detectors))
     m = f.merged
@@ -106,6 +140,13 @@ def summary_lines(s: SensingResult) -> list[str]:
     return lines
 
 
+def grid_text(desc: dict | None) -> str:
+    """A square grid's description (``Pattern.description``) as 'ROWSxCOLS@PX (row gap GAP px)'."""
+    if not desc or desc.get("kind") != "square_grid":
+        return "-" if not desc else str(desc.get("kind"))
+    return f"{desc['rows']}x{desc['cols']}@{desc['square_px']} (row gap {desc['gap_y_px']} projector px)"
+
+
 def run(args) -> int:
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
@@ -116,7 +157,8 @@ def run(args) -> int:
         raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
     if not (0 <= args.max_cures <= 20):
         raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
-    opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures)
+    opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures,
+                          verify_grid=verify_grid_arg(args.verify_grid))
     # the output rule (bench.io.outputs) before the first render; staged, replaced only once complete
     with output_dir(args.out, "sensing run", overwrite=args.overwrite, inputs=[args.config]) as stage:
         with bar(4 + opts.max_views, "sense") as pbar:

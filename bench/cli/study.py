@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams, parse_grid
+from platebench.bench.cli.sense import add_verify_grid_flag, verify_grid_arg
 from platebench.bench.config.ranges import parse_range_text
 from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
@@ -13,8 +14,8 @@ from platebench.scenes.scene_spec import RenderSettings
 # bench.run.study (the sensing loop, the renderer) is imported where it is used: by add_parser (the
 # default bends) only when 'study' is the command (see main.build_parser)
 HELP = ("studies: 'study false-boundary' runs the sensing loop on plates of every family; 'study accuracy' the "
-        "paper's accuracy test under a real rig's errors, with an error budget")
-DEFAULT_GRID = "6x12@12"
+        "paper's accuracy test under a real rig's errors, with an error budget; 'study cut-squares' the paper's "
+        "pipeline on oblique bends, cut squares set apart")
 MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
 MAX_PERTURB_AXIS_DEG = 10.0  # --perturb: small shifts only (the study's plates, moved a little)
 MAX_PERTURB_MM = 50.0
@@ -23,7 +24,7 @@ MAX_WORKERS = 64
 
 
 def add_parser(sub) -> None:
-    from platebench.bench.run.study import DEFAULT_BENDS_DEG  # noqa: PLC0415
+    from platebench.bench.run.study import DEFAULT_BENDS_DEG, REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: PLC0415
 
     from platebench.bench.config.realism import REALISM_PRESETS, SOURCES  # noqa: PLC0415
 
@@ -49,21 +50,36 @@ def add_parser(sub) -> None:
                        epilog="error sources: " + "; ".join(f"{k}: {v}" for k, v in SOURCES.items())
                               + ". Sources and magnitudes, each with its citation: bench/config/hardware_camera.py, "
                                 "bench/config/hardware_robot.py. README: what each source costs in accuracy.")
-    p.add_argument("which", choices=["false-boundary", "accuracy"], help="the study to run")
+    p.add_argument("which", choices=["false-boundary", "accuracy", "cut-squares"],
+                   help="the study to run; cut-squares: the paper's pipeline on oblique bends (--bend, --axes, "
+                        "--distances; default 40,60,90,120 deg about 20,30,45,60,75 deg at 0.40,0.45,0.50 m), the "
+                        "centres of cut squares set apart and kept, each scored against the paper's bound")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="output directory (false-boundary: study.json, study.csv and one folder per plate; "
-                        "accuracy: accuracy.json, accuracy.csv, accuracy.png); created, must not exist unless "
+                        "accuracy: accuracy.json, accuracy.csv, accuracy.png; cut-squares: cut_study.json); created, must not exist unless "
                         "--overwrite or --resume")
     p.add_argument("--overwrite", action="store_true", help="replace a study 'platebench study' wrote (nothing else "
                    "is replaced)")
-    p.add_argument("--bend", default=",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG),
-                   help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
+    p.add_argument("--bend", help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
                         + ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG) + "; allowed 0 to 350)")
-    p.add_argument("--families", default="all", help="comma list of families to keep (flat, cylinder, fold, "
-                   "twist, dome, dent) or 'all' (default)")
+    p.add_argument("--families", default="all", help="comma list of deformation families to run (flat, cylinder, "
+                   "fold, twist, dome, dent, ...: every key of plates.spec.FAMILIES; a family outside the default "
+                   "set adds its own example plates) or 'all' (default: the 61 plates)")
+    p.add_argument("--axes",
+                   help="the cylinders' bend axes in DEGREES from the plate's width direction, a,b,c or "
+                        "START:STOP:STEP (default " + ",".join(f"{a:g}" for a in STUDY_AXES_DEG)
+                        + "; allowed 0 to 179.9)")
+    p.add_argument("--aspect", type=float, default=REFERENCE_ASPECT,
+                   help=f"length / width of the plates at the reference plate's area (default {REFERENCE_ASPECT:.3f}, "
+                        "the paper's plate; allowed 0.25 to 8); the second aspect ratio's and the second "
+                        "distance's few plates keep theirs")
+    p.add_argument("--distances", help="cut-squares: rig distances in METRES, a,b,c (default 0.40,0.45,0.50; "
+                   "allowed 0.2 to 2)")
     p.add_argument("--limit", type=int, help="run only the first N plates of the set")
-    p.add_argument("--grid", metavar="ROWSxCOLS@PX", default=DEFAULT_GRID,
-                   help=f"projected square grid (default {DEFAULT_GRID}; the paper's is 4x4@40)")
+    p.add_argument("--grid", metavar="ROWSxCOLS@PX",
+                   help="stage 3's projected square grid (default: the paper's 16 squares, as sense projects them; "
+                        "4x4@40 spaces their rows twice as far)")
+    add_verify_grid_flag(p)
     p.add_argument("--l-bends", default="", help="convex bends (deg) for the L-formula check (default none; "
                    "e.g. 120,150,165,172)")
     p.add_argument("--width", type=int, default=640, help="false-boundary: image width in px (default 640; f scales "
@@ -109,9 +125,14 @@ def run(args) -> int:
     if args.spp is None:
         args.spp = 2
     from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
+    from platebench.bench.run.study import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
     from platebench.bench.run.study import perturbed_cases, study_cases, write_study  # noqa: PLC0415
 
-    bends = parse_range_text(args.bend, "--bend", 0.0, 350.0, max_count=MAX_BENDS)
+    if args.which == "cut-squares":
+        return run_cut_squares(args)
+    bends = parse_range_text(args.bend or ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG), "--bend", 0.0, 350.0,
+                             max_count=MAX_BENDS)
     l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
         if args.l_bends.strip() else []
     if not (160 <= args.width <= 4096):
@@ -125,22 +146,32 @@ def run(args) -> int:
     if not (1 <= args.workers <= MAX_WORKERS):
         raise UserValueError(f"--workers = {args.workers} is out of range: allowed 1 to {MAX_WORKERS}")
     axis_deg, distance_mm = parse_perturb(args.perturb)
-    cases = study_cases(bends)
     fams = [f.strip() for f in args.families.split(",") if f.strip()]
     if fams != ["all"]:
-        known = {c.family for c in study_cases()}
-        bad = [f for f in fams if f not in known]
+        from platebench.plates.spec import FAMILIES  # noqa: PLC0415
+        bad = [f for f in fams if f not in FAMILIES]
         if bad:
-            raise UserValueError(f"--families value {bad[0]!r} is unknown: allowed all or " + ", ".join(sorted(known)))
-        cases = [c for c in cases if c.family in fams]
+            raise UserValueError(f"--families value {bad[0]!r} is unknown: allowed all or " + ", ".join(FAMILIES))
+    axes = parse_range_text(args.axes or ",".join(f"{a:g}" for a in STUDY_AXES_DEG), "--axes", 0.0, 179.9,
+                            max_count=MAX_BENDS)
+    if not (0.25 <= args.aspect <= 8.0):
+        raise UserValueError(f"--aspect = {args.aspect} is out of range: allowed 0.25 to 8")
+    cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect)
     if args.limit is not None:
         if args.limit < 1:
             raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
         cases = cases[:args.limit]
     cases = perturbed_cases(cases, axis_deg, distance_mm)
-    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4, pattern=parse_grid(args.grid)),
-                        render=render)
-    settings = {"bends_deg": bends, "families": fams, "grid": args.grid, "width_px": args.width,
+    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
+                                          pattern=parse_grid(args.grid) if args.grid else {}), render=render)
+    verify_grid = verify_grid_arg(args.verify_grid)
+    if verify_grid == "auto":
+        from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
+        verify_grid = auto_verify_grid(args.width)
+    options = SensingOptions(verify_grid=verify_grid)
+    settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams,
+                "grid": args.grid or "paper's 4x4 (sense's default)",
+                "verify_grid": verify_grid or "stage 3's", "width_px": args.width,
                 "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
                 "workers": args.workers}
@@ -156,7 +187,7 @@ def run(args) -> int:
             sys.stdout.flush()  # a plate's line as it finishes, also through a pipe (tee, a log, a test)
         try:
             doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
-                              args.resume)
+                              args.resume, options)
         except (KeyboardInterrupt, Exception):
             if ran and journal_path(args.out).exists():
                 print(f"platebench: {ran} finished plates are kept in {journal_path(args.out)}; "
@@ -278,6 +309,43 @@ def accuracy_lines(doc: dict) -> list[str]:
                            + ", ".join(f"{k} {v:+.3f} mm" for k, v in ranked))
     out.append(f"time: {doc['time_s']:.0f} s")
     return out
+
+
+
+def run_cut_squares(args) -> int:
+    """``study cut-squares`` (``bench.run.cut_study``): its flags checked, the study run and printed."""
+    from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.cut_study import (  # noqa: PLC0415
+        CUT_AXES_DEG,
+        CUT_BENDS_DEG,
+        CUT_DISTANCES_M,
+        table_lines,
+        write_cut_study,
+    )
+
+    def values(text, key, default, lo, hi):
+        return parse_range_text(text or ",".join(f"{v:g}" for v in default), key, lo, hi, max_count=MAX_BENDS)
+    bends = values(args.bend, "--bend", CUT_BENDS_DEG, 0.0, 350.0)
+    axes = values(args.axes, "--axes", CUT_AXES_DEG, 0.0, 179.9)
+    distances = values(args.distances, "--distances", CUT_DISTANCES_M, 0.2, 2.0)
+    if not (160 <= args.width <= 4096):
+        raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
+    try:
+        render = RenderSettings(spp=args.spp, seed=args.seed)
+    except ValueError as e:
+        raise UserValueError(f"--{e}") from None
+    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
+                                          pattern=parse_grid(args.grid) if args.grid else {}), render=render)
+    settings = {"bends_deg": bends, "axes_deg": axes, "distances_m": distances, "width_px": args.width,
+                "spp": args.spp, "seed": args.seed, "grid": args.grid or "paper's 4x4"}
+    n = len(bends) * 2 * len(axes) * len(distances)
+    with bar(n, "study cut-squares", unit="plate") as pbar:
+        doc = write_cut_study(args.out, base, args.overwrite, lambda row: pbar.update(1), settings,
+                              bends_deg=bends, axes_deg=axes, distances_m=distances)
+    for line in table_lines(doc):
+        print(line)
+    print(f"written         {args.out / 'cut_study.json'}")
+    return 0
 
 
 def parse_perturb(text: str) -> tuple[float, float]:

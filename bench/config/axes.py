@@ -17,6 +17,7 @@ from typing import Any, Callable
 from platebench.bench.config.presets import noise_preset_of
 from platebench.bench.config.realism import SOURCES
 from platebench.bench.config.sample_config import ConfigError, SampleConfig
+from platebench.plates.spec import family_sweep_keys
 
 __all__ = ["ParameterColumn", "PARAMETERS", "PARAMETER_NAMES", "AxisInfo", "AXES", "axis_column",
            "parameter_label", "parameter_columns"]
@@ -169,11 +170,8 @@ AXES: dict[str, AxisInfo] = {a.name: a for a in (
     _axis("bend_deg", ("plate", "deformation", "angle_rad"), ("bend_deg",), "bend angle, deg"),
     _axis("direction", ("plate", "deformation", "direction"), ("direction",), "bend direction"),
     _axis("axis_deg", ("plate", "deformation", "axis_rad"), ("axis_deg",), "bend-axis direction, deg"),
-    _axis("fold_position_m", ("plate", "deformation", "position_m"), (), "fold band centre, m"),
-    _axis("fold_band_m", ("plate", "deformation", "band_m"), (), "fold band width, m"),
-    _axis("sag_m", ("plate", "deformation", "sag_m"), (), "dome sag, m"),
-    _axis("dent_depth_m", ("plate", "deformation", "depth_m"), (), "dent depth, m"),
-    _axis("dent_radius_m", ("plate", "deformation", "radius_m"), (), "dent radius, m"),
+    # each family's own axes, in its order (plates.spec: DeformationFamily.sweep_keys)
+    *(_axis(k.name, ("plate", "deformation", k.field), (), f"{k.help} ({family})") for family, k in family_sweep_keys()),
     _axis("material", ("scene", "material"), ("material",), "material kind or table"),
     _axis("albedo", ("scene", "material", "albedo"), ("albedo",), "diffuse albedo"),
     _axis("metal", ("scene", "material", "metal"), ("metal",), "conductor preset"),

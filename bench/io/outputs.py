@@ -135,6 +135,8 @@ KINDS: dict[str, OutputKind] = {k.label: k for k in (
     OutputKind("study", "study", "study.json", lambda p: _dict_with(p, "rows")),
     OutputKind("accuracy study", "study accuracy", "accuracy.json",
                lambda p: _dict_with(p, "rows", "summary", study="accuracy")),
+    OutputKind("cut-squares study", "study cut-squares", "cut_study.json",
+               lambda p: _dict_with(p, "rows", "totals", kind="cut-squares study")),
     OutputKind("report", "report", "index.html", _report_index),
     OutputKind("demo output", "demo", "demo.json", lambda p: _dict_with(p, generator="platebench demo")),
     OutputKind("dataset", "sweep", MANIFEST, lambda p: _dict_with(p, format=FORMAT)),

@@ -2,6 +2,8 @@
 
     RECON/points.ply    triangulated square centres (world, metres)
     RECON/points.csv    pattern_row, pattern_col, feature_id, u_left, v_left, u_right, v_right, x_m, y_m, z_m
+    RECON/cut_points.csv  the same columns for the centres of squares cut in either image (by the
+                        plate's outline or the threshold), set apart from points and surface
     RECON/boundary.npy  (N,3) reconstructed closed boundary (world, metres)
     RECON/surface.ply   interpolated surface mesh (world, metres)
     RECON/recon.json    counts, expected count, false-boundary flags, planes, Fig. 6 checks,
@@ -12,7 +14,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,6 +55,7 @@ def recon_summary(r: Reconstruction, sample_dir: Path, checksums: dict, method: 
         "sample_dir": str(Path(sample_dir).resolve()),
         "input_checksums": checksums,
         "n_points": int(len(r.points)),
+        "cut_squares": r.cut.to_dict(),
         "false_boundary": r.false_boundary.to_dict(),
         "boundary_plane": _plane_dict(r.boundary_plane),
         "least_squares_plane": _plane_dict(r.least_squares_plane),
@@ -66,10 +69,22 @@ def recon_summary(r: Reconstruction, sample_dir: Path, checksums: dict, method: 
 
 
 def points_csv(r: Reconstruction) -> str:
+    return _csv(r.pattern_row, r.pattern_col, r.feature_id, r.uv_left, r.uv_right, r.points)
+
+
+def cut_points_csv(r: Reconstruction) -> str:
+    """The centres of cut squares (``Reconstruction.cut``), in points.csv's columns (row and column
+    -1: the pipeline labels only the points it keeps)."""
+    c = r.cut
+    none = np.full(len(c), -1)
+    return _csv(none, none, c.feature_id, c.uv_left, c.uv_right, c.points)
+
+
+def _csv(rows, cols, ids, uv_left, uv_right, points) -> str:
     buf = io.StringIO()
     buf.write(",".join(CSV_COLUMNS) + "\n")
-    for k in range(len(r.points)):
-        vals = [r.pattern_row[k], r.pattern_col[k], r.feature_id[k], *r.uv_left[k], *r.uv_right[k], *r.points[k]]
+    for k in range(len(points)):
+        vals = [rows[k], cols[k], ids[k], *uv_left[k], *uv_right[k], *points[k]]
         buf.write(",".join(str(int(v)) if i < 3 else f"{v:.9g}" for i, v in enumerate(vals)) + "\n")
     return buf.getvalue()
 
@@ -85,6 +100,8 @@ def write_reconstruction(out: Path, r: Reconstruction, sample_dir: Path, checksu
         if cloud is not None:
             write_bytes(d / "points.ply", cloud.export(file_type="ply"))
         write_text(d / "points.csv", points_csv(r))
+        if len(r.cut):
+            write_text(d / "cut_points.csv", cut_points_csv(r))
         np.save(d / "boundary.npy", r.boundary)
         surf = trimesh.Trimesh(r.surface_vertices, r.surface_faces, process=False)
         write_bytes(d / "surface.ply", surf.export(file_type="ply", encoding="binary"))
@@ -105,25 +122,19 @@ class ReconFiles:
     boundary: np.ndarray
     surface: trimesh.Trimesh | None
     meta: dict
+    # the centres of cut squares (cut_points.csv; empty when there is none): (K,3), (K,2), (K,2)
+    cut_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    cut_uv_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    cut_uv_right: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def load_reconstruction(recon_dir: Path) -> ReconFiles:
     d = require_dir(Path(recon_dir), "reconstruction directory", DatasetError)
     meta = read_json(d / "recon.json")
     csv = d / "points.csv"
-    data = read_capped(csv, TABLE_MAX_BYTES, "CSV table", DatasetError, missing="file is missing")
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise DatasetError(f"{csv}: not a UTF-8 text CSV file") from None
-    rows = [line.split(",") for line in text.splitlines()[1:] if line.strip()]
-    try:
-        table = np.array(rows, dtype=float).reshape(-1, len(CSV_COLUMNS))
-    except ValueError:
-        raise DatasetError(f"{csv}: not a {len(CSV_COLUMNS)}-column numeric table") from None
-    if not np.all(np.isfinite(table)):
-        bad = int(np.argwhere(~np.isfinite(table))[0, 0]) + 2
-        raise DatasetError(f"{csv}: line {bad} holds NaN or inf: a reconstruction must not contain them")
+    table = _read_points_csv(csv)
+    cut = _read_points_csv(d / "cut_points.csv") if (d / "cut_points.csv").is_file() \
+        else np.zeros((0, len(CSV_COLUMNS)))
     boundary = read_npy(d / "boundary.npy", (None, 3))
     spath = d / "surface.ply"
     surface = None
@@ -139,4 +150,23 @@ def load_reconstruction(recon_dir: Path) -> ReconFiles:
             raise DatasetError(f"{spath}: not a PLY triangle mesh")
     if surface is not None and not np.all(np.isfinite(surface.vertices)):
         raise DatasetError(f"{spath}: surface vertices hold NaN or inf")
-    return ReconFiles(table[:, 7:10], table[:, 2].astype(int), table[:, 3:5], table[:, 5:7], boundary, surface, meta)
+    return ReconFiles(table[:, 7:10], table[:, 2].astype(int), table[:, 3:5], table[:, 5:7], boundary, surface, meta,
+                      cut[:, 7:10], cut[:, 3:5], cut[:, 5:7])
+
+
+def _read_points_csv(csv: Path) -> np.ndarray:
+    """points.csv (or cut_points.csv) as an (N, 10) table; one-line DatasetError naming the file."""
+    data = read_capped(csv, TABLE_MAX_BYTES, "CSV table", DatasetError, missing="file is missing")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise DatasetError(f"{csv}: not a UTF-8 text CSV file") from None
+    rows = [line.split(",") for line in text.splitlines()[1:] if line.strip()]
+    try:
+        table = np.array(rows, dtype=float).reshape(-1, len(CSV_COLUMNS))
+    except ValueError:
+        raise DatasetError(f"{csv}: not a {len(CSV_COLUMNS)}-column numeric table") from None
+    if not np.all(np.isfinite(table)):
+        bad = int(np.argwhere(~np.isfinite(table))[0, 0]) + 2
+        raise DatasetError(f"{csv}: line {bad} holds NaN or inf: a reconstruction must not contain them")
+    return table

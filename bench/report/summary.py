@@ -24,6 +24,7 @@ from platebench.bench.report.inputs import FLAG_COLUMNS, NUMBER_COLUMNS, TEXT_CO
 from platebench.bench.report.values import flag
 from platebench.evaluation.detection import detection_score
 from platebench.evaluation.metrics_row import METRIC_FIELDS
+from platebench.plates.spec import FAMILIES
 
 __all__ = ["ok_mask", "metric_columns", "extra_metric_columns", "method_order", "method_summary",
            "failure_flags", "failure_table", "by_bend", "axis_levels", "axis_stats", "swept_axes",
@@ -41,7 +42,7 @@ CATEGORY_ORDER = {
     "noise": ("none", "low", "medium", "high", "custom"),
     "direction": ("up", "down"),
     "material": ("diffuse", "roughconductor"),
-    "family": ("flat", "cylinder", "fold", "twist", "dome", "dent"),
+    "family": tuple(FAMILIES),  # plates.spec: the families in their own order
 }
 REPLICATE_AXES = ("seed",)  # varied to repeat a measurement: pooled, never plotted against
 _KNOWN = set(TEXT_COLUMNS) | set(NUMBER_COLUMNS) | set(FLAG_COLUMNS)

@@ -59,7 +59,8 @@ def truth_from_files(sample_dir: Path) -> tuple[SampleTruth, dict]:
 def recon_data(rec) -> ReconstructionData:
     """A pipeline ``Reconstruction`` as evaluation's ``ReconstructionData``."""
     return ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,
-                              rec.surface_vertices, rec.false_boundary.to_dict())
+                              rec.surface_vertices, rec.false_boundary.to_dict(),
+                              rec.cut.points, rec.cut.uv_left, rec.cut.uv_right)
 
 
 def score_in_memory(sample, rec) -> Score:
@@ -79,7 +80,7 @@ def score_files(sample_dir: Path, recon_dir: Path) -> Score:
                                "(reconstruct this sample first)")
     data = ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,
                               None if rec.surface is None else np.asarray(rec.surface.vertices),
-                              rec.meta.get("false_boundary", {}))
+                              rec.meta.get("false_boundary", {}), rec.cut_points, rec.cut_uv_left, rec.cut_uv_right)
     return score_reconstruction(truth, data)
 
 

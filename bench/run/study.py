@@ -26,7 +26,7 @@ from platebench.bench.run.journal import StudyJournal, case_key, code_digest
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
-from platebench.plates.spec import Dent, Dome, Fold, Twist
+from platebench.plates.spec import FAMILIES, Fold, Twist
 from platebench.reconstruction.strategy.detectors import DETECTORS
 from platebench.reconstruction.strategy.exploring import bending_curve, tangent_intersection_distance
 from platebench.scenes.render.ground_truth import GroundTruthCaster
@@ -136,7 +136,7 @@ def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None 
 # ------------------------------------------------------------------------------------------
 # The sensing study: the loop on a set of plates of every family.
 
-FAMILY_ORDER = ("flat", "cylinder", "fold", "twist", "dome", "dent")
+FAMILY_ORDER = tuple(FAMILIES)  # the families in the order tables show them (plates.spec)
 DEFAULT_BENDS_DEG = (0.0, 60.0, 120.0, 180.0, 240.0, 300.0)  # cylinders, convex and concave
 STUDY_AXES_DEG = (0.0, 30.0, 60.0, 90.0)
 FOLD_BENDS_DEG = (60.0, 120.0, 170.0)
@@ -185,25 +185,40 @@ def _fold(b: float, d: str, **kw) -> StudyCase:
     return StudyCase(f"fold {b:g} {d}{extra}", "fold", Fold(math.radians(b), 0.015, 0.02, d), b, d, 0.0, **kw)
 
 
-def study_cases(bends_deg=DEFAULT_BENDS_DEG) -> list[StudyCase]:
-    """The study's plates: cylinders at ``bends_deg`` convex and concave about axes 0/30/60/90 degrees
-    (bend 0 once: the flat plate), folds of 60/120/170 degrees (those not above the largest bend)
-    both ways, two twists, a dome and a bowl, two dents, a second aspect ratio (3:1) and a second
-    working distance (0.5 m) on a few plates. Default: 61 plates."""
+def family_cases(families=None, aspect: float = REFERENCE_ASPECT) -> list[StudyCase]:
+    """The named example plates of the families not swept by bend (``DeformationFamily.study_examples``:
+    two twists, a dome and a bowl, two dents, ...), each family's under its study label:
+    those ``in_default_study`` when ``families`` is None, else those of ``families``; at ``aspect``."""
+    out = []
+    kw = {} if aspect == REFERENCE_ASPECT else {"aspect": aspect}
+    tag = "".join(f" {k} {v:g}" for k, v in kw.items())
+    for name, cls in FAMILIES.items():
+        if families is None and not cls.in_default_study or families is not None and name not in families:
+            continue
+        out += [StudyCase(label + tag, d.study_label(), d, d.bend_deg(), **kw) for label, d in cls.study_examples()]
+    return out
+
+
+def study_cases(bends_deg=DEFAULT_BENDS_DEG, families=None, axes_deg=STUDY_AXES_DEG,
+                aspect: float = REFERENCE_ASPECT) -> list[StudyCase]:
+    """The study's plates: cylinders at ``bends_deg`` convex and concave about ``axes_deg`` (default
+    0/30/60/90 degrees; bend 0 once: the flat plate), folds of 60/120/170 degrees (those not above
+    the largest bend) both ways, the other families' examples (``family_cases``: two twists, a dome
+    and a bowl, two dents), all at ``aspect`` (length / width, default the paper's plate's), and a
+    second aspect ratio (3:1) and a second working distance (0.5 m) on a few plates. Default: 61
+    plates. ``families``: the family keys to keep (None: the default study's); a family outside
+    the default study adds its examples."""
     bends = sorted({float(b) for b in bends_deg})
+    kw = {} if aspect == REFERENCE_ASPECT else {"aspect": float(aspect)}
     cases: list[StudyCase] = []
     if 0.0 in bends:
-        cases.append(_cyl(0.0, "down", 0.0))
+        cases.append(_cyl(0.0, "down", 0.0, **kw))
     for b in (b for b in bends if b > 0):
         for d in ("down", "up"):
-            cases += [_cyl(b, d, ax) for ax in STUDY_AXES_DEG]
+            cases += [_cyl(b, d, float(ax), **kw) for ax in axes_deg]
     top = max(bends) if bends else 0.0
-    cases += [_fold(b, d) for b in FOLD_BENDS_DEG if b <= max(top, FOLD_BENDS_DEG[0]) for d in ("down", "up")]
-    cases += [StudyCase("twist 45", "twist", Twist(math.radians(45.0)), 45.0),
-              StudyCase("twist -80", "twist", Twist(math.radians(-80.0)), -80.0),
-              StudyCase("dome 12 mm", "dome", Dome(0.012)), StudyCase("bowl 12 mm", "dome", Dome(-0.012)),
-              StudyCase("dent 3 mm centre", "dent", Dent(0.003, 0.02)),
-              StudyCase("dent 3 mm off-centre", "dent", Dent(0.003, 0.015, 0.03, 0.015))]
+    cases += [_fold(b, d, **kw) for b in FOLD_BENDS_DEG if b <= max(top, FOLD_BENDS_DEG[0]) for d in ("down", "up")]
+    cases += family_cases(None, aspect)
     mid = [b for b in bends if 0 < b <= 180]
     far = [b for b in bends if b > 180]
     for kw in ({"aspect": OTHER_ASPECT}, {"distance_m": OTHER_DISTANCE_M}):
@@ -213,7 +228,18 @@ def study_cases(bends_deg=DEFAULT_BENDS_DEG) -> list[StudyCase]:
             cases.append(_cyl(far[0], "down", 0.0, **kw))
         cases.append(_fold(120.0, "up", **kw) if "aspect" in kw else
                      StudyCase("twist 45 distance_m 0.5", "twist", Twist(math.radians(45.0)), 45.0, **kw))
-    return cases
+    if families is None:
+        return cases
+    unknown = [f for f in families if f not in FAMILIES]
+    if unknown:
+        raise ValueError(f"family {unknown[0]!r} is unknown: allowed " + ", ".join(FAMILIES))
+    added = [f for f in families if not FAMILIES[f].in_default_study]
+    return [c for c in cases if c.family in families] + family_cases(added, aspect)
+
+
+def split_by_bend(row: dict) -> bool:
+    """A study row whose family the tables split by bend angle (``DeformationFamily.by_bend``)."""
+    return FAMILIES[row["family"]].by_bend and row.get("bend_deg") is not None
 
 
 # Deformations whose plate is the same with the bending coordinate reversed (e -> -e): a bend centred
@@ -307,7 +333,7 @@ def detector_scores(rows: list[dict]) -> dict:
         return {d: detection_score([r.get("gt_hidden_first") for r in rs], [r.get(f"det_{d}") for r in rs]).to_dict()
                 for d in DETECTORS}
     by_family = _groups(ok, lambda r: r["family"])
-    bent = [r for r in ok if r["family"] in ("cylinder", "fold", "flat")]
+    bent = [r for r in ok if split_by_bend(r)]
     by_bend = _groups(bent, lambda r: float(r["bend_deg"]))
     return {"all": score(ok), "by_family": {k: score(v) for k, v in sorted(by_family.items(),
                                                                           key=lambda kv: FAMILY_ORDER.index(kv[0]))},
@@ -376,7 +402,7 @@ class StudyResult:
         return {"kind": "false-boundary sensing study", "rows": rows, "outcomes": outcome_counts(rows),
                 "outcomes_by_family": outcome_counts(rows, lambda r: r["family"]),
                 "outcomes_by_bend": dict(sorted(outcome_counts(
-                    [r for r in rows if r.get("bend_deg") is not None and r["family"] in ("cylinder", "fold", "flat")],
+                    [r for r in rows if split_by_bend(r)],
                     lambda r: f"{r['bend_deg']:g}").items(), key=lambda kv: float(kv[0]))),
                 "detectors": detector_scores(rows), "targets": targets(rows), "settings": self.settings,
                 "time_s": self.time_s, **self.extra}
@@ -468,22 +494,24 @@ def study_csv(rows: list[dict]) -> str:
 
 
 def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite: bool = False, progress=None,
-                settings: dict | None = None, l_bends_deg=(), workers: int = 1, resume: bool = False) -> dict:
+                settings: dict | None = None, l_bends_deg=(), workers: int = 1, resume: bool = False,
+                options: SensingOptions = SensingOptions()) -> dict:
     """Run the study (``run_study``) and write ``out/study.json`` and ``out/study.csv``; the folder
     appears complete or not at all (``bench.io.outputs.output_dir``: checked and locked before the first plate).
     Each finished plate's row goes to the journal beside it (``bench.run.journal``) at once, so an
     interrupted study keeps them; ``resume``: reuse the journal's rows of plates still to run.
+    ``options``: the sensing loop's (each plate's working distance set from its case).
     Returns study.json's dict."""
     settings = dict(settings or {})
     header = {"version": __version__, "code": code_digest(), "l_bends_deg": list(l_bends_deg),
               **{k: v for k, v in settings.items() if k != "workers"}}
-    keys = [case_key(c, c.config(base)) for c in cases]
+    keys = [case_key(c, c.config(base), options) for c in cases]
     journal = StudyJournal(out, header)
     with output_dir(out, "study", overwrite=overwrite) as stage:
         kept = journal.start(resume, overwrite)
         try:
             done = {i: kept[k] for i, k in enumerate(keys) if k in kept}
-            doc = run_study(cases, base, progress=progress, settings=settings, l_bends_deg=l_bends_deg,
+            doc = run_study(cases, base, options, progress=progress, settings=settings, l_bends_deg=l_bends_deg,
                             workers=workers, done=done, record=lambda i, row: journal.record(keys[i], row)).to_dict()
             write_json(stage / "study.json", doc)
             write_text(stage / "study.csv", study_csv(doc["rows"]))

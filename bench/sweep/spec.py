@@ -60,18 +60,17 @@ Axes (names say their unit; applied in this order, whatever the order in the fil
 length_m           plate length (X), metres
 width_m            plate width (Y), metres
 thickness_m        plate thickness, metres
-family             deformation family: flat, cylinder, fold, twist, dome, dent
-                   (switching family keeps angle/direction/axis where the new
-                   family has them; other parameters get defaults, see
-                   ``family_defaults``)
+family             deformation family: a key of ``plates.spec.FAMILIES`` (flat,
+                   cylinder, fold, twist, dome, dent, ...; switching family keeps
+                   angle/direction/axis where the new family has them; other
+                   parameters get the family's defaults, ``family_defaults``)
 bend_deg           bend angle, degrees (cylinder 0..350, fold 0..180, twist -90..90)
 direction          "up" or "down" (cylinder, fold)
 axis_deg           bend-axis direction, degrees in [0, 180) (cylinder, fold)
-fold_position_m    fold band centre along the bending coordinate, metres
-fold_band_m        fold band width, metres
-sag_m              dome sag (centre above corners), metres
-dent_depth_m       dent depth, metres
-dent_radius_m      dent radius, metres
+(family keys)      each family's own axes, after these three, in ``FAMILIES`` order
+                   (``DeformationFamily.sweep_keys``): fold_position_m, fold_band_m
+                   (fold band centre and width, metres), sag_m (dome sag, metres),
+                   dent_depth_m, dent_radius_m (metres), ...
 material           "diffuse" or "roughconductor", or a table of
                    kind/albedo/metal/alpha
 albedo             diffuse reflectance 0..1
@@ -157,7 +156,7 @@ from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
 from platebench.bench.run.plugins import check_time_limit
 from platebench.errors import UserValueError
-from platebench.plates.spec import FAMILIES
+from platebench.plates.spec import FAMILIES, family_sweep_keys
 
 __all__ = ["SpecError", "SweepSpec", "SamplePlan", "load_spec", "parse_spec", "AXES",
            "family_defaults", "MAX_SAMPLES"]
@@ -177,23 +176,11 @@ class SpecError(ConfigError):
 
 
 def family_defaults(family: str, length_m: float, width_m: float) -> dict:
-    """Deformation dict of ``family`` with default parameters for an L x W plate (metres, radians)."""
-    angle = math.radians(10.0)
-    if family == "flat":
-        return {"family": "flat"}
-    if family == "cylinder":
-        return {"family": "cylinder", "angle_rad": angle, "direction": "up", "axis_rad": 0.0}
-    if family == "fold":
-        return {"family": "fold", "angle_rad": angle, "position_m": 0.0, "band_m": 0.25 * length_m,
-                "direction": "up", "axis_rad": 0.0}
-    if family == "twist":
-        return {"family": "twist", "angle_rad": angle}
-    if family == "dome":
-        return {"family": "dome", "sag_m": 0.02 * math.hypot(length_m, width_m)}
-    if family == "dent":
-        s = min(length_m, width_m)
-        return {"family": "dent", "depth_m": 0.02 * s, "radius_m": 0.25 * s, "centre_u_m": 0.0, "centre_v_m": 0.0}
-    raise SpecError(f"family = {family!r} is unknown: allowed {', '.join(_DEFORMATION_FIELDS)}")
+    """Deformation dict of ``family`` with its default parameters for an L x W plate (metres,
+    radians; the family's own ``DeformationFamily.defaults``)."""
+    if family not in FAMILIES:
+        raise SpecError(f"family = {family!r} is unknown: allowed {', '.join(FAMILIES)}")
+    return FAMILIES[family].defaults(length_m, width_m).to_dict()
 
 
 # ----------------------------------------------------------------------------- axes
@@ -365,7 +352,8 @@ class Axis:
 _CHOICES = {"family": tuple(_DEFORMATION_FIELDS), "direction": ("up", "down"), "metal": ("Al", "Fe"),
             "projector_kind": ("pinhole", "spot")}
 _INTEGER_AXES = {"width_px", "height_px", "spp", "seed", "bit_depth", "realism_seed"}
-_DEGREE_AXES = {"bend_deg", "axis_deg"}  # spec values in degrees, the configuration in radians
+# spec values in degrees, the configuration in radians (the shared bend axes, and any family's own in degrees)
+_DEGREE_AXES = {"bend_deg", "axis_deg"} | {k.name for _, k in family_sweep_keys() if k.degrees}
 _SPECIAL_AXES = {  # axes whose value is a table or sets several keys
     "family": Axis("family", lambda k, v: _str(k, v, _CHOICES["family"]), _apply_family),
     "material": Axis("material", _parse_material, _apply_material, table_valued=True),

@@ -19,7 +19,7 @@ comparison. Units: metres.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,6 +46,9 @@ class FalseBoundaryTest:
     expected_ids: tuple[int, ...]
     counting_test: bool  # paper IV-B: fewer squares in an image than rays inside the boundary
     arrays_disagree: bool = False  # paper II, Fig. 2: a horizontal array holds different counts L/R
+    # image name -> detected squares that are cut (by the plate's outline or the threshold,
+    # ``squares.Square.cut``): counted as the test counts them, their centres set apart by the pipeline
+    cut: dict = field(default_factory=dict)
 
     @property
     def false_boundary_detected(self) -> bool:
@@ -54,7 +57,7 @@ class FalseBoundaryTest:
     def to_dict(self) -> dict:
         return {"detected": self.detected, "expected": self.expected, "expected_ids": list(self.expected_ids),
                 "counting_test": self.counting_test, "arrays_disagree": self.arrays_disagree,
-                "false_boundary_detected": self.false_boundary_detected}
+                "false_boundary_detected": self.false_boundary_detected, "cut_squares": dict(self.cut)}
 
 
 def rays_on_plane(rays: FeatureRays, plane: BoundaryPlane) -> np.ndarray:
@@ -114,10 +117,12 @@ def expected_features_inside_plane(rays: FeatureRays, plane: BoundaryPlane, boun
 
 
 def false_boundary_test(detected: dict, rays: FeatureRays, plane: BoundaryPlane, boundary: np.ndarray,
-                        arrays_disagree: bool = False) -> FalseBoundaryTest:
+                        arrays_disagree: bool = False, cut: dict | None = None) -> FalseBoundaryTest:
     """The paper's counting test: a false boundary exists if either image shows fewer squares than
-    expected. ``arrays_disagree`` carries the matching's Fig. 2 symptom, reported separately."""
+    expected. ``arrays_disagree`` carries the matching's Fig. 2 symptom, reported separately, as
+    ``cut`` does the cut squares of each image."""
     ids = expected_features_inside(rays, plane, boundary)
     expected = int(len(ids))
     flag = any(n < expected for n in detected.values())
-    return FalseBoundaryTest(dict(detected), expected, tuple(int(i) for i in ids), bool(flag), bool(arrays_disagree))
+    return FalseBoundaryTest(dict(detected), expected, tuple(int(i) for i in ids), bool(flag), bool(arrays_disagree),
+                             dict(cut or {}))

@@ -5,6 +5,9 @@ passive pair -> plate regions (Tsai threshold, contour following, corners)
              -> boundary plane (L1 contour integral, paper III) beside the least-squares plane
 active pair  -> squares inside the passive boundary -> horizontal arrays -> Fig. 6 checks
              -> array and square matching (paper III) -> triangulation
+             -> centres of squares cut in either image (by the plate's outline, or by the
+                threshold: ``squares.Square.cut``) set apart (``CutSquares``), out of the
+                points, the surface and every figure unless ``keep_cut_squares``
              -> false-boundary counting test (paper IV-B) against the projector's feature rays
              -> energy-minimising surface (paper V-D, thin plate) over the boundary domain
 
@@ -66,11 +69,40 @@ class PipelineOptions:
     boundary_in_surface: bool = True  # use the 3D boundary as data for the surface, besides the squares
     boundary_sample_m: float = 4e-3  # spacing of boundary samples used as surface data
     surface_data_weight: float | None = 1e3  # penalty weight of the data (None: exact interpolation)
+    # True: the centres of squares cut in either image stay among the points (and the surface),
+    # as the paper's pipeline has them; False: they are set apart (``Reconstruction.cut``)
+    keep_cut_squares: bool = False
+
+
+@dataclass(frozen=True)
+class CutSquares:
+    """Matched square centres whose square is cut in the left or right image (``squares.Square.cut``:
+    by the plate's outline, or by the threshold): the centroid of a part, not the square's centre.
+    World frame, metres: ``points`` (K,3), ``uv_left``/``uv_right`` (K,2), ``feature_id`` (K,)
+    (-1 unknown); ``reasons`` (K,) e.g. "left: outline"."""
+
+    points: np.ndarray
+    uv_left: np.ndarray
+    uv_right: np.ndarray
+    feature_id: np.ndarray
+    reasons: tuple[str, ...] = ()
+
+    @classmethod
+    def empty(cls) -> "CutSquares":
+        return cls(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, int))
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def to_dict(self) -> dict:
+        return {"count": len(self), "feature_id": [int(i) for i in self.feature_id], "reasons": list(self.reasons)}
 
 
 @dataclass(frozen=True)
 class Reconstruction:
-    """What the method measured (world frame, metres) and every decision it took."""
+    """What the method measured (world frame, metres) and every decision it took. ``points`` and
+    the surface hold the whole squares' centres; those of squares cut in either image are in
+    ``cut`` (unless ``PipelineOptions.keep_cut_squares``)."""
 
     points: np.ndarray  # (M,3) triangulated square centres
     uv_left: np.ndarray  # (M,2)
@@ -90,6 +122,7 @@ class Reconstruction:
     corner_row_mismatch_px: np.ndarray
     thresholds: dict
     timings_s: dict = field(default_factory=dict)
+    cut: CutSquares = field(default_factory=CutSquares.empty)  # centres of cut squares, set apart
 
 
 def projector_feature_rays(projector: Camera, pattern: Pattern) -> FeatureRays:
@@ -152,6 +185,14 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
     timings.update(sq.timings_s)
     t = time.perf_counter()
     labels = _label(uvl, rays, plane, rig.left, max_px=float(np.median(heights)))
+    reasons = [", ".join(f"{c}: {sq_.cut}" for c, sq_ in (("left", dets["left"].squares[i]),
+                                                           ("right", dets["right"].squares[j])) if sq_.cut)
+               for i, j in matches.pairs]
+    cut = CutSquares.empty()
+    if not options.keep_cut_squares:
+        away = np.array([bool(r) for r in reasons], bool)
+        cut = CutSquares(pts[away], uvl[away], uvr[away], labels[away], tuple(r for r in reasons if r))
+        pts, uvl, uvr, labels = pts[~away], uvl[~away], uvr[~away], labels[~away]
     feats = {f.id: f for f in pattern.features}
     rows = np.array([feats[i].row if i in feats else -1 for i in labels], int)
     cols = np.array([feats[i].col if i in feats else -1 for i in labels], int)
@@ -159,7 +200,9 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
 
     fb = false_boundary_test({f"{c}_active": complete_square_count(dets[c].squares) for c in ("left", "right")},
                              rays, plane, stereo.points,
-                             arrays_disagree=matches.count_mismatch)
+                             arrays_disagree=matches.count_mismatch,
+                             cut={f"{c}_active": sum(sq_.cut is not None for sq_ in dets[c].squares)
+                                  for c in ("left", "right")})
     lap("false_boundary_test_s")
 
     # -- surface -------------------------------------------------------------------
@@ -173,7 +216,7 @@ def reconstruct(images: dict, rig: StereoRig, rays: FeatureRays, pattern: Patter
     timings["total_s"] = sum(timings.values())
     return Reconstruction(pts, uvl, uvr, labels, rows, cols, stereo.points, stereo.source, plane, ls_plane,
                           verts, faces, fb, fig6, matches.unmatched, stereo.corner_row_mismatch_px, thresholds,
-                          timings)
+                          timings, cut)
 
 
 @dataclass(frozen=True)

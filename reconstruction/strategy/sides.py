@@ -86,17 +86,18 @@ class FrontSide:
         P = np.atleast_2d(np.asarray(points, float))
         return float(np.mean(np.all(np.isfinite(self.normals_at(P)), axis=1))) if len(P) else 0.0
 
-    def side(self, points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+    def side(self, points: np.ndarray, eyes: np.ndarray, front_rad: float = GRAZING_RAD) -> np.ndarray:
         """(N,) +1 where a camera at ``eyes`` ((3,) or (N,3)) sees ``points`` (N,3) from the front,
-        -1 from behind, 0 unknown (``normals_at``) or within ``GRAZING_RAD`` of grazing (the
-        normal is read a few millimetres away, where a curl has turned by as much)."""
+        at least ``front_rad`` above the sheet, -1 from behind (more than ``GRAZING_RAD``), 0
+        unknown (``normals_at``) or in between, near grazing (the normal is read a few millimetres
+        away, where a curl has turned by as much)."""
         P = np.atleast_2d(np.asarray(points, float))
         n = self.normals_at(P)
         r = np.broadcast_to(np.asarray(eyes, float), P.shape) - P
         with np.errstate(invalid="ignore"):
             sin = np.einsum("ij,ij->i", n, r) / np.linalg.norm(r, axis=1)
         out = np.zeros(len(P), int)
-        out[sin > GRAZING_SIN] = 1
+        out[sin > np.sin(front_rad)] = 1
         out[sin < -GRAZING_SIN] = -1
         return out
 

@@ -8,6 +8,11 @@ say when it is not sure.
    boundary centre (``reconstruction.strategy.planner``). Each measures the outline by passive stereo
    and, with ``SensingOptions.active_views``, the square grid by active stereo (projector riding
    beside the rig, centres checked by the projector's calibration: ``reconstruction.strategy.active_views``).
+   The verification views and cures project the verification pattern (``SensingOptions.verify_grid``,
+   denser than the paper's 16 squares: the verdict's front check needs square centres up to the
+   plate's edges), and stage 3's shot is taken once more under it, the loop planning from that
+   reconstruction (``stage2_verification``); stage 3 keeps the sample's pattern, the paper's by
+   default, for the paper's pipeline and its test.
 3. The verdict (``reconstruction.strategy.multiview.verify``): outline points confirmed by a second,
    turned pose; pieces that close into one loop mean a verified boundary. The detectors of a false
    boundary at stage 2 are reported one by one (``reconstruction.strategy.detectors``).
@@ -56,7 +61,13 @@ from platebench.bench.run.sensing.scoring import (
 )
 from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, SimulatedSensor, measure_outline
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
-from platebench.reconstruction.paper.pipeline import Reconstruction, passive_stereo, projector_feature_rays, reconstruct
+from platebench.reconstruction.paper.pipeline import (
+    PipelineOptions,
+    Reconstruction,
+    passive_stereo,
+    projector_feature_rays,
+    reconstruct,
+)
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.reconstruction.strategy.active_views import (
     ActivePoints,
@@ -74,6 +85,7 @@ from platebench.reconstruction.strategy.detectors import (
 )
 from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline, confirm, verify
 from platebench.reconstruction.strategy.planner import (
+    FRONT_MARGIN_RAD,
     Decision,
     PlannedView,
     candidate_views,
@@ -93,6 +105,7 @@ from platebench.reconstruction.strategy.poses import (
 )
 from platebench.reconstruction.strategy.refutation import free_space_faces, membrane_mesh, refute
 from platebench.reconstruction.strategy.sides import (
+    GRAZING_RAD,
     SPARSE_GRID_MAX_SQUARES,
     SPARSE_MAX_TURN_RAD,
     FrontSide,
@@ -121,11 +134,21 @@ class FirstStages:
     sample3: RenderedSample
     rec: Reconstruction | None
     notes: tuple[str, ...]
+    # the stage-2 pose's stage-3 shot again, under the verification pattern (``stage2_verification``;
+    # None when the verification views project stage 3's pattern, or when its pipeline failed)
+    rec_verify: Reconstruction | None = None
+    scene_verify: object = None  # its scene (SceneSpec: the projector with the verification pattern)
+
+    @property
+    def planning_rec(self) -> Reconstruction | None:
+        """The reconstruction the loop plans from (sensing axes, the paper's cures, the stage-2
+        pose's square centres): the stage-2 pose's under the verification pattern, else stage 3's."""
+        return self.rec_verify if self.rec_verify is not None else self.rec
 
     @cached_property
     def axes(self) -> tuple[np.ndarray, np.ndarray]:
-        """(g, e) of ``planner.sensing_axes``: from the stage-3 reconstruction, else the stage-2 boundary."""
-        rec = self.rec
+        """(g, e) of ``planner.sensing_axes``: from ``planning_rec``, else the stage-2 boundary."""
+        rec = self.planning_rec
         if rec is not None:
             return sensing_axes(most_bent_direction(rec.boundary, rec.boundary_plane, rec.points),
                                 rec.boundary_plane.normal)
@@ -166,7 +189,7 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
         notes.append(error)
     r3 = ActiveRecord(pose2, proj_pose, None if rec is None else rec.false_boundary,
                       0 if rec is None else len(rec.points), () if rec is None else tuple(rec.unmatched),
-                      gt_visibility_dict(vis3), error)
+                      gt_visibility_dict(vis3), error, 0 if rec is None else len(rec.cut))
     # the stage-2 pose's own outline, measured by the general outline stereo (as every later pose's)
     # (in undistorted pixels: its camera is the rig's pinhole)
     view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.scene, s2.digital),
@@ -174,16 +197,48 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
 
 
+def stage2_verification(sensor: SimulatedSensor, first: FirstStages, rays_for) -> FirstStages:
+    """Stage 3's shot taken again under the verification pattern (same poses of rig and projector),
+    and the paper's pipeline run on it: the loop plans from it (``FirstStages.planning_rec``: the
+    sensing axes, the paper's cures, the stage-2 pose's square centres in the verdict), as it does
+    from every later pose's centres, while stage 3, the paper's grid, stays what stage 3 reports
+    (its test, its figures). Unchanged when the verification views project stage 3's pattern; a
+    failed pipeline leaves stage 3's reconstruction to plan from (a note says so)."""
+    if sensor.verify_base is sensor.base:
+        return first
+    r3 = first.records[2]
+    shot = sensor.shoot(first.pose2, ACTIVE, projector=r3.projector_pose, label="stage 2, verification pattern",
+                        verify=True)
+    images = {**{n: first.sample3.digital[n] for n in PASSIVE}, **shot.digital}
+    view = PlannedView("stage 2", first.pose2, "verification", "verification pattern",
+                       "stage 3's shot again under the verification pattern: the square centres the loop plans from")
+    try:  # every centre, cut squares' too, as at every later pose: the projector check below judges them
+        rec = reconstruct(images, shot.scene.rig, rays_for(shot.scene), shot.scene.projector.pattern,
+                          PipelineOptions(keep_cut_squares=True))
+    except ReconstructionError as e:
+        record = ViewRecord(view, 0, "", gt_visibility_dict(first.view2.gt_visibility), f"active stage failed: {e}")
+        return replace(first, records=first.records + (record,),
+                       notes=first.notes + (f"stage 2 under the verification pattern failed ({e}): the loop plans "
+                                            "from stage 3",))
+    active = on_feature_rays(first.view2.name, rec.points, rec.uv_left, rays_for(shot.scene),
+                             rowcol=pattern_rowcol(shot.scene.projector.pattern))
+    o = first.view2.outline
+    record = ViewRecord(view, len(o.points), o.method, gt_visibility_dict(first.view2.gt_visibility), None,
+                        active.to_dict())
+    return replace(first, records=first.records + (record,), rec_verify=rec, scene_verify=shot.scene)
+
+
 def stage3_active(first: FirstStages, rays_for) -> ActivePoints | None:
-    """Stage 3's square centres as the stage-2 pose's ``ActivePoints``, checked against the stage-3
-    projector's feature rays (None without a stage-3 reconstruction). Weaker than a later pose's
+    """The square centres of ``first.planning_rec`` (stage 3's shot, under the verification pattern
+    when it differs) as the stage-2 pose's ``ActivePoints``, checked against that shot's projector
+    feature rays (None without a reconstruction). Weaker than a later pose's
     check: the paper's stage-3 projector sits on the rig's centre line, where centres matched an
     even number of squares off land on a ray (``active_views`` module doc), and the pipeline does
     not hand over its arrays, so no array is checked whole."""
-    rec = first.rec
+    rec = first.planning_rec
     if rec is None:
         return None
-    scene = first.sample3.scene
+    scene = first.scene_verify if first.rec_verify is not None else first.sample3.scene
     return on_feature_rays(first.view2.name, rec.points, rec.uv_left, rays_for(scene),
                            rowcol=pattern_rowcol(scene.projector.pattern))
 
@@ -191,7 +246,9 @@ def stage3_active(first: FirstStages, rays_for) -> ActivePoints | None:
 class Measurements:
     """The poses measured so far (each with an outline, and square centres when active views are
     on), and over them the verdict's surface model (None until ``update``) and the merged
-    reconstruction (``merged``). The stage-2 pose is first; its square centres are stage 3's.
+    reconstruction (``merged``). The stage-2 pose is first; its square centres are those it measured
+    under the verification pattern (``stage2_verification``), or stage 3's when the verification
+    views project stage 3's pattern.
     ``rays_for`` (scene -> ``FeatureRays``): the projector's calibration, which checks stage 3's
     centres; with ``active_views`` every later pose measures the square grid too (else its passive
     pair only).
@@ -206,8 +263,10 @@ class Measurements:
     square centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
     the sheet neither confirms nor is confirmed."""
 
-    def __init__(self, first: FirstStages, rays_for, active_views: bool = True):
-        self.squares = len(first.sample3.scene.projector.pattern.features)  # of the projected grid
+    def __init__(self, first: FirstStages, rays_for, active_views: bool = True, verify_squares: int | None = None):
+        # the squares of the grid the later poses project (``verify_squares``), else stage 3's
+        self.squares = verify_squares if active_views and verify_squares is not None \
+            else len(first.sample3.scene.projector.pattern.features)
         v = replace(first.view2, active=stage3_active(first, rays_for))
         self.rays_for = rays_for if active_views else None
         self.views: list[PassiveView] = [v]
@@ -265,23 +324,25 @@ class Measurements:
         self._merged = None
         self.model = SurfaceModel.build(self.surfaces)
         self.front = self.front_side()
-        confirmed = confirm(self.outlines, front=[self.front.side(o.points, o.eye) >= 0 for o in self.outlines])
+        confirmed = confirm(self.outlines, front=[both_cameras_side(self.front, o) >= 0 for o in self.outlines],
+                            front_known=[both_cameras_side(self.front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
         return self.verdict
 
     def front_checked(self) -> tuple[bool, str, float, tuple]:
         """(verified, reason, the share of the merged boundary where the front is known, the parts
         to name as unverified) of the current verdict, checked for the plate's front (``sides``).
-        With a projected grid of more than ``SPARSE_GRID_MAX_SQUARES`` squares (the bench's 6x12)
-        the verdict stands: its centres orient the front over the plate (``update`` already leaves
-        out points seen from behind). With fewer (the paper's 4x4), the centres are too sparse for
-        that, and two poses that both see a sheet from behind where its front is unknown confirm
-        its edge as two that see its front do (a fold's flap: study --grid 4x4@40 was silent on 3
-        plates of 61). So the front is oriented again from the centres at their own spacing
-        (``sparse_front_side``); where their normals turn by more than ``SPARSE_MAX_TURN_RAD``
-        between neighbours (a crease, a tight curl) it is not trusted and the boundary is not
-        verified; otherwise the boundary is confirmed again, now only where one pose of a pair
-        sees the known front."""
+        With a verification grid (the one the poses after stage 3 project) of more than
+        ``SPARSE_GRID_MAX_SQUARES`` squares (the default 6x12) the verdict stands: its centres
+        orient the front over the plate (``update`` already leaves out points seen from behind).
+        With fewer (the paper's 4x4, ``--verify-grid stage3`` or ``4x4@40``), the centres are too
+        sparse for that, and two poses that both see a sheet from behind where its front is
+        unknown confirm its edge as two that see its front do (a fold's flap: the study with the
+        paper's grid at every pose was silent on 3 plates of 61). So the front is oriented again
+        from the centres at their own spacing (``sparse_front_side``); where their normals turn by
+        more than ``SPARSE_MAX_TURN_RAD`` between neighbours (a crease, a tight curl) it is not
+        trusted and the boundary is not verified; otherwise the boundary is confirmed again, now
+        only where one pose of a pair sees the known front."""
         v = self.verdict
         if self.squares > SPARSE_GRID_MAX_SQUARES:
             return v.verified, v.reason, self.front.oriented_share(v.merged), ()
@@ -299,8 +360,9 @@ class Measurements:
                 {"what": "the whole boundary: the plate's front could not be oriented from the square centres "
                          f"(normals turn by {np.degrees(front.max_turn_rad):.0f} deg between neighbouring centres)",
                  "front_oriented": round(share, 3)},)
-        sides = [front.side(o.points, o.eye) for o in self.outlines]
-        confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides], front_known=[sd > 0 for sd in sides])
+        sides = [both_cameras_side(front, o) for o in self.outlines]
+        confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
+                            front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         again = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
         if again.verified:
             return True, (f"{again.reason}, each piece seen from the plate's front (oriented from the {n} sparse "
@@ -315,6 +377,30 @@ class Measurements:
 
 
 SPARSE_FRONT_NOTE = "when the front is not asked for"  # in a verdict the sparse front check overturned
+
+
+# One pose of each confirming pair must see the point from the plate's known front with both of its
+# cameras at least this far above the measured sheet: the angle the planner asks of a confirming view
+# (``planner.FRONT_MARGIN_RAD``). At a tight curl's tip the measured normal is read a few millimetres
+# away and was 10-12 degrees off (the concave 300-degree curl about axis 60 of the false-boundary study
+# at 640 x 480): two poses whose right cameras saw the tip from behind the sheet (by 0-4 degrees; one
+# of them, by the measured normal, 9-10 degrees in front) confirmed 3 mm of edge no pair saw whole,
+# and the boundary was called verified while ground truth held 0.8 % of it hidden.
+KNOWN_FRONT_RAD = FRONT_MARGIN_RAD
+
+
+def both_cameras_side(front: FrontSide, outline: ViewOutline, front_rad: float = GRAZING_RAD) -> np.ndarray:
+    """(N,) the side of the sheet (``FrontSide.side``: +1 front, at least ``front_rad`` above it;
+    -1 back; 0 unknown or near grazing) from which BOTH cameras of the pose that measured
+    ``outline`` see its points: the lesser of the left camera's and the right one's (the
+    mid-baseline point's mirror of the left). A stereo pair measures an edge only where both of
+    its cameras see the same edge; at a tight curl's tip the right camera can see it from behind
+    the sheet while the left sees its front (``KNOWN_FRONT_RAD``)."""
+    if outline.left is None:
+        return front.side(outline.points, outline.eye, front_rad)
+    right = 2.0 * np.asarray(outline.camera_center, float) - outline.left.center
+    return np.minimum(front.side(outline.points, outline.left.center, front_rad),
+                      front.side(outline.points, right, front_rad))
 
 
 def _true_rays(scene):
@@ -381,8 +467,8 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
     g, e = first.axes
     cam, B = sensor.camera, sensor.baseline_m
     measured = m.points
-    paper, note = paper_cure_views(first.rec, first.pose2, options.reach, measured, cam, B) \
-        if first.rec is not None else ([], "")
+    rec = first.planning_rec
+    paper, note = paper_cure_views(rec, first.pose2, options.reach, measured, cam, B) if rec is not None else ([], "")
     if note:
         notes.append(note)
     cands = candidate_views(first.pose2, g, e, options.reach, measured, cam, B, paper)
@@ -452,23 +538,25 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     ``out/stage3``, ``sensing.json`` and ``multiview.npz`` (every pose's outline, its confirmed
     points, the merged boundary, and the true boundary for plots)."""
     t0 = time.perf_counter()
-    sensor = sensor or SimulatedSensor(cfg, progress)
+    sensor = sensor or SimulatedSensor(cfg, progress, options.verify_grid)
     rays_for = feature_rays or _true_rays
     first = first_stages(sensor, options, rays_for)
+    if options.verification and options.active_views:
+        first = stage2_verification(sensor, first, rays_for)
     steps, notes = list(first.records), list(first.notes)
     if out is not None and options.write_stages:
         write_sample(Path(out) / "stage3" / "sample", first.sample3, overwrite=True)
         if first.rec is not None:
             write_reconstruction(Path(out) / "stage3" / "recon", first.rec, Path(out) / "stage3" / "sample",
                                  image_checksums(first.sample3.digital), overwrite=True)
-    m = Measurements(first, rays_for, options.active_views)
+    m = Measurements(first, rays_for, options.active_views, len(sensor.verify_base.projector.pattern.features))
     verif = verification_stage(sensor, first, m, options, steps, notes)
     dets = detectors(first, m)
     cures, cands = cure_stage(sensor, first, m, options, steps, notes)
     reach_poses = m.poses + [v.pose for v in verif] + [v.pose for v in cands]
     final = final_record(sensor, first, m, cures, reach_poses, options)
     result = SensingResult(cfg, tuple(steps), dets, verif, cures, m.verdict, final, tuple(notes),
-                           time.perf_counter() - t0, tuple(m.outlines))
+                           time.perf_counter() - t0, tuple(m.outlines), sensor.patterns)
     if out is not None:
         write_json(Path(out) / "sensing.json", result.to_dict())
         write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary),

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from platebench.bench.config import SampleConfig
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
@@ -27,6 +29,26 @@ OUTCOME_TEXT = {
                    "\"seen all\" target counts it as cured), but the loop could not confirm it and says so",
 }
 HIDDEN_BELOW = 0.995  # ground truth "hides part of the boundary": a camera sees less than this fraction
+# The square grid the verification views and cures project (ROWSxCOLS@SQUARE_PX, ``bench.config.parse_grid``),
+# "auto" by default (``auto_verify_grid``): 6 arrays of 12 squares of 12 projector pixels (3 mm at 0.4 m;
+# rows 48 px apart) at 640 px wide and more. Stage 3 keeps the sample's own pattern (the paper's 16
+# squares by default) for the paper's pipeline and its counting test. The verdict's front check and its
+# confirmations need square centres up to the plate's edges: measured over the false-boundary study's
+# 61 plates at 640 x 480 (README, "What the bench measures"), this grid verifies the boundary on every
+# plate pairs of reachable poses can verify, where the paper's 16 squares at every pose verify none.
+VERIFY_GRID = "auto"
+VERIFY_ROWS, VERIFY_COLS, VERIFY_SQUARE_PX, VERIFY_WIDTH_PX = 6, 12, 12, 640
+# a grid of 6 rows with rows 4 squares apart (``parse_grid``) fits the 768-px projector up to this square size
+VERIFY_MAX_SQUARE_PX = 29
+
+
+def auto_verify_grid(width_px: int) -> str:
+    """The verification grid for images ``width_px`` wide: 6x12@12 from 640 px up; on narrower
+    images its squares grow as the pixels do (12 x 640 / width, at most ``VERIFY_MAX_SQUARE_PX``), so
+    that a square keeps the 7 or so camera pixels it has at 640 x 480 and 0.4 m (at 320 x 240 12-px
+    squares are 3-4 camera pixels: the stage-2 pose kept 8 centres of the 72)."""
+    sq = min(VERIFY_MAX_SQUARE_PX, max(VERIFY_SQUARE_PX, int(np.ceil(VERIFY_SQUARE_PX * VERIFY_WIDTH_PX / width_px))))
+    return f"{VERIFY_ROWS}x{VERIFY_COLS}@{sq}"
 
 
 def outcome_class(hidden_first: bool, hidden_final: bool, verified: bool, cured_or_raised: bool) -> str:
@@ -65,6 +87,9 @@ class SensingOptions:
     # ``active_views.projector_pose``) and measures its centres: the merged reconstruction's points
     # and surface (``active_views``).
     active_views: bool = True
+    # The square grid the verification views and cures project ('ROWSxCOLS@SQUARE_PX', "auto":
+    # ``auto_verify_grid`` of the image width); None: the sample's own pattern, as stage 3.
+    verify_grid: str | None = VERIFY_GRID
     write_stages: bool = True
     reach: Reach = field(default_factory=Reach)
     # For scoring only: cast ground truth's boundary visibility from every pose the loop could reach
@@ -103,6 +128,7 @@ class ActiveRecord:
     unmatched: tuple
     gt_visibility: dict
     error: str | None = None
+    cut: int = 0  # matched centres of squares cut in either image, set apart from ``matched`` (pipeline ``cut``)
 
     @property
     def stage(self) -> int:
@@ -111,8 +137,8 @@ class ActiveRecord:
     def to_dict(self) -> dict:
         return {"stage": 3, "pose": self.pose.to_dict(), "projector_pose": self.projector_pose.to_dict(),
                 "false_boundary": None if self.false_boundary is None else self.false_boundary.to_dict(),
-                "matched": self.matched, "unmatched": list(self.unmatched), "gt_visibility": self.gt_visibility,
-                "error": self.error}
+                "matched": self.matched, "cut_squares": self.cut, "unmatched": list(self.unmatched),
+                "gt_visibility": self.gt_visibility, "error": self.error}
 
 
 @dataclass(frozen=True)
@@ -210,6 +236,8 @@ class SensingResult:
     notes: tuple[str, ...]
     time_s: float
     views: tuple[ViewOutline, ...] = ()  # every measuring pose's outline (not in sensing.json: multiview.npz)
+    # the projected patterns (``Pattern.description``): stage 3's, and the verification views' and cures'
+    patterns: dict = field(default_factory=dict)
 
     @property
     def cures(self) -> int:
@@ -221,4 +249,4 @@ class SensingResult:
                 "verification_views": [v.to_dict() for v in self.verification_views],
                 "cures": self.cures, "cure_views": [v.to_dict() for v in self.cure_views],
                 "verdict": self.verdict.to_dict(), "notes": list(self.notes),
-                "final": self.final.to_dict(), "time_s": self.time_s}
+                "patterns": self.patterns, "final": self.final.to_dict(), "time_s": self.time_s}

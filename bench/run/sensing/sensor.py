@@ -4,8 +4,8 @@
 pose, never a scene rebuilt) and hands back what a real sensor would give (images), with ground
 truth's boundary visibility beside it for scoring only. ``passive_view`` is one measuring pose of
 the loop: the passive pair rendered and its outline measured by the general outline stereo, and,
-when asked, the active pair (projector beside the rig, ``active_views.projector_pose``) and its
-checked square centres (``reconstruction.strategy.active_views``).
+when asked, the active pair (projector beside the rig, ``active_views.projector_pose``, projecting
+the verification pattern) and its checked square centres (``reconstruction.strategy.active_views``).
 World frame, metres.
 """
 from __future__ import annotations
@@ -14,8 +14,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from platebench.bench.config import SampleConfig
+from platebench.bench.config import SampleConfig, parse_grid
 from platebench.bench.run.render import ground_truth_at, render_images
+from platebench.bench.run.sensing.records import auto_verify_grid
 from platebench.plates import build_plate
 from platebench.reconstruction.calibration.undistort import undistort_views
 from platebench.reconstruction.paper.outline_stereo import match_outlines
@@ -24,6 +25,7 @@ from platebench.reconstruction.strategy.active_views import ActivePoints, active
 from platebench.reconstruction.strategy.multiview import ViewOutline
 from platebench.reconstruction.strategy.poses import SensorPose
 from platebench.scenes.render.ground_truth import GroundTruthCaster, combined_visibility
+from platebench.scenes.pattern import square_grid
 from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
 
 PASSIVE = ("left_passive", "right_passive")
@@ -72,12 +74,22 @@ def measure_outline(name: str, scene: SceneSpec, digital: dict, masks: dict | No
 
 
 class SimulatedSensor:
-    """The rig of ``cfg``'s scene on a robot; the passive light rides with it (``follows_rig``)."""
+    """The rig of ``cfg``'s scene on a robot; the passive light rides with it (``follows_rig``).
+    Stage 3 projects ``cfg``'s pattern; the measuring poses after it (``passive_view``) project
+    ``verify_grid`` ('ROWSxCOLS@SQUARE_PX', ``parse_grid``; "auto": ``records.auto_verify_grid`` of
+    the image width; None: ``cfg``'s pattern too), from the same projector."""
 
-    def __init__(self, cfg: SampleConfig, progress=None):
+    def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None):
         self.cfg = cfg
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
+        proj = self.base.projector
+        if verify_grid == "auto":
+            verify_grid = auto_verify_grid(self.base.rig.left.width)
+        grid = None if verify_grid is None else square_grid(proj.pattern.width, proj.pattern.height,
+                                                             **parse_grid(verify_grid))
+        same = grid is None or grid.description == proj.pattern.description
+        self.verify_base = self.base if same else replace(self.base, projector=proj.with_pattern(grid))
         self.plate = build_plate(cfg.plate)
         self.camera = self.base.rig.left
         self.projector_camera = self.base.projector.camera
@@ -85,15 +97,25 @@ class SimulatedSensor:
         self.renderer = None
         self._progress = progress or (lambda name: None)
 
-    def scene_at(self, pose: SensorPose, projector: SensorPose | None = None) -> SceneSpec:
-        return scene_for_pose(pose.center, pose.target, pose.baseline_dir, self.base,
+    @property
+    def patterns(self) -> dict:
+        """The projected patterns' descriptions: stage 3's and the measuring poses' after it."""
+        return {"stage3": self.base.projector.pattern.description,
+                "verification": self.verify_base.projector.pattern.description}
+
+    def scene_at(self, pose: SensorPose, projector: SensorPose | None = None, verify: bool = False) -> SceneSpec:
+        """The scene with the rig at ``pose`` and the projector at ``projector`` (default: between
+        the cameras), projecting the verification pattern if ``verify``, else the sample's."""
+        return scene_for_pose(pose.center, pose.target, pose.baseline_dir, self.verify_base if verify else self.base,
                               projector_center=None if projector is None else projector.center,
                               projector_target=None if projector is None else projector.target)
 
-    def shoot(self, pose: SensorPose, names, projector: SensorPose | None = None, label: str = "") -> Shot:
-        """Render the images ``names`` with the rig at ``pose`` (and the projector at ``projector``)."""
+    def shoot(self, pose: SensorPose, names, projector: SensorPose | None = None, label: str = "",
+              verify: bool = False) -> Shot:
+        """Render the images ``names`` with the rig at ``pose`` (and the projector at ``projector``,
+        projecting the verification pattern if ``verify``)."""
         self._progress(f"{label}: render" if label else "render")
-        scene = self.scene_at(pose, projector)
+        scene = self.scene_at(pose, projector, verify)
         rad, dig, vis, self.renderer = render_images(self.cfg, self.renderer, scene, self.plate, names)
         return Shot(scene, rad, dig, vis)
 
@@ -104,10 +126,10 @@ class SimulatedSensor:
     def passive_view(self, name: str, pose: SensorPose, rays_for=None) -> PassiveView:
         """Render the passive pair at ``pose`` and measure its outline; with ``rays_for`` (scene ->
         ``FeatureRays``, the projector's calibration) also the active pair, with the projector
-        beside the rig (``active_views.projector_pose``), and its square centres
+        beside the rig (``active_views.projector_pose``) projecting the verification pattern, and its square centres
         (``active_views.active_points``)."""
         shot = self.shoot(pose, PASSIVE + (ACTIVE if rays_for is not None else ()),
-                          projector=projector_pose(pose) if rays_for is not None else None, label=name)
+                          projector=projector_pose(pose) if rays_for is not None else None, label=name, verify=True)
         # a distorted camera's images are measured undistorted, with its pinhole (reconstruction.calibration.undistort)
         digital, rig = undistort_views(shot.digital, shot.scene.rig)
         scene = replace(shot.scene, rig=rig)
