@@ -9,8 +9,8 @@ emitters, which keep theirs opaque); only a change of *structure*
 (image size, projector kind or pattern size, material kind, integrator depth)
 rebuilds the scene.
 
-Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels
-(every material and light here is grey). The ``box`` reconstruction filter keeps
+Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels, taken on the
+render's device and copied to the host once (``scenes.render.film``). The ``box`` reconstruction filter keeps
 renders bit-identical for a given seed across processes.
 Units: metres; frames as in ``scenes.camera``; conversions in ``scenes.mitsuba_convert``.
 """
@@ -20,6 +20,8 @@ import numpy as np
 
 from platebench.scenes.naming import CAMERAS, LIGHTINGS, image_seed
 from platebench.scenes.render import runtime
+from platebench.scenes.render.device_arrays import to_device
+from platebench.scenes.render.film import grey_to_host
 from platebench.scenes.render.lens_sensor import configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.render.mitsuba_convert import (
     perspective_fov_deg,
@@ -222,8 +224,8 @@ class PlateRenderer:
             return
         for params in (self.params, self.gt_params):
             # Construct with the buffer's own type (dynamic in every variant, scalar too).
-            params["plate.vertex_positions"] = type(params["plate.vertex_positions"])(v)
-            params["plate.faces"] = type(params["plate.faces"])(f)
+            params["plate.vertex_positions"] = to_device(type(params["plate.vertex_positions"]), v)
+            params["plate.faces"] = to_device(type(params["plate.faces"]), f)
             params.update()
 
     def set_lighting(self, lighting: str) -> None:
@@ -239,11 +241,12 @@ class PlateRenderer:
         p["projector.sampling_weight"] = 1.0 if lighting == "active" else 0.0
         pattern = self._spec.projector.pattern.image
         level = self._proj_scale if lighting == "active" else 0.0
+        pattern = mi.TensorXf(to_device(mi.Float, pattern), shape=(*pattern.shape, 1))
         if self._spec.projector.kind == "spot":
-            p["projector.texture.data"] = mi.TensorXf(pattern[..., None])
+            p["projector.texture.data"] = pattern
             p["projector.intensity.value"] = float(level)
         else:
-            p["projector.irradiance.data"] = mi.TensorXf(pattern[..., None])
+            p["projector.irradiance.data"] = pattern
             p["projector.scale"] = float(level)
         p.update()
 
@@ -257,7 +260,7 @@ class PlateRenderer:
         self.set_lighting(lighting)
         img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
                              seed=image_seed(settings.seed, camera, lighting))
-        return np.asarray(img, dtype=np.float32).mean(axis=2)
+        return grey_to_host(self.mi, img)
 
     def render_all(self, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
         """The four images of a sample, keyed ``left_passive`` ... ``right_active``."""
