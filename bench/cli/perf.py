@@ -11,7 +11,7 @@ from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 HELP = "benchmarks: render and reconstruct timings against same-run baselines"
-TARGETS = ("render", "reconstruct", "sweep", "score")
+TARGETS = ("render", "reconstruct", "sweep", "score", "sequences")
 EXTRA = ("chaos", "bad-input", "variants")  # run only when named
 
 
@@ -22,7 +22,9 @@ def add_parser(sub) -> None:
                                    "pipeline vs OpenCV StereoSGBM on the same passive pair. sweep: samples per "
                                    "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
                                    "worker. score: exact point-to-mesh distance on a dent plate's mesh (triangles 0.15 to "
-                                   "14 mm) by radius classes vs one class and vs trimesh. Reference experiment at "
+                                   "14 mm) by radius classes vs one class and vs trimesh. sequences: a Gray-code sample "
+                                   "(the sample + its 22-frame sequence, decoded and scored) vs a paper sample, and "
+                                   "the sequence three patterns to a launch vs one frame a launch. Reference experiment at "
                                    "1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
                    help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
@@ -88,6 +90,9 @@ def run(args) -> int:
         if target == "sweep":
             from platebench.bench.perf.sweep import perf_sweep  # noqa: PLC0415
             out[target] = perf_sweep()
+        elif target == "sequences":
+            from platebench.bench.perf.sequences import perf_sequences  # noqa: PLC0415
+            out[target] = perf_sequences(cfg, repeat=args.repeat)
         elif target == "score":
             from platebench.bench.perf.benchmarks import perf_score  # noqa: PLC0415
             out[target] = perf_score(repeat=args.repeat)

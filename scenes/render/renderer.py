@@ -21,7 +21,7 @@ import numpy as np
 from platebench.scenes.naming import CAMERAS, LIGHTINGS, image_seed
 from platebench.scenes.render import runtime
 from platebench.scenes.render.device_arrays import to_device
-from platebench.scenes.render.film import grey_to_host
+from platebench.scenes.render.film import channels_to_host, grey_to_host
 from platebench.scenes.render.lens_sensor import configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.render.mitsuba_convert import (
     perspective_fov_deg,
@@ -239,16 +239,56 @@ class PlateRenderer:
         # light that is off, or half the samples are wasted (binomial noise).
         p["light.emitter.sampling_weight"] = 1.0 if area > 0 else 0.0
         p["projector.sampling_weight"] = 1.0 if lighting == "active" else 0.0
-        pattern = self._spec.projector.pattern.image
         level = self._proj_scale if lighting == "active" else 0.0
-        pattern = mi.TensorXf(to_device(mi.Float, pattern), shape=(*pattern.shape, 1))
-        if self._spec.projector.kind == "spot":
-            p["projector.texture.data"] = pattern
-            p["projector.intensity.value"] = float(level)
-        else:
-            p["projector.irradiance.data"] = pattern
-            p["projector.scale"] = float(level)
+        spot = self._spec.projector.kind == "spot"
+        p["projector.intensity.value" if spot else "projector.scale"] = float(level)
+        self._set_projector_image(self._spec.projector.pattern.image[..., None])
+
+    def _set_projector_image(self, image: np.ndarray) -> None:
+        """Load (Hp, Wp, C) float32 values in [0, 1], C = 1 or 3, into the projector's texture
+        (a parameter update; the channel count is the kernel's only change, compiled once each)."""
+        mi, p = self.mi, self.params
+        tex = mi.TensorXf(to_device(mi.Float, image, np.float32), shape=image.shape)
+        p["projector.texture.data" if self._spec.projector.kind == "spot" else "projector.irradiance.data"] = tex
         p.update()
+
+    @property
+    def patterns_per_launch(self) -> int:
+        """Projector patterns one launch can render (``render_patterns``): 3 when the plate is grey
+        (diffuse; every light is white), so that the RGB channels are independent renders of three
+        patterns; 1 for a conductor, whose channels reflect differently."""
+        return 3 if self._spec.material.kind == "diffuse" else 1
+
+    def render_patterns(self, camera: str, patterns: np.ndarray, settings: RenderSettings = RenderSettings()) -> np.ndarray:
+        """(k, H, W) float32 active images of ``camera`` under each of ``k <= patterns_per_launch``
+        projector patterns ((k, Hp, Wp) values in [0, 1]) in one launch, along the same camera paths.
+
+        With a grey plate, pattern c goes into the projector's colour channel c and image c is
+        channel c of the render: the path tracer treats the channels alike (the BSDFs and the other
+        lights are grey, Russian roulette reads the path's grey throughput, the projector is not
+        importance-sampled by its texture), so image c is, to the last bit, channel c of a render
+        of pattern c alone with the same seed; its channel mean, ``render``'s image, agrees to
+        float32 rounding. With a conductor, one pattern per launch and its channel mean. The scene's
+        own pattern is back in place at the next ``set_lighting``."""
+        pats = np.asarray(patterns, np.float32)
+        k = len(pats)
+        if pats.ndim != 3 or not 1 <= k <= self.patterns_per_launch:
+            raise ValueError(f"render_patterns: got patterns of shape {pats.shape}; allowed (k, Hp, Wp) with k from "
+                             f"1 to {self.patterns_per_launch}")
+        if camera not in CAMERAS:
+            raise ValueError(f"camera = {camera!r} is not allowed: choose one of {CAMERAS}")
+        self.set_lighting("active")
+        if self.patterns_per_launch == 3:
+            image = np.zeros((*pats.shape[1:], 3), np.float32)
+            image[..., :k] = np.moveaxis(pats, 0, -1)
+        else:
+            image = pats[0][..., None]
+        self._set_projector_image(image)
+        img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
+                             seed=image_seed(settings.seed, camera, "active"))
+        if self.patterns_per_launch == 3:
+            return np.ascontiguousarray(np.moveaxis(channels_to_host(self.mi, img)[..., :k], -1, 0))
+        return grey_to_host(self.mi, img)[None]
 
     # -- rendering ------------------------------------------------------------
     def render(self, camera: str, lighting: str, settings: RenderSettings = RenderSettings()) -> np.ndarray:
