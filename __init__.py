@@ -26,13 +26,16 @@ Importing ``platebench`` is cheap: nothing here imports Mitsuba until a function
 from __future__ import annotations
 
 from platebench.api import reconstruct, render, report, score, sense, sweep
-from platebench.version import __version__
 
 __all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report", "PlateBenchDataset"]
 
 
 def __getattr__(name: str):
-    """``platebench.PlateBenchDataset`` (samples as numpy arrays), imported on first use."""
+    """``platebench.PlateBenchDataset`` (samples as numpy arrays) and ``__version__`` (read from the package
+    metadata), imported on first use."""
+    if name == "__version__":
+        from platebench.version import __version__
+        return __version__
     if name == "PlateBenchDataset":
         from platebench.bench.io.dataset_reader import PlateBenchDataset
         return PlateBenchDataset

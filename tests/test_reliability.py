@@ -87,31 +87,31 @@ def test_second_sweep_into_a_dataset_is_refused_and_a_stale_lock_taken_over(tmp_
     assert not lock.exists() and not stale_files(out)
 
 
-# ----------------------------------------------------------------------------- item 4: one row per method
+# ----------------------------------------------------------------------------- item 4: a failed write
 @pytest.mark.render
-def test_a_failed_write_records_each_method_once(tmp_path):
+def test_a_failed_write_is_an_error_of_the_output_not_a_failed_sample(tmp_path):
     """The dataset lives on a 96 KiB tmpfs (a user namespace): the render succeeds, writing it fails
-    (no space left); the sample is failed with one row per method, the methods do not run."""
+    (no space left). That is no failure of the sample: the task raises the OSError (the sweep stops,
+    bench.io.fs_errors) and leaves no attempt directory behind; the methods do not run."""
     if shutil.which("unshare") is None or subprocess.run(["unshare", "-rm", "true"]).returncode:
         pytest.skip("no user namespaces here (unshare -rm) for a small tmpfs")
     d = tmp_path / "full"
     d.mkdir()
-    code = ("import json; from pathlib import Path; from platebench.bench.sweep.spec import parse_spec; "
+    code = ("import errno, json, os; from pathlib import Path; from platebench.bench.sweep.spec import parse_spec; "
             "from platebench.bench.sweep.tasks import tasks_from_spec, run_sample; "
             f"spec = parse_spec({{'base': {SMALL!r}, 'sweep': {{'methods': ['paper', 'sgbm']}}, "
             "'grid': {'bend_deg': [10]}}); "
             f"(Path({str(d)!r}) / 'samples').mkdir(); "
-            f"t = tasks_from_spec(spec, Path({str(d)!r}))[0]; r = run_sample(t); "
-            "print(json.dumps({'status': r['status'], 'phase': r['phase'], 'error': r['error'], "
-            "'rows': [(x['method'], x['status']) for x in r['rows']]}))")
+            f"t = tasks_from_spec(spec, Path({str(d)!r}))[0]\n"
+            "try:\n    run_sample(t); print(json.dumps({'raised': None}))\n"
+            "except OSError as e:\n"
+            f"    print(json.dumps({{'raised': errno.errorcode[e.errno], 'left': os.listdir({str(d)!r} + '/samples')}}))")
     r = subprocess.run(["unshare", "-rm", "sh", "-c",
                         f"mount -t tmpfs -o size=96k tmpfs {d} && exec {sys.executable} -c \"{code}\""],
                        cwd=REPO, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout.strip().splitlines()[-1])
-    assert res["status"] == "failed" and res["phase"] == "render", res
-    assert "No space left" in res["error"], res
-    assert res["rows"] == [["paper", "failed"], ["sgbm", "failed"]]
+    assert res == {"raised": "ENOSPC", "left": []}, res
 
 
 # ----------------------------------------------------------------------------- item 5: poisoned samples

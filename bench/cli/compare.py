@@ -74,6 +74,9 @@ def format_table(cmp: Comparison) -> str:
             f"{'bad1 %':>7s} {'time s':>7s} {'render s':>8s}")
     lines = [head, "-" * len(head)]
     for r in cmp.rows:
+        if r.status != "ok":
+            lines.append(f"{r.name:24s} failed    {r.error}")
+            continue
         kind, med, rms, cov, bad = _cells(r)
         lines.append(f"{r.name:24s} {kind:9s} {r.n_images:7d} {_num(med):>10s} {_num(rms):>10s} {cov:>9s} {bad:>7s} "
                      f"{r.time_s:7.3f} {r.render_s:8.1f}")
@@ -133,6 +136,9 @@ def add_parser(sub) -> None:
     p.add_argument("--spp", type=int, help="samples per pixel for the pattern sequences (default: the sample's)")
     p.add_argument("--min-depth-mm", type=float, help="SGBM search range: nearest depth in MILLIMETRES")
     p.add_argument("--max-depth-mm", type=float, help="SGBM search range: farthest depth in MILLIMETRES")
+    p.add_argument("--method-time-limit-s", type=float, default=None, metavar="S",
+                   help="the longest a plug-in may run on the sample, seconds (default 600; 1 to 86400): one "
+                        "that takes longer is stopped and recorded as failed")
     p.set_defaults(run=run)
 
 
@@ -152,6 +158,9 @@ def run(args) -> int:
         depth_range = (args.min_depth_mm / 1e3, args.max_depth_mm / 1e3)
     if args.spp is not None and not 1 <= args.spp <= 65536:
         raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 65536")
+    if args.method_time_limit_s is not None:
+        from platebench.bench.run.plugins import check_time_limit  # noqa: PLC0415
+        check_time_limit(args.method_time_limit_s)
     t0 = time.perf_counter()
     out = Path(args.out) if args.out is not None else Path(args.sample) / "compare"
     # the output rule (bench.io.outputs): never into the sample or the reconstruction it reads, except the
@@ -163,7 +172,8 @@ def run(args) -> int:
             if pbar.n < pbar.total - 1:
                 pbar.update(1)
             pbar.set_postfix_str(str(msg)[:60])
-        cmp = compare_sample(args.sample, args.methods, args.recon, args.spp, depth_range, progress=say)
+        cmp = compare_sample(args.sample, args.methods, args.recon, args.spp, depth_range, progress=say,
+                             method_time_limit_s=args.method_time_limit_s)
         doc = comparison_json(cmp)
         doc["total_s"] = time.perf_counter() - t0
         write_json(stage / "compare.json", doc)
@@ -172,5 +182,8 @@ def run(args) -> int:
     print(format_table(cmp))
     for n in cmp.notes:
         print(f"note: {n}")
+    failed = [r.name for r in cmp.rows if r.status != "ok"]
+    if failed:
+        print(f"failed      {len(failed)} of {len(cmp.rows)} method(s): {', '.join(failed)} (recorded in compare.json)")
     print(f"wrote       {out / 'compare.json'}, {out / 'compare.png'}  ({doc['total_s']:.1f} s)")
     return 0

@@ -6,6 +6,10 @@ configurations) and file-system errors (a path missing, existing, unreadable or 
 print one line ``platebench: error: ...`` and exit with status 2; nothing half-written is left
 behind. Anything else is a bug and keeps its traceback. PLATEBENCH_DEBUG=1 shows the traceback
 of user errors too.
+
+Ctrl-C and SIGTERM end every command with status 130 and 143 (``bench.interrupts``: the handlers
+are installed before any command module is imported, and a signal swallowed by a library on the
+way still sets the status); completed outputs are kept, partial ones removed.
 """
 from __future__ import annotations
 
@@ -15,9 +19,8 @@ import os
 import sys
 from pathlib import Path
 
-from platebench.bench.io.atomic import Terminated, install_sigterm_handler, target_of_temp
+from platebench.bench import interrupts
 from platebench.errors import PlateBenchError
-from platebench.version import __version__
 
 # name -> module exposing HELP (its line in 'platebench --help'), add_parser(subparsers) and run(args) -> int.
 # A command module imports only what its parser needs at the top; the work's modules (renderer, pipeline,
@@ -41,6 +44,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         epilog="Units: metres and radians in files; flags say when they take mm or degrees. "
                "Run 'platebench COMMAND --help' for each command. Exit status: 0 done, 2 a user error "
                "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+    from platebench.version import __version__  # noqa: PLC0415  (package metadata: read once the handlers are in)
     parser.add_argument("--version", action="version", version=f"platebench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, modname in COMMANDS.items():
@@ -54,30 +58,50 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 def _one_line(e: BaseException) -> str:
     if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        from platebench.bench.io.atomic import target_of_temp  # noqa: PLC0415  (loaded after the handlers)
         name = target_of_temp(Path(os.fsdecode(e.filename)))  # the user's path, never a staging name
         return f"{name}: {e.strerror[0].lower() + e.strerror[1:]}"
     text = str(e).strip()
     return text.splitlines()[0] if text else type(e).__name__
 
 
+def _interrupted(e: KeyboardInterrupt | None) -> int:
+    status = interrupts.exit_status() or (143 if isinstance(e, interrupts.Terminated) else 130)
+    what = "terminated (SIGTERM)" if status == 143 else "interrupted"
+    print(f"platebench: {what}; completed outputs are kept, partial ones removed", file=sys.stderr)
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(argv)
-    args = parser.parse_args(argv)
-    install_sigterm_handler()  # SIGTERM unwinds like Ctrl-C: staged outputs removed, manifests closed
+    """Run one command. ``argv`` None: this process's command line (the handlers of ``bench.interrupts`` stay
+    to its very end: ``finish``); a list: a call from Python, which gets its own handlers back."""
+    whole_process = argv is None
+    interrupts.install(whole_process)  # first: a signal at any later moment ends the command with 130 / 143
     try:
-        return int(args.run(args) or 0)
-    except Terminated:
-        print("platebench: terminated (SIGTERM); completed outputs are kept, partial ones removed", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print("platebench: interrupted; completed outputs are kept, partial ones removed", file=sys.stderr)
-        return 130
-    except (PlateBenchError, OSError) as e:
-        if os.environ.get("PLATEBENCH_DEBUG"):
-            raise
+        return _run(sys.argv[1:] if argv is None else list(argv),
+                    interrupts.finish if whole_process else (lambda status: status))
+    finally:
+        if not whole_process:
+            interrupts.uninstall()
+
+
+def _run(argv: list[str], done) -> int:
+    """The command's exit status, passed through ``done`` as soon as it is known."""
+    try:
+        parser = build_parser(argv)
+        args = parser.parse_args(argv)
+        status = int(args.run(args) or 0)
+        interrupts.check()  # a signal that a library swallowed on the way
+        return done(status)
+    except KeyboardInterrupt as e:
+        return done(_interrupted(e))
+    except BaseException as e:
+        if interrupts.received() is not None:  # an error on the way out of an interrupt
+            return done(_interrupted(None))
+        if not isinstance(e, (PlateBenchError, OSError)) or os.environ.get("PLATEBENCH_DEBUG"):
+            raise  # argparse's exits (--help, a bad flag), and bugs: their traceback
         print(f"platebench: error: {_one_line(e)}", file=sys.stderr)
-        return 2
+        return done(2)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,10 @@ def add_parser(sub) -> None:
                    help="with --scheduler: seconds without any worker before the sweep stops with an error "
                         "(default 60; the dataset is kept for --resume)")
     p.add_argument("--methods", help="comma-separated reconstruction methods, overriding the spec's")
+    p.add_argument("--method-time-limit-s", type=float, default=None, metavar="S",
+                   help="the longest a plug-in method may run on one sample, seconds (default: the spec's "
+                        "sweep.method_time_limit_s, else 600; 1 to 86400): one that takes longer is stopped and "
+                        "recorded as that method's failure")
     p.add_argument("--resume", action="store_true", help="continue DATASET: skip samples whose result is done")
     p.add_argument("--retry-failed", action="store_true", help="with --resume, run failed samples again")
     p.add_argument("--overwrite", action="store_true", help="replace a sweep DATASET 'platebench sweep' wrote "
@@ -65,6 +69,9 @@ def run(args) -> int:
         raise UserValueError("--retry-failed goes with --resume")
     if args.resume and args.overwrite:
         raise UserValueError("--resume and --overwrite exclude each other")
+    if args.method_time_limit_s is not None:
+        from platebench.bench.run.plugins import check_time_limit  # noqa: PLC0415
+        check_time_limit(args.method_time_limit_s)
     spec = load_spec(args.spec, _methods(args.methods))  # every sample validated before anything is written
     if args.dry_run:
         print(f"spec        {args.spec} ({spec.mode}, {len(spec.samples)} samples, methods {', '.join(spec.methods)})")
@@ -87,7 +94,7 @@ def run(args) -> int:
         executor.connect()  # fail fast, before the dataset is created
     summary = run_sweep(spec, args.out, executor, resume=args.resume, overwrite=args.overwrite,
                         retry_failed=args.retry_failed, progress=args.progress,
-                        log=lambda m: print(m, file=sys.stderr))
+                        log=lambda m: print(m, file=sys.stderr), method_time_limit_s=args.method_time_limit_s)
     ex = summary.executor
     where = f"dask {ex.get('scheduler')} ({ex.get('workers')} workers)" if ex.get("kind") == "dask" else \
         (f"local, {ex.get('workers')} worker(s)" if ex.get("workers") else "in-process")

@@ -9,8 +9,8 @@
   target (so an unwritable place fails at once, not after the work). It yields the staging
   directory; on success the finished output is swapped in (Linux ``renameat2``
   RENAME_EXCHANGE / RENAME_NOREPLACE where the file system has them, else two renames) and the
-  old output removed; on any exception (Ctrl-C and SIGTERM included, see
-  ``install_sigterm_handler``) the staging directory is removed and the target is untouched.
+  old output removed; on any exception (Ctrl-C and SIGTERM included: ``bench.interrupts``
+  turns SIGTERM into an exception) the staging directory is removed and the target is untouched.
 * ``staged_directory``: the same without the lock (for sub-directories of an output that is
   already staged or locked).
 
@@ -30,7 +30,6 @@ import json
 import os
 import secrets
 import shutil
-import signal
 import socket
 import stat
 import sys
@@ -41,7 +40,7 @@ import numpy as np
 from platebench.errors import PlateBenchError
 
 __all__ = ["write_bytes", "write_text", "write_json", "staged_output", "staged_directory", "sweep_stale",
-           "OutputLock", "OutputLockedError", "OutputExistsError", "Terminated", "install_sigterm_handler",
+           "OutputLock", "OutputLockedError", "OutputExistsError",
            "owner_alive", "temp_owner", "is_temp_name", "check_target", "temp_path", "pid_alive", "swap_in",
            "rename_noreplace", "target_of_temp", "HOST"]
 
@@ -55,19 +54,6 @@ class OutputLockedError(PlateBenchError):
 
 class OutputExistsError(PlateBenchError, FileExistsError):
     """The output exists and ``--overwrite`` was not given."""
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised as an exception so that staged outputs are removed and manifests closed."""
-
-
-def install_sigterm_handler() -> None:
-    """Turn SIGTERM into ``Terminated`` in the main thread (cleanup runs as for Ctrl-C)."""
-    def handler(signum, frame):
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM kills at once
-        raise Terminated("terminated (SIGTERM)")
-    with contextlib.suppress(ValueError):  # not the main thread
-        signal.signal(signal.SIGTERM, handler)
 
 
 # ----------------------------------------------------------------------------- owners of temporary names

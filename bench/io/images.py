@@ -13,6 +13,7 @@ and holding one: refused from the header).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -129,7 +130,10 @@ def write_exr(path: Path, data: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = str(temp_path(path))
     try:
-        OpenEXR.File(header, channels).write(tmp)
+        try:
+            OpenEXR.File(header, channels).write(tmp)
+        except RuntimeError as e:  # OpenEXR says the system's error in words: give it back as the OSError it is
+            raise _exr_os_error(e, path) from None
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -161,6 +165,17 @@ def exr_size(path: Path) -> tuple[int, int] | None:
             return None
         i = type_end + 5 + size
     return None
+
+
+def _exr_os_error(e: RuntimeError, path: Path) -> Exception:
+    """An ``OSError`` (errno, ``path``) for OpenEXR's RuntimeError when its text names a system error (a full
+    disk, a read-only file system, ...); else the RuntimeError itself."""
+    text = str(e)
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO, errno.ENOENT,
+                 errno.EMFILE, errno.ENFILE, errno.EFBIG):
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(path))
+    return e
 
 
 def read_exr(path: Path) -> np.ndarray:

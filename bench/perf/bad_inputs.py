@@ -417,7 +417,8 @@ def run_all(select: str | None = None, work: Path | None = None) -> list[Outcome
             if select and select not in case.name:
                 continue
             out.append(run_case(case, work, srv.getsockname()[1]))
-        return out
+        from platebench.bench.perf.run_attacks import run_attacks  # noqa: PLC0415  (signals, plug-ins, full disks)
+        return out + run_attacks(select, work)
     finally:
         srv.close()
         if own:

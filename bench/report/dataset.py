@@ -85,7 +85,9 @@ def _overview(manifest: dict, frame: pd.DataFrame | None) -> dict:
         ("executor", ", ".join(f"{k} {v}" for k, v in (manifest.get("executor") or {}).items())),
         ("Mitsuba variant", ", ".join(sorted(set(frame["variant"].dropna().astype(str))))
          if frame is not None and "variant" in frame.columns else None),
-        ("state", manifest.get("state")), ("created", manifest.get("created_utc")),
+        ("state", manifest.get("state") and " ".join(
+            [manifest["state"]] + ([f"({manifest['state_note']})"] if manifest.get("state_note") else []))),
+        ("created", manifest.get("created_utc")),
         ("updated", manifest.get("updated_utc"))) if v]
     packages = [(k, v if v is not None else "not installed") for k, v in (manifest.get("packages") or {}).items()]
     return {"description": spec.get("description") or "", "cards": cards, "facts": facts, "packages": packages,

@@ -213,18 +213,19 @@ def compare_section(page: Page, path: Path, prefix: str) -> dict:
     """A compare.json: one row per method, their descriptions and notes, and a bar chart."""
     doc = load_compare(path)
     methods = {n: _flatten(m) for n, m in (doc.get("methods") or {}).items() if isinstance(m, dict)}
+    failed = {n: m.get("error") for n, m in methods.items() if m.get("status") == "failed"}
     cols = [(k, t) for k, t in _COMPARE_COLUMNS if any(m.get(k) is not None for m in methods.values())]
     table = {"title": "", "caption": "", "cls": "", "groups": [], "columns": ["method"] + [t for _, t in cols],
              "rows": [[n] + [m.get(k) for k, _ in cols] for n, m in methods.items()]}
     bars = {n: {**{k: m.get(k) for k in ("depth_median_mm", "depth_rms_mm", "depth_max_mm", "surface_rms_mm")},
                 "coverage_frac": None if finite(m.get("coverage_pct")) is None else m["coverage_pct"] / 100.0}
-            for n, m in methods.items()}
+            for n, m in methods.items() if n not in failed}
     rel = page.rel(path)
     plots = [page.plot(f"{prefix}compare", P.plot_method_comparison, bars, title=f"compare: {rel}",
                        caption="Depth error of each method on this sample (mm: median, RMS, max over plate pixels "
                                "with an estimate, or over the paper's square centres; log scale when they span "
-                               "decades) and coverage of the plate (fraction 0..1, dense methods).")] if methods else []
+                               "decades) and coverage of the plate (fraction 0..1, dense methods).")] if bars else []
     return {"kind": "compare", "title": f"Method comparison: {rel}", "sample": doc.get("sample", "?"),
             "units": doc.get("units") or "", "table": table, "plots": plots,
             "descriptions": [(n, m.get("description")) for n, m in methods.items() if m.get("description")],
-            "notes": [str(n) for n in doc.get("notes") or []]}
+            "notes": [str(n) for n in doc.get("notes") or []] + [f"{n} failed: {e}" for n, e in failed.items()]}

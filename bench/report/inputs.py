@@ -107,14 +107,18 @@ def _read_dict(path: Path, what: str) -> dict:
 
 
 def read_manifest(dataset: Path) -> dict:
-    """The dataset's manifest.json ({} when there is none; a damaged one is an error)."""
+    """The dataset's manifest.json ({} when there is none; a damaged one is an error), its state as it
+    stands: "running" only while a sweep writes it, "interrupted" once that sweep is gone
+    (``bench.sweep.dataset.live_state``)."""
+    from platebench.bench.sweep.dataset import live_state  # noqa: PLC0415
+
     path = Path(dataset) / MANIFEST
     if not path.is_file():
         return {}
     doc = _read_dict(path, "sweep manifest")
     if doc.get("format") != DATASET_FORMAT:
         raise ReportInputError(f"{path}: format {doc.get('format')!r}, expected {DATASET_FORMAT!r}")
-    return doc
+    return live_state(doc, dataset)
 
 
 # ----------------------------------------------------------------------------- detection

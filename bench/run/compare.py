@@ -13,8 +13,10 @@ the sample's ground truth with ``evaluation.dense``:
   (``evaluation.field_scores.score_disparity``).
 
 Plug-in methods (``bench.run.plugins``: an installed entry point of ``platebench.methods`` or
-``module:function``) run on the sample's images and calibration and are scored by the kind of
-output they return (disparity, depth, points or mesh).
+``module:function``) run on the sample's images and calibration, in a process of their own with a
+time limit, and are scored by the kind of output they return (disparity, depth, points or mesh). A
+plug-in that fails (raises, exits, runs past the limit, returns what is not an output) gets a row
+with ``status`` "failed" and its one-line ``error``, as in a sweep; the other methods go on.
 
 The "paper" row is read, not computed: a directory holding ``points.csv`` (world x, y, z in
 metres) and optionally ``recon.json`` from ``platebench reconstruct``; its points are scored
@@ -98,7 +100,9 @@ class MethodRow:
     notes: list = field(default_factory=list)
     result: object = None  # a dense result (.depth, .valid, left view) for the error figure; None otherwise
     score: object = None
-    kind: str = "disparity"
+    kind: str | None = "disparity"  # None for a method that failed
+    status: str = "ok"  # "ok" or "failed"
+    error: str | None = None  # a failed method's one-line error
 
 
 @dataclass(frozen=True)
@@ -155,15 +159,23 @@ def _recreate_scene(cfg: SampleConfig, inputs, gt, renderer):
     return renderer, want is None or hashlib.sha256(img.tobytes()).hexdigest() == want
 
 
-def _plugin_row(name: str, fn, sample_dir: Path, truth) -> MethodRow:
-    """Run a plug-in on the sample's inputs and score its output for its kind."""
-    run = run_plugin(fn, name, sample_dir, truth=truth)
+def _plugin_row(name: str, fn, sample_dir: Path, truth, time_limit_s: float | None = None) -> MethodRow:
+    """Run a plug-in on the sample's inputs and score its output for its kind; a row with status "failed"
+    and the one-line error when it fails (``bench.run.plugins``: whatever the plug-in does is its failure)."""
+    try:
+        run = run_plugin(fn, name, sample_dir, truth=truth, time_limit_s=time_limit_s)
+    except Exception as e:  # noqa: BLE001  (recorded, as a sweep records it; interrupts go on up)
+        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        return MethodRow(name, describe(fn), 0, float("nan"), 0.0, {}, [], kind=None, status="failed",
+                         error=f"{type(e).__name__}: {msg}"[:500])
     view = None
     if run.output.kind in ("disparity", "depth"):
         z = _implied_depth(run.output, truth)
         view = DenseView(z, np.isfinite(z))
-    return MethodRow(name, describe(fn), int(run.output.metrics.get("n_images", 2)), run.time_recon_s, 0.0,
-                     run.score.to_dict(), [], view, run.score, run.output.kind)
+    n_images = run.output.metrics.get("n_images", 2)
+    n_images = int(n_images) if isinstance(n_images, (int, float)) and np.isfinite(n_images) else 2
+    return MethodRow(name, describe(fn), n_images, run.time_recon_s, 0.0, run.score.to_dict(), [], view, run.score,
+                     run.output.kind)
 
 
 def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
@@ -185,8 +197,9 @@ def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow |
 
 def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "phase", "sgbm", "paper"),
                    recon_dir: Path | None = None, spp: int | None = None, depth_range_m=None,
-                   renderer=None, progress=None) -> Comparison:
-    """Run and score ``methods`` on a written sample (see module doc)."""
+                   renderer=None, progress=None, method_time_limit_s: float | None = None) -> Comparison:
+    """Run and score ``methods`` on a written sample (see module doc); ``method_time_limit_s``: the longest a
+    plug-in may run (default ``plugins.METHOD_TIME_LIMIT_S``)."""
     say = progress or (lambda msg: None)
     sample_dir = Path(sample_dir)
     plugins = _resolve_plugins(methods)
@@ -227,7 +240,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
             continue
         if name in plugins:
             say(f"method {name} (plug-in)")
-            rows.append(_plugin_row(name, plugins[name], sample_dir, truth))
+            rows.append(_plugin_row(name, plugins[name], sample_dir, truth, method_time_limit_s))
             continue
         if name not in ("phase", "phase-opencv"):
             say(f"method {name}")
@@ -281,6 +294,7 @@ def comparison_json(cmp: Comparison) -> dict:
     return jsonable({
         "sample": str(cmp.sample_dir), "scene_reproduced": cmp.scene_reproduced, "notes": cmp.notes,
         "units": "depth errors in mm, disparity metrics in px / %, times in s; n_images = exposures per camera",
-        "methods": {r.name: {"kind": r.kind, "description": r.description, "n_images": r.n_images, "time_s": r.time_s,
-                             "render_s": r.render_s, **r.scores, "notes": r.notes} for r in cmp.rows}})
+        "methods": {r.name: {"status": r.status, "error": r.error, "kind": r.kind, "description": r.description,
+                             "n_images": r.n_images, "time_s": r.time_s, "render_s": r.render_s, **r.scores,
+                             "notes": r.notes} for r in cmp.rows}})
 

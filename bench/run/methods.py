@@ -10,7 +10,8 @@ Plug-ins (``bench.run.plugins``: one function from a sample's inputs to a dispar
 point or mesh output) are found by ``get_method`` on first use, in any process: an entry point
 of the group ``platebench.methods``, or a name written ``module:function``. They are then
 registered like the built-ins, so a sweep's spec validation, ``compare`` and every worker
-(local or Dask) resolve the same name the same way.
+(local or Dask) resolve the same name the same way. Their code runs in a process of their own,
+with a time limit (``bench.run.plugin_host``): whatever it does is that method's failure.
 """
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ class MethodContext:
     recon_dir: Path  # where the method writes its outputs (staged)
     renderer: object  # the worker's PlateRenderer (for methods that render their own pattern sequences)
     pose: dict | None  # the sweep's pose axes of this sample (None: the reference pose)
+    time_limit_s: float | None = None  # the longest a plug-in may run on the sample (None: plugins' default)
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,7 @@ def get_method(name: str) -> Method:
 
 def _plugin_runner(fn, name: str) -> Callable[[MethodContext], MethodOutput]:
     def run(ctx: MethodContext) -> MethodOutput:
-        r = run_plugin(fn, name, ctx.sample_dir, ctx.recon_dir)
+        r = run_plugin(fn, name, ctx.sample_dir, ctx.recon_dir, time_limit_s=ctx.time_limit_s)
         return MethodOutput(r.row, r.time_recon_s, r.time_eval_s)
     return run
 

@@ -27,11 +27,26 @@ an entry point ``name`` in the group ``platebench.methods`` of any installed dis
 (``[project.entry-points."platebench.methods"] my-method = "my_package.module:function"``);
 or ``name`` written as ``module:function`` (importable from the Python path). Resolution is
 lazy: a Dask worker that receives only the name resolves it the same way.
+
+Isolation
+---------
+A plug-in's code runs only in a process of its own (``bench.run.plugin_host``): it is imported
+there (``resolve_plugin`` returns a ``Plugin``, its name and description) and called there on each
+sample, with a time limit (``METHOD_TIME_LIMIT_S`` unless the command sets another: ``compare`` and
+``sweep`` take ``--method-time-limit-s``, a sweep spec ``sweep.method_time_limit_s``). Whatever it
+does, its ``sys.exit`` (at import too), an exception, a crash, a loop that never returns, a wrong
+return type, an array of complex, bool, text or Python objects, an unusable mesh or a metric that
+is not a number, is that method's failure on that sample (``PluginError``, one line): a sweep records
+it in the method's row, ``compare`` in the method's entry, and both go on with the other methods.
 """
 from __future__ import annotations
 
+import contextlib
 import importlib
 import inspect
+import os
+import pickle
+import sys
 import time
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -65,10 +80,14 @@ if TYPE_CHECKING:
     import trimesh  # annotations only: importing trimesh takes a second
 
 __all__ = ["ENTRY_POINT_GROUP", "MethodInputs", "Disparity", "Depth", "Points", "Mesh", "OUTPUT_KINDS",
-           "PluginError", "method_inputs", "resolve_plugin", "plugin_names", "score_output", "run_plugin",
-           "write_output", "jsonable"]
+           "PluginError", "Plugin", "method_inputs", "resolve_plugin", "load_plugin", "plugin_names", "score_output",
+           "run_plugin", "call_plugin", "write_output", "jsonable", "METHOD_TIME_LIMIT_S", "RESOLVE_TIME_LIMIT_S",
+           "check_time_limit"]
 
 ENTRY_POINT_GROUP = "platebench.methods"
+METHOD_TIME_LIMIT_S = 600.0  # default: the longest one plug-in may run on one sample, seconds
+RESOLVE_TIME_LIMIT_S = 120.0  # the longest a plug-in's module may take to import, seconds
+TIME_LIMIT_RANGE_S = (1.0, 86400.0)
 
 
 class PluginError(UserValueError):
@@ -146,50 +165,164 @@ def plugin_names() -> tuple[str, ...]:
     return tuple(sorted(_entry_points()))
 
 
-def resolve_plugin(name: str) -> Callable | None:
-    """The plug-in function called ``name`` (an entry point, or ``module:function``); None if ``name``
-    is neither. Raises ``PluginError`` when it names one that cannot be loaded."""
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0][:300] if text else ""
+
+
+def _raised(e: BaseException) -> str:
+    """What an exception of a plug-in's code says, in a few words: ``SystemExit: 3``, ``ValueError: msg``."""
+    if isinstance(e, SystemExit):
+        code = e.code
+        return f"sys.exit({code!r})" if code is None or isinstance(code, (int, str)) and len(repr(code)) < 200 \
+            else f"sys.exit(<{type(code).__name__}>)"
+    msg = _first_line(e)
+    return f"{type(e).__name__}: {msg}" if msg else type(e).__name__
+
+
+def load_plugin(name: str) -> Callable:
+    """Import the plug-in called ``name`` (an entry point, or ``module:function``) and return its function.
+    Runs the plug-in's module code: the bench calls it only in the plug-in's own process
+    (``bench.run.plugin_host``). Raises ``PluginError`` (one line) whatever the import does."""
     ep = _entry_points().get(name)
     if ep is not None:
         try:
             fn = ep.load()
-        except Exception as e:  # noqa: BLE001  (any import error of someone else's package)
-            raise PluginError(f"method {name!r}: entry point {ep.value!r} cannot be loaded "
-                              f"({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})") from None
+        except BaseException as e:  # noqa: BLE001  (any import error of someone else's package, sys.exit too)
+            raise PluginError(f"method {name!r}: entry point {ep.value!r} cannot be loaded ({_raised(e)})") from None
         where = f"entry point {ep.value!r}"
-    elif ":" in name:
-        mod, _, attr = name.partition(":")
-        if not mod or not attr:
-            raise PluginError(f"method {name!r}: write a plug-in as module:function")
+    else:
+        mod, _, attr = _split(name)
         try:
             module = importlib.import_module(mod)
-        except Exception as e:  # noqa: BLE001
-            raise PluginError(f"method {name!r}: cannot import module {mod!r} "
-                              f"({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})") from None
+        except BaseException as e:  # noqa: BLE001
+            raise PluginError(f"method {name!r}: cannot import module {mod!r} ({_raised(e)})") from None
         fn = module
         for part in attr.split("."):
             fn = getattr(fn, part, None)
             if fn is None:
                 raise PluginError(f"method {name!r}: module {mod!r} has no attribute {attr!r}")
         where = name
-    else:
-        return None
     if not callable(fn):
         raise PluginError(f"method {name!r}: {where} is not a function")
     return fn
 
 
-def describe(fn: Callable) -> str:
+def _split(name: str) -> tuple[str, str, str]:
+    mod, _, attr = name.partition(":")
+    if not mod or not attr:
+        raise PluginError(f"method {name!r}: write a plug-in as module:function")
+    return mod, _, attr
+
+
+@dataclass(frozen=True)
+class Plugin:
+    """A plug-in found by name (``resolve_plugin``): ``name`` as written (an entry point's name or
+    ``module:function``) and ``description`` (its docstring's first line, read in its own process)."""
+
+    name: str
+    description: str
+
+
+def resolve_plugin(name: str) -> Plugin | None:
+    """The plug-in called ``name`` (an entry point, or ``module:function``), imported and checked in its
+    own process (module doc); None if ``name`` is neither. Raises ``PluginError`` when it names one that
+    cannot be loaded."""
+    if name not in _entry_points():
+        if ":" not in name:
+            return None
+        _split(name)
+    from platebench.bench.run.plugin_host import HostFailure, host  # noqa: PLC0415
+    try:
+        head, _ = host().request(_request("resolve", name), RESOLVE_TIME_LIMIT_S, f"method {name!r}")
+    except HostFailure as e:
+        raise PluginError(f"{e} (while importing it)") from None
+    if not head.get("ok"):
+        raise PluginError(head.get("error") or f"method {name!r} cannot be loaded")
+    return Plugin(name, str(head.get("description") or name))
+
+
+def describe(fn) -> str:
     """First line of the plug-in's docstring (or its qualified name)."""
+    if isinstance(fn, Plugin):
+        return fn.description
     doc = inspect.getdoc(fn) or ""
     return doc.splitlines()[0] if doc else f"plug-in {getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', '?')}"
 
 
+def check_time_limit(seconds, what: str = "--method-time-limit-s") -> float:
+    """A plug-in time limit in seconds, checked (``UserValueError`` naming ``what`` and the range)."""
+    lo, hi = TIME_LIMIT_RANGE_S
+    number = isinstance(seconds, (int, float, np.integer, np.floating)) and not isinstance(seconds, bool)
+    v = float(seconds) if number else float("nan")
+    if not lo <= v <= hi:
+        raise UserValueError(f"{what} = {seconds!r} is {'out of range' if number else 'not a number'}: allowed "
+                             f"{lo:g} to {hi:g} s")
+    return v
+
+
 # ----------------------------------------------------------------------------- running and scoring
+_DTYPE_WORDS = {"b": "bool (true/false, not numbers)", "c": "complex numbers", "U": "text", "S": "bytes",
+                "O": "Python objects", "M": "dates", "m": "time spans", "V": "records"}
+
+
+_NOUNS = {"disparity": "a disparity map", "depth": "a depth map", "points": "points"}
+
+
+def _real(a: np.ndarray, name: str, what: str) -> np.ndarray:
+    """``a`` if it holds real numbers (integer or float), else ``PluginError`` naming its dtype."""
+    if a.dtype.kind not in "iuf":
+        words = _DTYPE_WORDS.get(a.dtype.kind, "not numbers")
+        raise PluginError(f"method {name!r} returned {_NOUNS.get(what, what)} of dtype {a.dtype} ({words}): give "
+                          "real numbers (float or integer)")
+    return a
+
+
 def check_output(out: Any, name: str):
+    """``out`` if it is an output kind holding what its kind needs (real-valued arrays of the right rank,
+    a mesh with in-range faces, numeric metrics), else ``PluginError`` (one line)."""
     if not isinstance(out, OUTPUT_KINDS):
         raise PluginError(f"method {name!r} returned {type(out).__name__}: return one of "
                           "platebench.bench.run.plugins.Disparity, Depth, Points or Mesh")
+    _metrics(out.metrics, name)
+    if isinstance(out, Mesh):
+        v, f = (np.asarray(getattr(out.mesh, k, None)) for k in ("vertices", "faces"))
+        _real(v, name, "mesh vertices")
+        if f.dtype.kind not in "iu":
+            raise PluginError(f"method {name!r} returned a mesh whose faces are of dtype {f.dtype}: give integer "
+                              "vertex indices")
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+            raise PluginError(f"method {name!r} returned a mesh with vertices {v.shape} and faces {f.shape}: give "
+                              "(N, 3) vertices and (M, 3) triangles")
+        if f.size and (f.min() < 0 or f.max() >= len(v)):
+            raise PluginError(f"method {name!r} returned a mesh whose faces index vertices {f.min()} to {f.max()} "
+                              f"of {len(v)}")
+        return out
+    a = _real(np.asarray(getattr(out, out.kind)), name, out.kind)
+    if isinstance(out, Points):
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise PluginError(f"method {name!r} returned points of shape {a.shape}: give (N, 3) world points")
+    elif not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] == 1)):
+        raise PluginError(f"method {name!r} returned {_NOUNS[out.kind]} of shape {a.shape}: give an (H, W) map of the "
+                          "left view")
+    return out
+
+
+def _metrics(metrics, name: str) -> dict:
+    """The plug-in's own metrics as {str: bool | int | float}, or ``PluginError``."""
+    if metrics is None:
+        return {}
+    if not isinstance(metrics, Mapping):
+        raise PluginError(f"method {name!r} returned metrics of type {type(metrics).__name__}: give a mapping "
+                          "name -> number")
+    out = {}
+    for k, v in metrics.items():
+        if isinstance(v, np.generic):
+            v = v.item()
+        if not isinstance(k, str) or not k or not isinstance(v, (bool, int, float)):
+            raise PluginError(f"method {name!r} returned metric {str(k)[:60]!r} = {str(v)[:60]!r} "
+                              f"({type(v).__name__}): give names (text) and numbers")
+        out[k] = v
     return out
 
 
@@ -235,13 +368,13 @@ class PluginRun:
     time_eval_s: float
 
 
-def run_plugin(fn: Callable, name: str, sample_dir: Path, recon_dir: Path | None = None,
-               truth: FieldTruth | None = None) -> PluginRun:
-    """Run plug-in ``fn`` on a written sample, score it, and (with ``recon_dir``) write its output and
-    ``score.json`` there (staged: the directory appears complete or not at all)."""
-    inputs = method_inputs(sample_dir)
-    t0 = time.perf_counter()
-    out = check_output(fn(inputs), name)
+def run_plugin(fn, name: str, sample_dir: Path, recon_dir: Path | None = None,
+               truth: FieldTruth | None = None, time_limit_s: float | None = None) -> PluginRun:
+    """Run plug-in ``fn`` (a ``Plugin``, or a function importable by reference) on a written sample in
+    its own process (``call_plugin``), score it, and (with ``recon_dir``) write its output and
+    ``score.json`` there (staged: the directory appears complete or not at all). ``PluginError`` (one
+    line) for anything the plug-in got wrong, ``FieldScoreError`` for an output that cannot be scored."""
+    out, recon_s = call_plugin(fn, name, sample_dir, time_limit_s)
     t1 = time.perf_counter()
     truth = truth if truth is not None else load_field_truth(sample_dir)
     score = score_output(out, truth, f"method {name!r} {out.kind} output")
@@ -251,8 +384,126 @@ def run_plugin(fn: Callable, name: str, sample_dir: Path, recon_dir: Path | None
         with staged_directory(Path(recon_dir), overwrite=True) as d:
             write_output(d, out)
             write_json(d / "score.json", score_document(name, out.kind, score, sample_dir,
-                                                        {"recon_s": t1 - t0, "eval_s": t2 - t1}, out.metrics))
-    return PluginRun(out, score, row, t1 - t0, t2 - t1)
+                                                        {"recon_s": recon_s, "eval_s": t2 - t1}, out.metrics))
+    return PluginRun(out, score, row, recon_s, t2 - t1)
+
+
+def _request(op: str, name: str, **more) -> dict:
+    """A request to the plug-in's process: this process's import path and working directory go with it."""
+    try:
+        cwd = os.getcwd()
+    except OSError:  # removed under this process: the plug-in's process keeps its own
+        cwd = None
+    return {"op": op, "name": name, "sys_path": list(sys.path), "cwd": cwd, **more}
+
+
+def call_plugin(fn, name: str, sample_dir: Path, time_limit_s: float | None = None):
+    """(the plug-in's output, checked; seconds its call took) for a written sample, run in the plug-in's own
+    process (module doc) with at most ``time_limit_s`` (default ``METHOD_TIME_LIMIT_S``)."""
+    from platebench.bench.run.plugin_host import HostFailure, host  # noqa: PLC0415
+    more = {"sample_dir": str(Path(sample_dir).absolute())}
+    if isinstance(fn, Plugin):
+        more["load"] = fn.name
+    else:
+        try:
+            more["function"] = pickle.dumps(fn)
+        except Exception as e:  # noqa: BLE001  (a lambda, a nested function, an object pickle refuses)
+            raise PluginError(f"method {name!r}: {getattr(fn, '__qualname__', type(fn).__name__)} cannot be run in a "
+                              f"process of its own ({_raised(e)}): define it at the top level of a module") from None
+    limit = METHOD_TIME_LIMIT_S if time_limit_s is None else float(time_limit_s)
+    try:
+        head, arrays = host().request(_request("call", name, **more), limit, f"method {name!r}")
+    except HostFailure as e:
+        raise PluginError(str(e)) from None
+    if not head.get("ok"):
+        raise PluginError(head.get("error") or f"method {name!r} failed")
+    return check_output(_decode(head, arrays, name), name), float(head.get("seconds", float("nan")))
+
+
+def _decode(head: dict, arrays: list, name: str):
+    """The output kind an answer of the plug-in's process describes."""
+    kind = {k.kind: k for k in OUTPUT_KINDS}.get(head.get("kind"))
+    if kind is None or len(arrays) != (2 if kind is Mesh else 1):
+        raise PluginError(f"method {name!r}: its process sent an answer of kind {head.get('kind')!r} with "
+                          f"{len(arrays)} arrays")
+    metrics = head.get("metrics") or {}
+    if kind is not Mesh:
+        return kind(arrays[0], metrics=metrics)
+    v, f = arrays
+    check_output(Mesh(_Faces(v, f), metrics=metrics), name)
+    import trimesh  # noqa: PLC0415
+    return Mesh(trimesh.Trimesh(vertices=v, faces=f, process=False), metrics=metrics)
+
+
+@dataclass(frozen=True)
+class _Faces:
+    """A mesh's arrays before they become a ``trimesh.Trimesh`` (checked first: trimesh indexes blindly)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def serve_request(req: dict) -> tuple[dict, list]:
+    """Answer one request in the plug-in's process (``bench.run.plugin_host``): (header, arrays). Whatever the
+    plug-in's code raises, ``SystemExit`` and ``KeyboardInterrupt`` included, becomes the answer's one-line
+    ``error``."""
+    name = str(req.get("name"))
+    try:
+        with contextlib.suppress(OSError, TypeError):
+            os.chdir(req["cwd"])
+        sys.path[:] = req["sys_path"]
+        if req["op"] == "resolve":
+            return {"ok": True, "description": describe(load_plugin(name))}, []
+        if "function" in req:
+            try:
+                fn = pickle.loads(req["function"])
+            except BaseException as e:  # noqa: BLE001
+                raise PluginError(f"method {name!r} cannot be loaded in its process ({_raised(e)})") from None
+        else:
+            fn = load_plugin(req["load"])
+        try:
+            inputs = method_inputs(Path(req["sample_dir"]))
+        except BaseException as e:  # noqa: BLE001
+            raise PluginError(f"method {name!r}: the sample's inputs cannot be read ({_raised(e)})") from None
+        t0 = time.perf_counter()
+        try:
+            out = fn(inputs)
+        except BaseException as e:  # noqa: BLE001  (the plug-in's own code: everything it raises is its failure)
+            raise PluginError(f"method {name!r} raised {_raised(e)}" if not isinstance(e, SystemExit)
+                              else f"method {name!r} called {_raised(e)}") from None
+        seconds = time.perf_counter() - t0
+        head, arrays = _encode(out, name)
+        head.update(ok=True, seconds=seconds)
+        return head, arrays
+    except PluginError as e:
+        return {"ok": False, "error": _first_line(e)}, []
+    except BaseException as e:  # noqa: BLE001  (an output whose attributes raise, ...)
+        return {"ok": False, "error": f"method {name!r}: {_raised(e)}"}, []
+
+
+def _encode(out, name: str) -> tuple[dict, list]:
+    """(header, arrays) of an output kind, for the answer (checked again where it arrives)."""
+    if not isinstance(out, OUTPUT_KINDS):
+        check_output(out, name)
+    if isinstance(out, Mesh):
+        parts = [(f"mesh {k}", getattr(out.mesh, k, None)) for k in ("vertices", "faces")]
+        if any(x is None for _, x in parts):
+            raise PluginError(f"method {name!r} returned a Mesh holding {type(out.mesh).__name__}: give a "
+                              "trimesh.Trimesh")
+    else:
+        parts = [(out.kind, getattr(out, out.kind))]
+    arrays = []
+    for what, x in parts:
+        try:
+            a = np.asarray(x)
+        except Exception as e:  # noqa: BLE001  (a ragged list, an object numpy cannot read)
+            raise PluginError(f"method {name!r} returned {_NOUNS.get(what, what)} that are not an array "
+                              f"({_raised(e)})") from None
+        if a.dtype.kind == "O":
+            raise PluginError(f"method {name!r} returned {_NOUNS.get(what, what)} of dtype object (Python objects): "
+                              "give real numbers (float or integer)")
+        arrays.append(a)
+    return {"kind": out.kind, "metrics": _metrics(out.metrics, name)}, arrays
 
 
 def score_document(name: str, kind: str, score, sample_dir: Path, timings: dict | None = None,

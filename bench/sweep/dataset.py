@@ -74,7 +74,7 @@ from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the datase
     SPEC_COPY,
     VERSION,
 )
-from platebench.bench.io.outputs import describe_path, file_sha256, foreign_entries, guard_output
+from platebench.bench.io.outputs import file_sha256, foreign_entries, guard_output
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
 
@@ -174,7 +174,9 @@ def commit_sample(dataset: Path, res: dict) -> dict:
     doc = _result_doc(res)
     write_json(stage / RESULT, doc)
     swap_in(stage, sample_dir(dataset, sid))
-    if stage.exists():  # the replaced older attempt
+    if stage.is_symlink():  # what stood at samples/<id> was a link: remove the link, never what it points to
+        stage.unlink()
+    elif stage.exists():  # the replaced older attempt
         shutil.rmtree(stage, ignore_errors=True)
     out = dict(doc)
     out["_result_sha256"] = file_sha256(sample_dir(dataset, sid) / RESULT)
@@ -210,6 +212,8 @@ def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = N
 
     ``manifest_files``: the checksums the manifest lists for the sample; they must agree too."""
     d = sample_dir(dataset, sample_id)
+    if d.is_symlink():  # a sample is a folder of the dataset, never a link to elsewhere
+        return None
     path = d / RESULT
     try:
         res = json.loads(path.read_text())
@@ -391,17 +395,25 @@ def manifest_dict(spec, results: dict, executor: dict | None, started: str, stat
 
 def read_manifest(dataset: Path) -> dict | None:
     """The manifest, or None. A manifest left "running" by a sweep that is gone (killed: nobody holds
-    the dataset lock) reads as "interrupted"."""
+    the dataset lock) reads as "interrupted" (``live_state``)."""
     try:
         m = json.loads((Path(dataset) / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         return None
-    if m.get("state") == "running" and dataset_lock(dataset).holder() is None:
-        m["state"] = "interrupted"
-        m["state_note"] = "the sweep that was writing it is gone (killed); finish it with --resume"
-    return m
+    return live_state(m, dataset)
+
+
+def live_state(manifest: dict, dataset: Path) -> dict:
+    """``manifest`` with its state as it stands: "running" only while a sweep holds the dataset lock; a
+    manifest whose writer is gone (killed with -9, its machine lost) is "interrupted", with a
+    ``state_note`` saying so. The one rule every reader applies (sweep, report)."""
+    if manifest.get("state") == "running" and dataset_lock(dataset).holder() is None:
+        manifest = dict(manifest)
+        manifest["state"] = "interrupted"
+        manifest["state_note"] = "the sweep that was writing it is gone (killed); finish it with --resume"
+    return manifest
 
 
 def dataset_lock(dataset: Path) -> OutputLock:
@@ -411,7 +423,12 @@ def dataset_lock(dataset: Path) -> OutputLock:
 
 def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None:
     """Check that ``out`` can take this sweep, before anything is written; returns its manifest
-    (None for a new dataset). Call it holding the dataset lock."""
+    (None for a new dataset). Call it holding the dataset lock.
+
+    A dataset whose ``manifest.json`` is lost or damaged is still a dataset by its samples (their own
+    ``result.json`` files): ``--overwrite`` replaces it, and ``--resume`` continues it from a manifest
+    rebuilt from them (``recover_manifest``: marked ``"recovered"``), when every committed sample belongs
+    to this spec."""
     out = Path(out)
     if overwrite:  # the output rule (bench.io.outputs): never the root, the working directory, a link
         guard_output(out)
@@ -420,10 +437,14 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
     if not (out.is_dir() and any(out.iterdir())):
         return None
     manifest = read_manifest(out)
+    if manifest is None and (overwrite or resume):
+        manifest = recover_manifest(out, spec if resume else None)
     if overwrite:
         if manifest is None:
-            raise DatasetLayoutError(f"{out}: is {describe_path(out)}, with no sweep manifest: refusing to replace "
-                                     "it (--overwrite replaces only what 'platebench sweep' wrote)")
+            foreign = sorted(p.name for p in out.iterdir() if p.name not in _DATASET_NAMES and not is_temp_name(p.name))
+            raise DatasetLayoutError(f"{out} is not empty and holds no sweep manifest"
+                                     + (f" but {foreign[0]!r}, which no sweep writes" if foreign else
+                                        " and no committed sample") + ": refusing to replace it")
         foreign = foreign_entries(out, "dataset") or []
         if foreign:
             raise DatasetLayoutError(f"{out}: holds {foreign[0]}, which PlateBench did not write: refusing to replace "
@@ -440,6 +461,52 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
                                      f"{spec.sha256[:12]}): use another --out, or --overwrite")
         return manifest
     raise DatasetLayoutError(f"{out} already exists (use --resume to continue it or --overwrite to replace it)")
+
+
+_DATASET_NAMES = (MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET, SAMPLES, "report")
+
+
+def _result_doc_of(d: Path) -> dict | None:
+    """A sample folder's result.json if it is one (format and version), else None (checksums not checked)."""
+    try:
+        doc = json.loads((d / RESULT).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict) or doc.get("format") != RESULT_FORMAT or doc.get("version") != VERSION \
+            or doc.get("sample_id") != d.name:
+        return None
+    return doc
+
+
+def recover_manifest(out: Path, spec=None) -> dict | None:
+    """A manifest rebuilt from the samples' own ``result.json`` files, for a dataset whose manifest.json is
+    lost or damaged; None when ``out`` is not a sweep dataset by its samples. A dataset by its samples holds
+    only the names a sweep writes (``_DATASET_NAMES``, temporary names) and at least one committed sample
+    (``samples/<id>/result.json`` of this format). With ``spec`` (``--resume``), every committed sample must
+    be one of the spec's (same id and configuration), else ``DatasetLayoutError``; the samples' checksums
+    are verified later, as for any resume (``validate_result``): what cannot be verified is made again."""
+    out = Path(out)
+    if any(p.name not in _DATASET_NAMES and not is_temp_name(p.name) for p in out.iterdir()):
+        return None
+    root = out / SAMPLES
+    if not root.is_dir() or root.is_symlink():
+        return None
+    docs = {p.name: _result_doc_of(p) for p in sorted(root.iterdir())
+            if p.is_dir() and not p.is_symlink() and not is_temp_name(p.name)}
+    found = {k: v for k, v in docs.items() if v is not None}
+    if not found:
+        return None
+    if spec is not None:
+        plans = {s.sample_id: s.config_sha256 for s in spec.samples}
+        alien = sorted(k for k, v in found.items() if plans.get(k) != v.get("config_sha256"))
+        if alien:
+            raise DatasetLayoutError(f"{out}: its {MANIFEST} is lost or damaged, and sample {alien[0]} "
+                                     f"({len(alien)} in all) is not one of this spec's: use another --out, or "
+                                     "--overwrite")
+    samples = [{"id": k, "status": v.get("status"), "files_sha256": v.get("files") or {}} for k, v in found.items()]
+    return {"format": FORMAT, "version": VERSION, "state": "interrupted", "recovered": True,
+            "recovered_samples": len(found), "unreadable_samples": sorted(k for k, v in docs.items() if v is None),
+            "spec": {"sha256": spec.sha256 if spec is not None else None}, "samples": samples}
 
 
 def make_stage_dataset(out: Path) -> Path:
@@ -462,8 +529,8 @@ def _started_skeleton(out: Path, spec) -> bool:
         elif p.name == SAMPLES and p.is_dir():
             if any(not is_temp_name(q.name) for q in p.iterdir()):
                 return False
-        elif p.name not in (RESULTS_CSV, RESULTS_PARQUET):  # tables of no committed sample are allowed
-            return False
+        elif p.name not in (RESULTS_CSV, RESULTS_PARQUET, MANIFEST):  # tables of no committed sample, a damaged
+            return False                                                 # manifest (read_manifest said so)
     return True
 
 

@@ -43,7 +43,10 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from platebench.bench import interrupts
 from platebench.bench.io.atomic import pid_alive, swap_in, sweep_stale
+from platebench.bench.io.fs_errors import RunStopped, environmental
+from platebench.bench.io.fs_errors import describe as describe_os_error
 from platebench.bench.sweep import dataset as ds
 from platebench.bench.sweep.tasks import (
     SampleTask,
@@ -158,7 +161,8 @@ class LocalExecutor:
                                    initargs=(os.getpid(), queue, self.render_threads or
                                              max(1, (os.cpu_count() or 1) // self.workers)))
         self._pool = pool
-        futures = {pool.submit(_pool_task, t): t for t in tasks}
+        with interrupts.children_without_sigint():  # the workers start here; Ctrl-C is the sweep's to handle
+            futures = {pool.submit(_pool_task, t): t for t in tasks}
         started: dict = {}
         broken = aborted = False
         dataset = tasks[0].dataset if tasks else None
@@ -617,7 +621,7 @@ def worker_stats(results) -> dict:
 
 def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: bool = False,
               retry_failed: bool = False, progress: bool | None = None, flush_every_s: float = 5.0,
-              log=None, on_result=None) -> SweepSummary:
+              log=None, on_result=None, method_time_limit_s: float | None = None) -> SweepSummary:
     """Run ``spec`` into dataset directory ``out``; returns a summary.
 
     Holds the dataset lock (``dataset.dataset_lock``) for the whole run: a second writer is refused
@@ -630,7 +634,9 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
     "complete" (every sample committed), "interrupted" (Ctrl-C, SIGTERM, or the executor lost:
     ``ExecutorLost`` is raised after the manifest is written) or "incomplete".
 
-    ``on_result(result_dict)`` is called as each sample is committed (in this process)."""
+    ``on_result(result_dict)`` is called as each sample is committed (in this process).
+    ``method_time_limit_s``: the longest a plug-in may run on one sample (default: the spec's
+    ``sweep.method_time_limit_s``, else ``plugins.METHOD_TIME_LIMIT_S``)."""
     from platebench.bench.progress import bar  # noqa: PLC0415
     out = Path(out).absolute()
     executor = executor if executor is not None else LocalExecutor(1)
@@ -650,9 +656,16 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
             work = out
         if old is not None and not overwrite and old.get("state") == "interrupted" and old.get("state_note"):
             say(f"note: the previous sweep into {out} did not finish (killed); its committed samples are kept")
+        if old is not None and old.get("recovered"):
+            bad = old.get("unreadable_samples") or []
+            say(f"note: {out / ds.MANIFEST} is missing or damaged: "
+                + ("replacing the dataset, recognised by" if overwrite else "rebuilding it from")
+                + f" its {old['recovered_samples']} samples' own {ds.RESULT} files"
+                + ("" if overwrite else " (each verified by its checksums; what cannot be verified is made again)")
+                + (f"; {len(bad)} sample folder(s) without a readable {ds.RESULT} ({bad[0]}, ...)" if bad else ""))
         ds.prepare_dataset(work, spec)
         summary = _run(spec, work, executor, old if resume else None, retry_failed, progress, flush_every_s, say,
-                       on_result, bar)
+                       on_result, bar, method_time_limit_s)
         if stage is not None:
             if summary.interrupted or summary.total != summary.ok + summary.failed:
                 raise ExecutorLost(f"--overwrite sweep into {out} did not finish: {out} is left as it was")
@@ -668,14 +681,14 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
 
 
 def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_every_s, say, on_result,
-         bar) -> SweepSummary:
+         bar, method_time_limit_s=None) -> SweepSummary:
     started = (old_manifest or {}).get("created_utc") or ds.now_utc()
     packages = ds.package_versions()
     listed = {e.get("id"): e.get("files_sha256") or {} for e in (old_manifest or {}).get("samples", [])}
     results: dict = {}
     todo = []
     redo = 0
-    for task in tasks_from_spec(spec, out, redo_failed=retry_failed):
+    for task in tasks_from_spec(spec, out, redo_failed=retry_failed, method_time_limit_s=method_time_limit_s):
         res = None
         if old_manifest is not None or ds.sample_dir(out, task.sample_id).is_dir():
             res = ds.validate_result(out, task.sample_id, task.config_sha256, listed.get(task.sample_id))
@@ -692,7 +705,25 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
         ds.write_manifest(out, ds.manifest_dict(spec, results, executor.describe(), started, state, packages))
         ds.write_results(out, list(results.values()))
 
-    flush("running")
+    def stopped(e: OSError, what: str) -> RunStopped:
+        left = len(spec.samples) - len(results)
+        return RunStopped(f"{out}: {describe_os_error(e)} ({what}): the sweep stopped with {left} of "
+                          f"{len(spec.samples)} samples not finished, none of them counted as failed; the dataset "
+                          "keeps the finished ones (state interrupted): free space or make it writable, then run "
+                          "the same command with --resume")
+
+    @contextlib.contextmanager
+    def output_errors_stop(what: str):
+        """An error of the output (``bench.io.fs_errors``) in the block stops the sweep (``RunStopped``)."""
+        try:
+            yield
+        except OSError as e:
+            if environmental(e, out):
+                raise stopped(e, what) from None
+            raise
+
+    with output_errors_stop("writing its manifest"):
+        flush("running")
     if skipped or redo:
         say(f"resume: {skipped} of {len(spec.samples)} samples already done, {len(todo)} to run"
             + (f" ({redo} whose files no longer match their checksums)" if redo else ""))
@@ -709,13 +740,16 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
     try:
         if todo:
             for task, res, exc in executor.run(todo):
+                if res is None and environmental(exc, out):  # the output's fault: no sample failed
+                    raise stopped(exc, f"sample {task.sample_id}") from None
                 if res is None:
                     res = failed_result(task, f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
                                         .rstrip(": ")[:500])
-                try:
-                    res = ds.commit_sample(out, res)
-                except ds.CommitError as e:  # the attempt's files are not what its worker listed
-                    res = ds.commit_sample(out, failed_result(task, f"CommitError: {e}"))
+                with output_errors_stop(f"committing sample {task.sample_id}"):
+                    try:
+                        res = ds.commit_sample(out, res)
+                    except ds.CommitError as e:  # the attempt's files are not what its worker listed
+                        res = ds.commit_sample(out, failed_result(task, f"CommitError: {e}"))
                 results[task.sample_id] = res
                 ran.append(res)
                 counts[res["status"]] += 1
@@ -723,17 +757,19 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
                 pbar.set_postfix_str(f"failed {counts['failed']}")
                 if time.monotonic() - last_flush >= min(flush_every_s, 20.0 * flush_cost):
                     t = time.monotonic()
-                    flush("running")
+                    with output_errors_stop("writing its manifest"):
+                        flush("running")
                     last_flush = time.monotonic()
                     flush_cost = last_flush - t
                 if on_result is not None:
                     on_result(res)
+                interrupts.check()  # an interrupt that a library swallowed stops the sweep here
     except KeyboardInterrupt:
         interrupted = True
         raise
-    except ExecutorLost as e:
+    except (ExecutorLost, RunStopped) as e:
         interrupted = True
-        lost = e
+        lost = e if isinstance(e, ExecutorLost) else None
         raise
     finally:
         wall = time.perf_counter() - t0
@@ -741,8 +777,16 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
         with contextlib.suppress(Exception):
             executor.close(terminate=interrupted)
         if isinstance(executor, LocalExecutor) or lost is None:
-            ds.sweep_attempts(out)  # attempts of workers that are gone
+            with contextlib.suppress(OSError):
+                ds.sweep_attempts(out)  # attempts of workers that are gone
         done = len(results) == len(spec.samples)
-        flush("complete" if done and not interrupted else "interrupted" if interrupted else "incomplete")
+        state = "complete" if done and not interrupted else "interrupted" if interrupted else "incomplete"
+        try:
+            flush(state)
+        except OSError as e:
+            if not environmental(e, out):
+                raise
+            if not interrupted:  # the last write failed: say so (an error raised already takes precedence)
+                raise stopped(e, "writing its manifest") from None
     return SweepSummary(out, len(spec.samples), skipped, len(ran), counts["ok"], counts["failed"], wall, results,
                         executor.describe(), interrupted, worker_stats(ran))

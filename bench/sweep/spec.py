@@ -18,6 +18,9 @@ Four tables; unknown keys are refused by name::
     count = 20                   # random mode: number of samples (required there)
     seed_per_sample = false      # true: sample i renders with seed base.render.seed + i
                                  # (unless "seed" is an axis); false: all use base.render.seed
+    method_time_limit_s = 600    # the longest a plug-in method may run on one sample, seconds
+                                 # (1 to 86400; --method-time-limit-s overrides it); one that takes
+                                 # longer is stopped and recorded as that method's failure
 
     [base]                       # the fixed part: a sample configuration, the same tables
     [base.plate]                 # as `platebench render --config` (bench/config.py), SI units
@@ -137,6 +140,7 @@ from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, re
 from platebench.bench.config.axes import AXES as AXIS_INFO
 from platebench.bench.config.ranges import RangeError, expand_range
 from platebench.bench.run.methods import METHODS, get_method
+from platebench.bench.run.plugins import check_time_limit
 from platebench.errors import UserValueError
 from platebench.plates.spec import FAMILIES
 
@@ -145,7 +149,7 @@ __all__ = ["SpecError", "SweepSpec", "SamplePlan", "load_spec", "parse_spec", "A
 
 MAX_SAMPLES = 100_000
 _TOP_KEYS = ("sweep", "base", "grid", "random")
-_SWEEP_KEYS = ("name", "description", "mode", "methods", "seed", "count", "seed_per_sample")
+_SWEEP_KEYS = ("name", "description", "mode", "methods", "seed", "count", "seed_per_sample", "method_time_limit_s")
 _GRID_FORMS = ("start", "stop", "step", "num", "values")
 _RANDOM_FORMS = ("min", "max", "int", "values")
 
@@ -471,6 +475,7 @@ class SweepSpec:
     description: str = ""
     ignored: dict = field(default_factory=dict)  # axis -> number of samples it did not apply to
     duplicates: int = 0
+    method_time_limit_s: float | None = None  # sweep.method_time_limit_s (None: plugins.METHOD_TIME_LIMIT_S)
 
     @property
     def sha256(self) -> str:
@@ -484,7 +489,8 @@ class SweepSpec:
     def to_dict(self) -> dict:
         return {"name": self.name, "description": self.description, "mode": self.mode,
                 "methods": list(self.methods), "seed": self.seed, "count": self.count,
-                "seed_per_sample": self.seed_per_sample, "base": self.base,
+                "seed_per_sample": self.seed_per_sample, "method_time_limit_s": self.method_time_limit_s,
+                "base": self.base,
                 "axes": {k: v for k, v in self.axes}, "n_samples": len(self.samples),
                 "ignored_axes": self.ignored, "duplicates_dropped": self.duplicates, "sha256": self.sha256}
 
@@ -716,7 +722,17 @@ def parse_spec(doc: dict, text: str = "", methods: tuple | None = None) -> Sweep
     width = max(4, len(str(len(samples) - 1)))
     plans_out = tuple(SamplePlan(j, f"{j:0{width}d}", p, c, pose, dg) for j, (p, c, pose, dg) in enumerate(samples))
     return SweepSpec(name, mode, methods, seed, count, seed_per_sample, base, tuple((k, axes_doc[k]) for k, _ in axes),
-                     plans_out, doc, text, description, ignored, duplicates)
+                     plans_out, doc, text, description, ignored, duplicates, _time_limit(sweep))
+
+
+def _time_limit(sweep: dict) -> float | None:
+    """sweep.method_time_limit_s, checked (None when not given)."""
+    if "method_time_limit_s" not in sweep:
+        return None
+    try:
+        return check_time_limit(sweep["method_time_limit_s"], "sweep.method_time_limit_s")
+    except UserValueError as e:
+        raise SpecError(str(e)) from None
 
 
 def load_spec(path: Path, methods: tuple | None = None) -> SweepSpec:

@@ -9,7 +9,9 @@ checksums verified, ``result.json`` written, the directory renamed to ``samples/
 A worker that outlives its scheduler, or a second attempt of the same sample, writes into
 its own attempt directory that nobody commits. Any error of the sample (rendering, a
 method, scoring) is caught and recorded in the result with status "failed": it never
-stops the sweep; a sample is failed only by its own work.
+stops the sweep; a sample is failed only by its own work. An error of the output itself (a full
+disk, a read-only or vanished dataset: ``bench.io.fs_errors``) is no sample's failure: the attempt is
+removed and the error raised, and the sweep stops.
 
 Each worker process keeps one ``PlateRenderer`` (module global) and passes it back to
 ``render_sample`` for its next sample, so compiled kernels are reused. A lock makes
@@ -22,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import socket
 import threading
 import time
@@ -29,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.fs_errors import environmental
 from platebench.bench.io.layout import RECON, SAMPLE, method_folder
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.run.methods import MethodContext, get_method
@@ -57,12 +61,16 @@ class SampleTask:
     config_sha256: str
     params: dict = field(default_factory=dict)
     redo_failed: bool = False  # a valid result.json with status "failed" does not count as done
+    method_time_limit_s: float | None = None  # the longest a plug-in may run on the sample (None: the default)
 
 
-def tasks_from_spec(spec, dataset: Path, redo_failed: bool = False) -> list[SampleTask]:
+def tasks_from_spec(spec, dataset: Path, redo_failed: bool = False,
+                    method_time_limit_s: float | None = None) -> list[SampleTask]:
+    """The spec's samples as tasks; ``method_time_limit_s`` (a flag) overrides the spec's own limit."""
     ds = str(Path(dataset).resolve())
+    limit = method_time_limit_s if method_time_limit_s is not None else spec.method_time_limit_s
     return [SampleTask(ds, p.sample_id, p.index, p.config.to_dict(), p.pose, tuple(spec.methods), p.config_sha256,
-                       p.params, redo_failed) for p in spec.samples]
+                       p.params, redo_failed, limit) for p in spec.samples]
 
 
 
@@ -74,7 +82,8 @@ _LOCK = threading.Lock()
 
 def worker_init(parent_pid: int | None = None, render_threads: int | None = None) -> None:
     """Initializer of local pool workers: die with the parent (``workers.die_with_parent``), so a
-    sweep killed with -9 leaves no worker writing behind it; share the CPU cores between workers."""
+    sweep killed with -9 leaves no worker writing behind it; share the CPU cores between workers. (They
+    start with SIGINT blocked: ``interrupts.children_without_sigint``.)"""
     _STATE["parent"] = parent_pid
     _STATE["render_threads"] = render_threads if set_render_threads(render_threads) else None
     die_with_parent(parent_pid)
@@ -116,8 +125,16 @@ def run_sample(task: SampleTask) -> dict:
 
 
 def _run_sample(task: SampleTask) -> dict:
-    t0 = time.perf_counter()
     stage = make_attempt_dir(Path(task.dataset), task.sample_id)
+    try:
+        return _make_sample(task, stage)
+    except BaseException:  # an error of the output (a full disk, ...) or an interrupt: this attempt is void
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+
+
+def _make_sample(task: SampleTask, stage: Path) -> dict:
+    t0 = time.perf_counter()
     res = failed_result(task, None, None)
     res.update(status="ok", error=None, phase=None, rows=[], stage=str(stage))
     timings = res["timings_s"]
@@ -147,19 +164,24 @@ def _run_sample(task: SampleTask) -> dict:
         res["images"] = json.loads((stage / SAMPLE / "sample.json").read_text()).get("images", {})
         written = True
     except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
+        if environmental(e, Path(task.dataset)):
+            raise  # the output's fault, not the sample's: the run stops (bench.io.fs_errors)
         err = _error_text(e)
         res.update(status="failed", error=err, phase="render",
                    rows=[{"method": m, "status": "failed", "error": err, "metrics": {}} for m in task.methods])
     del sample
     if written:  # methods run only on a sample that was rendered AND written: one row per method, always
         for name in task.methods:
-            ctx = MethodContext(stage / SAMPLE, stage / RECON / method_folder(name), _STATE["renderer"], task.pose)
+            ctx = MethodContext(stage / SAMPLE, stage / RECON / method_folder(name), _STATE["renderer"], task.pose,
+                                task.method_time_limit_s)
             try:
                 out = get_method(name).run(ctx)
                 row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
                        "time_recon_s": out.time_recon_s, "time_eval_s": out.time_eval_s,
                        "time_render_extra_s": out.time_render_extra_s}
             except Exception as e:  # noqa: BLE001
+                if environmental(e, Path(task.dataset)):
+                    raise
                 row = {"method": name, "status": "failed", "error": _error_text(e), "metrics": {}}
             res["rows"].append(row)
         failed = [r for r in res["rows"] if r["status"] != "ok"]
