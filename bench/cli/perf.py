@@ -12,7 +12,7 @@ from platebench.scenes.scene_spec import RenderSettings
 
 HELP = "benchmarks: render and reconstruct timings against same-run baselines"
 TARGETS = ("render", "reconstruct", "sweep", "score", "sequences")
-EXTRA = ("chaos", "bad-input", "variants")  # run only when named
+EXTRA = ("chaos", "bad-input", "variants", "gpu")  # run only when named
 
 
 def add_parser(sub) -> None:
@@ -29,9 +29,12 @@ def add_parser(sub) -> None:
     p.add_argument("targets", nargs="*", metavar="TARGET",
                    help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
                         "sweep whose scheduler, workers and sweep process are killed and resumed, 10 rounds) and "
-                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), and "
+                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), "
                         "variants (the same scene rendered by each of --variants, pixels compared with the first, "
-                        "samples per second)")
+                        "samples per second), and gpu (every throughput figure of a GPU machine beside its "
+                        "baseline: host pixels and subnormal floats, whole sample vs raw renders, cuda vs llvm, "
+                        "the sweep pipeline, with --full the 61-plate study; on a machine without a GPU the llvm "
+                        "figures, saying so)")
     p.add_argument("--width", type=int, default=1280)
     p.add_argument("--height", type=int, default=960)
     p.add_argument("--spp", type=int, default=16)
@@ -43,6 +46,12 @@ def add_parser(sub) -> None:
     p.add_argument("--variants", default="cuda_ad_rgb,llvm_ad_rgb",
                    help="perf variants: comma-separated Mitsuba variants, the first is the baseline "
                         "(default cuda_ad_rgb,llvm_ad_rgb: a GPU machine)")
+    p.add_argument("--full", action="store_true", help="perf gpu: also the 61-plate false-boundary study, and a "
+                   "90-sample sweep (the run a GPU machine is measured with: bench/perf/gpu_check.sh)")
+    p.add_argument("--workers", type=int, default=None, help="perf gpu: CPU workers of the sweep pipeline (the study "
+                   "uses one more; default: the CPUs less one)")
+    p.add_argument("--sweep-samples", type=int, default=None, help="perf gpu: samples of the pipeline sweep "
+                   "(default 18; 90 with --full)")
     p.add_argument("--save", type=Path, help="perf variants: save the first variant's images (a new .npz file, or "
                    "with --overwrite one --save wrote)")
     p.add_argument("--against", type=Path, help="perf variants: compare the first variant's images with these "
@@ -73,6 +82,8 @@ def run(args) -> int:
             raise UserValueError(f"perf {args.targets[0]} runs alone: got {' '.join(args.targets)}")
         if args.targets[0] == "variants":
             return _variants(args)
+        if args.targets[0] == "gpu":
+            return _gpu(args)
         if args.targets[0] == "chaos":
             from platebench.bench.perf.chaos import main as chaos  # noqa: PLC0415
             return chaos(["--json", str(args.json)] if args.json else [])
@@ -100,6 +111,22 @@ def run(args) -> int:
             out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
     if args.json:
         write_json(args.json, perf_document(",".join(args.targets or TARGETS), out))
+    return 0
+
+
+def _gpu(args) -> int:
+    from platebench.bench.perf.gpu import perf_gpu  # noqa: PLC0415
+    if args.repeat < 1:
+        raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
+    for flag, v in (("--workers", args.workers), ("--sweep-samples", args.sweep_samples)):
+        if v is not None and not 1 <= v <= 10000:
+            raise UserValueError(f"{flag} = {v} is out of range: allowed 1 to 10000")
+    print(f"== perf gpu ({args.width}x{args.height}, spp {args.spp})" + (", full" if args.full else ""))
+    def save(figures):
+        if args.json:
+            write_json(args.json, perf_document("gpu", figures))
+    perf_gpu(args.width, args.height, args.spp, args.repeat, args.full, args.workers, args.sweep_samples,
+             on_section=save)
     return 0
 
 

@@ -1,7 +1,8 @@
 """Benchmarks: figures and ratios against a baseline measured in the same run.
 
 * ``render``: a whole sample (4 images + all ground truth) against raw ``mitsuba.render``
-  of the same 4 images (target ratio <= 1.3); then a second sample with another bend
+  of the same 4 images with their pixels read on the host (target ratio <= 1.1; wall-clock and
+  CPU time of the process, the steadier figure on a shared machine); then a second sample with another bend
   and camera distance through the same renderer, which must reuse the compiled kernels
   (kernel compiles counted with drjit's kernel history); then the same 4 images through
   the bench's lens sensor (distortion and non-square pixels) against Mitsuba's perspective.
@@ -88,8 +89,13 @@ def perf_lens_sensor(cfg: SampleConfig, perspective, repeat: int = 2, log=print)
 def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) -> dict:
     """Whole sample vs raw renders; then a second sample reusing kernels; then the lens sensor."""
     sample, renderer = render_sample(cfg)  # warm-up: compiles (or loads) kernels
-    t_raw = _best(_raw_renders(renderer, cfg), repeat)
-    t_sample = _best(lambda: render_sample(cfg, renderer), repeat)
+    t_raw = t_sample = cpu_raw = cpu_sample = np.inf
+    for _ in range(repeat):  # alternately, so that a busy machine slows both alike
+        c = time.process_time()  # all of the process's threads: steadier than wall time on a busy machine
+        t_raw = min(t_raw, _best(_raw_renders(renderer, cfg), 1))
+        cpu_raw, c = min(cpu_raw, time.process_time() - c), time.process_time()
+        t_sample = min(t_sample, _best(lambda: render_sample(cfg, renderer), 1))
+        cpu_sample = min(cpu_sample, time.process_time() - c)
     other = replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(np.radians(40.0), "up")),
                     scene=replace(cfg.scene, distance_m=cfg.scene.distance_m * 1.25))
     builds_before = renderer.scene_builds
@@ -99,13 +105,16 @@ def perf_render(cfg: SampleConfig = SampleConfig(), repeat: int = 2, log=print) 
         t_second = time.perf_counter() - t0
     out = {"variant": renderer.variant, "image_size_px": [cfg.scene.width, cfg.scene.height], "spp": cfg.render.spp,
            "raw_mitsuba_render_4_images_s": t_raw, "whole_sample_s": t_sample,
-           "ratio_sample_over_raw": t_sample / t_raw, "ratio_target": 1.3,
+           "ratio_sample_over_raw": t_sample / t_raw, "ratio_target": 1.1,
+           "raw_mitsuba_render_4_images_cpu_s": cpu_raw, "whole_sample_cpu_s": cpu_sample,
+           "ratio_sample_over_raw_cpu": cpu_sample / cpu_raw,
            "second_sample_s": t_second, "second_sample_kernel_compiles": kc.compiled,
            "second_sample_kernel_launches": kc.launches, "second_sample_disk_cache_loads": kc.from_disk,
            "second_sample_scene_rebuilds": renderer.scene_builds - builds_before,
            "ground_truth_s": sample.timings_s["ground_truth_s"]}
-    log(f"raw mitsuba.render, 4 images      {t_raw:7.2f} s")
-    log(f"whole sample (images + GT)        {t_sample:7.2f} s   ratio {t_sample / t_raw:.2f} (target <= 1.3)")
+    log(f"raw mitsuba.render, 4 images      {t_raw:7.2f} s   CPU {cpu_raw:.2f} s")
+    log(f"whole sample (images + GT)        {t_sample:7.2f} s   CPU {cpu_sample:.2f} s   ratio {t_sample / t_raw:.2f}, "
+        f"CPU {cpu_sample / cpu_raw:.2f} (target <= 1.1)")
     log(f"second sample (40 deg, 0.5 m)     {t_second:7.2f} s   kernel compiles {kc.compiled} of "
         f"{kc.launches} launches, scene rebuilds {out['second_sample_scene_rebuilds']}")
     out.update(perf_lens_sensor(cfg, renderer, repeat, log))
