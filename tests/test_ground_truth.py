@@ -141,3 +141,23 @@ def test_maps_computed_on_the_device_equal_the_numpy_definitions(case):
         lit = ~np.isnan(b.proj_uv[..., 0])
         assert lit.sum() > 100 and np.abs(a.proj_uv[lit] - b.proj_uv[lit]).max() <= 1e-3
         assert np.mean(a.feature == b.feature) >= 0.9999 and (a.feature >= 0).sum() > 0
+
+
+@pytest.mark.parametrize("target_x_m, seen", [(0.09, True), (0.6, False)])
+def test_device_maps_of_a_plate_at_the_image_edge_or_out_of_view(target_x_m, seen):
+    """Only the pixels of the plate's projected window are cast on the device (``plate_window``); a
+    plate cut by the image border is mapped as the numpy definitions map it from every pixel, and
+    one out of view gives empty maps."""
+    scene = reference_scene(width=96, height=72, f_px=150.0)
+    scene = scene_for_pose(np.array([target_x_m, 0.0, 0.3]), np.array([target_x_m, 0.0, 0.0]),
+                           np.array([1.0, 0.0, 0.0]), scene)
+    r = PlateRenderer(scene, build_plate(PlateSpec(0.1165, 0.0735, deformation=CylindricalBend(np.radians(40.0)))))
+    if r.variant.startswith("scalar"):
+        pytest.skip("scalar variant: the maps are computed in numpy only")
+    for cam in ("left", "right"):
+        a, b = GroundTruthCaster(r).camera(cam), GroundTruthCaster(r, on_device=False).camera(cam)
+        assert np.array_equal(a.mask, b.mask) and bool(b.mask.any()) == seen
+        if seen:  # cut by the border: the plate reaches an image edge
+            assert b.mask[:, 0].any() or b.mask[:, -1].any() or b.mask[0].any() or b.mask[-1].any()
+            assert np.abs(a.depth64[b.mask] - b.depth64[b.mask]).max() <= 1e-12
+        assert np.array_equal(np.isinf(a.depth64), ~b.mask) and np.array_equal(a.feature, b.feature)

@@ -87,10 +87,8 @@ class GroundTruthCaster:
         self.mi = renderer.mi
         # Scalar variants trace one ray per Python call: use trimesh/embree instead.
         self._vectorised = not renderer.variant.startswith("scalar")
-        self._device = None
-        if self._vectorised and on_device:
-            from platebench.scenes.render.ground_truth_device import DeviceGroundTruth  # noqa: PLC0415
-            self._device = DeviceGroundTruth(renderer)
+        self._on_device = self._vectorised and on_device
+        self._device = None  # the plate's device buffers, made at the first dense map
 
     def _mesh_intersector(self):
         import trimesh  # noqa: PLC0415
@@ -141,7 +139,10 @@ class GroundTruthCaster:
 
     # -- per camera -----------------------------------------------------------
     def camera(self, camera_name: str) -> CameraGroundTruth:
-        if self._device is not None:
+        if self._on_device:
+            if self._device is None:
+                from platebench.scenes.render.ground_truth_device import DeviceGroundTruth  # noqa: PLC0415
+                self._device = DeviceGroundTruth(self.r)
             depth64, points, normals, mask, puv, feat = self._device.camera(camera_name, _OCCLUSION_SLACK_M)
             return CameraGroundTruth(depth64.astype(np.float32), points, normals, mask, puv, feat, depth64)
         spec = self.r.spec

@@ -7,6 +7,8 @@ its cores for ``llvm_*``) instead of numpy on one core:
 1. Mitsuba casts the sensor's ray through every pixel centre against the plate-only scene
    (``sensor.sample_ray``, the lens sensor's rays for a distorted camera) and names the
    triangle each pixel sees; the pixels that see the plate are compacted (``dr.compress``).
+   Only the pixels of the plate's window (``plate_window``: its projected vertices' bounding
+   box and a margin) are cast: no other pixel's ray can meet it.
 2. For those pixels, in float64: the OpenCV model's ray (K^-1, then the exact inverse of the
    lens's Brown-Conrady distortion by Newton's method, the world direction), its intersection
    with that triangle (plane hit and barycentrics), the z-depth, the world point, the material
@@ -59,6 +61,33 @@ class DrjitOps:
 
     def const(self, value: float):
         return self.dr.opaque(self.F, float(value))
+
+
+WINDOW_MARGIN_PX = 4  # beyond the plate's projected vertices: a lens bends a triangle's edges by far less
+
+
+def plate_window(cam, vertices) -> tuple[int, int, int, int]:
+    """(u0, v0, width, height) of the pixels that can see the plate: the bounding box of its
+    vertices' projections (a pinhole maps each triangle into the hull of its corners' images),
+    widened by ``WINDOW_MARGIN_PX`` and clipped to the image; the whole image when a vertex lies
+    behind the camera. At least one pixel."""
+    W, H = cam.width, cam.height
+    V = np.asarray(vertices, np.float64)
+    if not len(V) or np.any(cam.to_camera(V)[:, 2] <= 0):
+        return 0, 0, W, H
+    uv = cam.project(V)
+    lo = np.floor(uv.min(axis=0)) - WINDOW_MARGIN_PX
+    hi = np.ceil(uv.max(axis=0)) + WINDOW_MARGIN_PX
+    u0, v0 = int(np.clip(lo[0], 0, W - 1)), int(np.clip(lo[1], 0, H - 1))
+    u1, v1 = int(np.clip(hi[0], u0, W - 1)), int(np.clip(hi[1], v0, H - 1))
+    return u0, v0, u1 - u0 + 1, v1 - v0 + 1
+
+
+def _empty_frames(W: int, H: int):
+    """The maps of a camera that does not see the plate."""
+    nan3 = np.full((H, W, 3), np.nan, np.float32)
+    return (np.full((H, W), np.inf), nan3, nan3.copy(), np.zeros((H, W), bool), np.full((H, W, 2), np.nan, np.float32),
+            np.full((H, W), -1, np.int32))
 
 
 class DeviceGroundTruth:
@@ -161,14 +190,20 @@ class DeviceGroundTruth:
         spec, plate = r.spec, r.plate
         cam = spec.rig.cameras[camera_name]
         W, H = cam.width, cam.height
-        idx = dr.arange(mi.UInt32, W * H)
-        pos = mi.Point2f((mi.Float(idx % W) + 0.5) / W, (mi.Float(idx // W) + 0.5) / H)
+        u0, v0, w, h = plate_window(cam, plate.mesh.vertices)
+        local = dr.arange(mi.UInt32, w * h)
+        wo = dr.opaque(mi.UInt32, w)
+        px, py = local % wo + dr.opaque(mi.UInt32, u0), local // wo + dr.opaque(mi.UInt32, v0)
+        pos = mi.Point2f((mi.Float(px) + 0.5) / W, (mi.Float(py) + 0.5) / H)
         ray, _ = r.sensors[camera_name].sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
         si = r.gt_scene.ray_intersect(ray)
-        valid, prim_all = si.is_valid(), si.prim_index
-        dr.eval(valid, prim_all)
-        hit = dr.compress(valid)
-        prim = dr.gather(mi.UInt32, prim_all, hit)
+        valid, prim_all, pix = si.is_valid(), si.prim_index, py * W + px
+        dr.eval(valid, prim_all, pix)
+        on = dr.compress(valid)
+        if dr.width(on) == 0:  # the plate is in no pixel of this camera
+            return _empty_frames(W, H)
+        hit = dr.gather(mi.UInt32, pix, on)  # pixel index (row-major) of each pixel that sees the plate
+        prim = dr.gather(mi.UInt32, prim_all, on)
         # the float64 ray of the OpenCV model through each hit pixel's centre
         x, y = self._normalised(cam, F(hit % W), F(hit // W))
         Rw = cam.R
@@ -244,20 +279,26 @@ class DeviceGroundTruth:
         return cache[key][1]
 
     def _frames(self, W, H, hit, depth, p, normal, puv, feature):
-        """Scatter the per-hit values into full frames on the device, then one copy of each to the host."""
-        dr, mi, F = self.dr, self.mi, self.F
+        """The per-hit values evaluated in one launch and copied to the host once each, then placed into
+        full frames there (one pass over each frame)."""
+        dr, mi = self.dr, self.mi
+        values = (hit, depth, *(mi.Float(c) for c in p), *(mi.Float(c) for c in normal), *puv, feature)
+        dr.eval(*values)
+        hit, depth, *rest = (np.asarray(v) for v in values)
         n = W * H
+        depth64 = np.full(n, np.inf)
+        depth64[hit] = depth
+        mask = np.zeros(n, bool)
+        mask[hit] = True
 
-        def frame(Type, fill, values):
-            k = len(values)
-            buf = dr.full(Type, fill, n * k)
-            for j, val in enumerate(values):
-                dr.scatter(buf, Type(val), hit * k + j)
-            return buf
+        def frame(k, first, dtype, fill):
+            out = np.full((n, k), fill, dtype)
+            out[hit] = np.stack(rest[first:first + k], axis=1)
+            return out
 
-        bufs = (frame(F, math.inf, [depth]), frame(mi.Float, math.nan, list(p)), frame(mi.Float, math.nan, list(normal)),
-                frame(mi.Float, math.nan, list(puv)), frame(mi.Int32, -1, [feature]))
-        dr.eval(*bufs)
-        depth64, points, normals, proj_uv, feat = (np.array(b) for b in bufs)
-        return (depth64.reshape(H, W), points.reshape(H, W, 3), normals.reshape(H, W, 3),
-                np.isfinite(depth64).reshape(H, W), proj_uv.reshape(H, W, 2), feat.reshape(H, W).astype(np.int32))
+        points, normals = frame(3, 0, np.float32, np.nan), frame(3, 3, np.float32, np.nan)
+        proj_uv = frame(2, 6, np.float32, np.nan)
+        feat = np.full(n, -1, np.int32)
+        feat[hit] = rest[8]
+        return (depth64.reshape(H, W), points.reshape(H, W, 3), normals.reshape(H, W, 3), mask.reshape(H, W),
+                proj_uv.reshape(H, W, 2), feat.reshape(H, W))
