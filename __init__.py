@@ -19,15 +19,17 @@ This module is the short facade the README shows (see ``platebench.api``)::
     score = platebench.score(sample, rec)        # a typed Score against the truth
     platebench.sweep("examples/bend_sweep.toml", "ds", workers=2)
     platebench.report("ds")
+    platebench.results("ds")                     # results table, typed (sample_id "0000" stays a string)
     for item in platebench.PlateBenchDataset("ds"): ...   # samples as numpy arrays (README)
 
 Importing ``platebench`` is cheap: nothing here imports Mitsuba until a function needs it.
 """
 from __future__ import annotations
 
-from platebench.api import reconstruct, render, report, score, sense, sweep
+from platebench.api import reconstruct, render, report, results, score, sense, sweep
+from platebench.version import __version__
 
-__all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report", "PlateBenchDataset"]
+__all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report", "results", "PlateBenchDataset"]
 
 
 def __getattr__(name: str):

@@ -8,7 +8,7 @@ naming the bad value (or file, or key) and what is allowed.
 """
 from __future__ import annotations
 
-__all__ = ["PlateBenchError", "UserValueError"]
+__all__ = ["PlateBenchError", "UserValueError", "SamplesFailedError", "WorkerImportError"]
 
 
 class PlateBenchError(Exception):
@@ -17,3 +17,20 @@ class PlateBenchError(Exception):
 
 class UserValueError(PlateBenchError, ValueError):
     """A bad value (a flag, a key, an argument): one line naming it and the allowed range."""
+
+
+class SamplesFailedError(PlateBenchError):
+    """A sweep finished, but some of its samples failed (``platebench.sweep`` with ``check=True``).
+
+    ``summary`` is the sweep's ``SweepSummary`` (``failed``, ``results`` with each sample's error);
+    the dataset keeps every sample, the failed ones with status "failed"."""
+
+    def __init__(self, message: str, summary):
+        super().__init__(message)
+        self.summary = summary
+
+
+class WorkerImportError(PlateBenchError, RuntimeError):
+    """A facade function was called while a spawned worker process imported the main script: the
+    script's top-level code runs again in every worker unless it sits under
+    ``if __name__ == "__main__":``."""

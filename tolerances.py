@@ -18,18 +18,29 @@ class Tolerances:
     """Named tolerances; the module-level ``tol`` is the one instance."""
 
     rotation: float = 1e-9          # |R R^T - I| entries and det(R) = +1 of a proper rotation
-    rotation_loose: float = 1e-6    # the same, for rotations read back from files (9 decimals)
-    zero_length_m: float = 1e-12    # a vector or segment this short has no direction
-    unit_norm: float = 1e-9         # |v| below this: "no direction" for a (near) unit vector
-    parallel: float = 1e-12         # |d . n| below this: a ray parallel to a plane
+    zero_length: float = 1e-12      # a vector or segment this short (m or px) has no direction
+    unit_norm: float = 1e-9         # |v| below this: "no direction" for a (near) unit vector, or a length
+                                    # below this fraction of its scale (a ruling, a baseline) is none
+    parallel: float = 1e-12         # |d . n| below this: a ray parallel to a plane (or a line to an edge)
     relative: float = 1e-12         # relative slack for comparing derived floats to their exact value
     step_count: float = 1e-9        # ceil(x - step_count): a count of steps not raised by rounding
+    angle_rad: float = 1e-9         # slack of an angle compared with a limit it may equal (radians)
     pixel: float = 1e-9             # pixel-coordinate equality (principal point, K entries)
+    disparity_file_px: float = 1e-3  # a sample's disp0GT.pfm (float32) and its float32 depth map's disparity agree
     stereo_pose_m: float = 1e-12    # both cameras of a conventional rig share R, t differs by B only
+    rebuilt_px: float = 1e-6        # K entries (px) of a rig re-created from sample.json against calib.json's
+    rebuilt_pose: float = 1e-9      # R entries and t (m) of a re-created rig against calib.json's
     fit_converged: float = 1e-9     # fixed-point iterations (corner intersections) stop here (px)
+    fit_moving_px: float = 1e-2     # a fixed point still moving this much (px) when the iterations end is none
+    plane_fit_converged: float = 1e-13  # the L1 boundary plane's iterations stop when its normal turns less
+                                        # (rad) and its offset moves less (fraction of the boundary's size)
+    subpixel_eps_px: float = 1e-5   # OpenCV cornerSubPix stops when a corner moves less (px)
+    solver_eps: float = 1e-12       # OpenCV's iterative calibration stops when its error changes less
+    inside_outline: float = 1e-6    # a grid node this close to the outline (fraction of the grid step) is inside
+    sup_refine: float = 1e-4        # a boundary distance's supremum is refined to this fraction of the spacing
+    tiny: float = 1e-30             # floor of a denominator that may be zero (a degenerate triangle, no noise)
     occlusion_slack_m: float = 1e-5  # a boundary point is occluded only by surface > 10 um before it
     flat_height_m: float = 1e-5     # a fitted height field this flat (over the plate) has no bend
-
 
 tol = Tolerances()
 

@@ -97,6 +97,17 @@ def _redeliver(signum: int) -> None:
     signal.setitimer(signal.ITIMER_REAL, REDELIVER_S)
 
 
+def _cancel_redelivery() -> None:
+    """Cancel a pending re-delivery: once the signal is raised (or the command has its status), a timer left
+    running would fire after Python's finalisation has put SIGALRM's default action back, and kill the
+    process by SIGALRM instead of letting it exit 130 / 143."""
+    if _STATE["held"] or _STATE["redelivery"]:
+        _STATE["held"] = _STATE["redelivery"] = False
+    if threading.current_thread() is threading.main_thread():
+        with contextlib.suppress(OSError, ValueError):
+            signal.setitimer(signal.ITIMER_REAL, 0)
+
+
 def _alarm(_signum, frame):
     if _STATE["signum"] is not None and _STATE["held"]:
         _STATE["redelivery"] = True
@@ -123,6 +134,7 @@ def _handler(signum, frame):
                   file=sys.stderr, flush=True)
         os._exit(exit_status() or 130)
     _STATE["raised"] = True
+    _cancel_redelivery()
     raise _exception(signum)
 
 
@@ -164,12 +176,14 @@ def finish(status: int) -> int:
     exits 130 / 143 if one comes (see module doc). Returns ``status``."""
     _STATE["finishing"] = True
     _STATE["status"] = status
+    _cancel_redelivery()
     return status
 
 
 def _exit_late(now: bool = False) -> None:
     """At exit: a signal that came after ``finish`` still makes the exit status 130 / 143 (``now``: a second
     one, which ends the process at once)."""
+    _cancel_redelivery()
     interrupted = _STATE.get("status") in EXIT_STATUS.values()
     if not now and (not _STATE["late"] or interrupted):
         return
@@ -210,6 +224,7 @@ def check() -> None:
     """Raise the recorded signal's exception (call it where a stage ends: if the first one was
     swallowed, the command stops here)."""
     if _STATE["signum"] is not None:
+        _cancel_redelivery()
         raise _exception(_STATE["signum"])
 
 

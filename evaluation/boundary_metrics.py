@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from platebench.tolerances import ceil_count
+from platebench.tolerances import ceil_count, tol
 
 from .point_metrics import pruned_min_distance
 from .stats import ErrorStats, check_array
@@ -262,7 +262,7 @@ def _directed(src: list[np.ndarray], dst: _SegmentSet, closed: bool, spacing: fl
 
     # --- refine the maximum between evaluated positions
     cur = float(d_all.max())
-    tol = 1e-4 * spacing
+    refine = tol.sup_refine * spacing
     il, ir, ipoly, sl, sr = [], [], [], [], []
     start = 0
     for i, pa in enumerate(params):
@@ -301,7 +301,7 @@ def _directed(src: list[np.ndarray], dst: _SegmentSet, closed: bool, spacing: fl
                 u = np.clip(np.where(den > 0, (fr_l - dl[sw]) / np.where(den > 0, den, 1.0), 0.0), 0.0, 1.0)
                 chord = np.maximum(np.maximum(dl[sw], dr[sw]), dl[sw] + a * u)
                 bound[sw] = np.minimum(0.5 * (dl[sw] + dr[sw] + (sr_[sw] - sl_[sw])), chord)
-            cand = bound > cur + tol
+            cand = bound > cur + refine
             if not cand.any() or np.count_nonzero(cand) > _MAX_SAMPLES:  # (safety cap, never hit in tests)
                 break
             cl, cr, cp = sl_[cand], sr_[cand], ip[cand]

@@ -1,7 +1,8 @@
 """Sparse world points scored by depth at their left-image projection (``compare``'s paper row).
 
-* ``score_points_depth``: sparse world points by their depth error at their left-image
-  projection, and by their distance to the true surface.
+* ``score_points_depth``: sparse world points (the paper's square centres) by their depth error at
+  their left-image projection (keys ``centres_depth_*_mm``: sparse, never to be compared with a dense
+  map's ``depth_*_mm`` over the plate's pixels), and by their distance to the true surface.
 
 Dense maps, point clouds and meshes of any method are scored by ``evaluation.field_scores``.
 Inputs: metres, pixels (OpenCV, centres at integers); outputs: keys carry their unit.
@@ -41,9 +42,9 @@ def score_points_depth(points, left_camera, gt_depth, mesh=None) -> dict:
     ok = np.isfinite(z_gt)
     a = np.abs(z[ok] - z_gt[ok]) * 1e3
     out = {"points": int(len(pts)), "points_on_plate": int(ok.sum())}
-    out["depth_median_mm"] = float(np.median(a)) if a.size else float("nan")
-    out["depth_rms_mm"] = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
-    out["depth_max_mm"] = float(a.max()) if a.size else float("nan")
+    out["centres_depth_median_mm"] = float(np.median(a)) if a.size else float("nan")
+    out["centres_depth_rms_mm"] = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
+    out["centres_depth_max_mm"] = float(a.max()) if a.size else float("nan")
     if mesh is not None and len(pts):
         d = point_to_surface_distance(pts, mesh) * 1e3
         out["surface_rms_mm"] = float(np.sqrt(np.mean(d * d)))

@@ -7,8 +7,6 @@ Common conventions
 ------------------
 * Ground truth unknown: any non-finite GT value (Middlebury and ETH3D store
   unknown GT as +inf). Such pixels are skipped entirely.
-* Invalid / missing estimate: non-finite or <= 0. (Middlebury submissions mark
-  missing values with inf; OpenCV matchers use 0 or negative values.)
 * error = |d_est - d_gt| (absolute: errors of both signs never cancel).
 * Regions: "all" = every pixel with known GT (inside ``roi`` if given);
   "nonocc" = those pixels where ``mask`` (non-occluded, True = visible in both
@@ -16,17 +14,28 @@ Common conventions
 * Quantiles use the nearest rank: A_q = the smallest error e with at least q % of
   the pixels having error <= e (``stats.nearest_rank_quantile``).
 
-Middlebury v3 (``middlebury_metrics``), over the n pixels of the region:
+Middlebury v3 (``middlebury_metrics``), over the n pixels of the region, with the
+rules of the Middlebury SDK's ``evaldisp`` (MiddEval3 ``code/evaldisp/evaldisp.cpp``):
+  invalid = an estimate of +inf, and only that (a hole of a sparse map); every other
+            value is an estimate, clipped to [0, maxdisp] (``max_disparity_px``: the
+            ``ndisp`` of the pair's calib.txt), so 0, negative values and -inf count as
+            estimates of 0 px. One difference, on purpose: NaN counts as invalid here
+            (the SDK's comparisons let a NaN estimate through as valid and never bad,
+            and its avgerr becomes NaN).
   bad_T   = 100 * (#valid with error > T  +  #invalid) / n     [%]
-            (invalid pixels count as bad, as in Middlebury's evaluation)
+            (error > T strictly; invalid pixels count as bad: the SDK's "totbad")
   invalid = 100 * #invalid / n                                  [%]
-  avgerr  = mean error over the valid estimates                 [px]
+  avgerr  = mean error over the valid estimates                 [px]  (the SDK's avgErr)
   rms     = sqrt(mean error^2) over the valid estimates         [px]
   A50/A90/A95/A99 = error quantiles over all n pixels, an invalid pixel
             counting as an infinite error (so A99 = inf when > 1 % are invalid).
+  The region "nonocc" is the SDK's mask0nocc == 255. Differences that remain: the SDK
+  sums errors in float32 (here float64), can score a half- or quarter-size estimate
+  against full-size truth (here the sizes must match), and can round estimates first
+  (``rounddisp``; here never: the bench's truth is not integer).
 
 ETH3D two-view (``eth3d_metrics``), over the n pixels of the region, n_est of
-which have a valid estimate:
+which have a valid estimate (finite and > 0; no clipping):
   coverage = n_est / n                                          [fraction]
   bad_T    = 100 * #(error > T) / n_est                         [% of ESTIMATED pixels]
   avgerr, rms, A50/A90/A95/A99 over the n_est estimated pixels  [px]
@@ -145,7 +154,9 @@ class Eth3dScore:
 # ----------------------------------------------------------------------- helpers
 
 
-def _prepare(disp_est, disp_gt, mask, roi):
+def _prepare(disp_est, disp_gt, mask, roi, middlebury_max=None):
+    """(valid estimates, |error| (inf where invalid), regions); ``middlebury_max`` not None: the SDK's
+    rules (module doc) with that maxdisp, else valid = finite and > 0, no clipping."""
     est = check_array(disp_est, "disp_est", shape=(None, None), finite=False)
     gt = check_array(disp_gt, "disp_gt", shape=(None, None), finite=False)
     if est.shape != gt.shape:
@@ -156,8 +167,13 @@ def _prepare(disp_est, disp_gt, mask, roi):
         known &= roi
     if not known.any():
         raise ValueError("disp_gt: no pixel with known (finite) ground truth" + (" inside roi" if roi is not None else ""))
-    valid = np.isfinite(est) & (est > 0)
-    err = np.where(valid & known, np.abs(np.where(valid, est, 0.0) - np.where(known, gt, 0.0)), np.inf)
+    if middlebury_max is None:
+        valid = np.isfinite(est) & (est > 0)
+        d = np.where(valid, est, 0.0)
+    else:
+        valid = ~np.isnan(est) & (est != np.inf)
+        d = np.clip(np.where(valid, est, 0.0), 0.0, middlebury_max)
+    err = np.where(valid & known, np.abs(d - np.where(known, gt, 0.0)), np.inf)
     regions = [("all", known)]
     if mask is not None:
         regions.append(("nonocc", known & _bool_mask(mask, "mask", gt.shape)))
@@ -193,16 +209,19 @@ def middlebury_metrics(
     roi=None,
     thresholds=BAD_THRESHOLDS_PX,
     quantiles=QUANTILES_PCT,
+    max_disparity_px: float = math.inf,
 ) -> MiddleburyScore:
-    """Middlebury v3 metrics (see module doc) on "all" and, given ``mask``, "nonocc".
+    """Middlebury v3 metrics with the SDK's rules (see module doc) on "all" and, given ``mask``, "nonocc".
 
     Args:
-        disp_est: (H, W) estimated disparity, px; non-finite or <= 0 = invalid.
+        disp_est: (H, W) estimated disparity, px; +inf (and NaN) = invalid, any other value an
+            estimate clipped to [0, max_disparity_px].
         disp_gt: (H, W) true disparity, px; non-finite = unknown (skipped).
         mask: optional (H, W) bool, True = non-occluded.
         roi: optional (H, W) bool, pixels outside it are ignored everywhere.
+        max_disparity_px: the SDK's maxdisp (the calib.txt's ndisp); default no upper clip.
     """
-    valid, err, regions = _prepare(disp_est, disp_gt, mask, roi)
+    valid, err, regions = _prepare(disp_est, disp_gt, mask, roi, middlebury_max=max_disparity_px)
     out = {}
     for name, reg in regions:
         n = int(np.count_nonzero(reg))

@@ -4,8 +4,10 @@ A method (the bench's own, a plug-in, or another program whose output is scored 
 gives one of four kinds of result, each scored with the metrics its field uses:
 
 * **disparity** (H, W) px of the left view, d = u_left - u_right (Middlebury's convention, Z = f B /
-  (d + doffs)); non-finite or <= 0 = no estimate. Middlebury v3 (bad 0.5/1/2/4 px, invalid,
-  avgerr, rms, A50-A99) and ETH3D two-view metrics (``evaluation.disparity_metrics``) on all
+  (d + doffs)); +inf or NaN = no estimate. Middlebury v3 with the SDK's rules (other values,
+  0 and negative ones too, are estimates clipped to [0, ndisp]; bad 0.5/1/2/4 px, invalid,
+  avgerr, rms, A50-A99) against the sample's float32 truth file, and ETH3D two-view metrics
+  (estimates finite and > 0; ``evaluation.disparity_metrics``) on all
   pixels with known truth and on the non-occluded ones (``evaluation.stereo_truth``), plus the
   depth error the disparities imply (scored as a depth map).
 * **depth** (H, W) z-depth in metres along the left optical axis; non-finite or <= 0 = no
@@ -52,11 +54,13 @@ from platebench.evaluation.stats import nearest_rank_quantile
 from platebench.evaluation.stereo_truth import (
     RectifiedPair,
     disparity_from_depth,
+    ndisp_for,
     nonoccluded_mask,
     rectified_pair,
 )
 from platebench.evaluation.surface_metrics import SurfaceScore, sample_mesh_surface, score_surface
 from platebench.scenes.rig import StereoRig
+from platebench.tolerances import tol
 
 if TYPE_CHECKING:
     import trimesh  # annotations only: importing trimesh takes a second
@@ -89,7 +93,9 @@ class FieldTruth:
     """What the four kinds are scored against (world frame, metres; left view for maps).
 
     ``depth``: (H, W) float64 z-depth, inf off the plate; ``mask``: (H, W) bool plate pixels;
-    ``disparity``: (H, W) float64 f B / Z - doffs, inf unknown; ``nonocc``: (H, W) bool plate pixels
+    ``disparity``: (H, W) float64 f B / Z - doffs, inf unknown, as the sample's ``gt/disp0GT.pfm`` holds
+    it (float32 values: the truth a user is given, and what Middlebury's SDK would score against);
+    ``nonocc``: (H, W) bool plate pixels
     the right camera sees too; ``disparity_right``: the right view's (Middlebury's disp1: its pixel u
     matches u + d in the left view); ``mesh``: the plate; ``top_faces``: (F,) bool, the faces of its
     top surface (what coverage and completeness are measured on)."""
@@ -106,14 +112,30 @@ class FieldTruth:
 
     @classmethod
     def from_maps(cls, rig: StereoRig, depth_left, mask_left, points_left, depth_right, mask_right,
-                  mesh: trimesh.Trimesh, top_faces=None) -> "FieldTruth":
-        """Derive both disparities and the non-occlusion mask from the two views' ground-truth maps."""
+                  mesh: trimesh.Trimesh, top_faces=None, disparity_left=None) -> "FieldTruth":
+        """Derive both disparities and the non-occlusion mask from the two views' ground-truth maps.
+        ``disparity_left``: the left true disparity as written (``gt/disp0GT.pfm``); it must agree with
+        the depth map's (same known pixels, values within float32 rounding) and is what disparities
+        are scored against. Without it, the depth map's, rounded to float32 as the file would be."""
         pair = rectified_pair(rig)
         mask_left, mask_right = np.array(mask_left, bool), np.asarray(mask_right, bool)
         depth = np.where(mask_left, np.asarray(depth_left, np.float64), np.inf)
         d0 = np.where(mask_left, disparity_from_depth(depth, pair), np.inf)
         d1 = np.where(mask_right, disparity_from_depth(depth_right, pair), np.inf)
         nonocc = nonoccluded_mask(points_left, mask_left, d0, rig.right, d1, mask_right)
+        if disparity_left is None:
+            given = d0.astype(np.float32).astype(np.float64)
+        else:
+            given = np.asarray(disparity_left, np.float64)
+            if given.shape != d0.shape or not np.array_equal(np.isfinite(given), np.isfinite(d0)):
+                raise ValueError("the left true disparity (disp0GT.pfm) and the depth map disagree on which pixels "
+                                 "have a truth")
+            known = np.isfinite(d0)
+            far = np.abs(given[known] - d0[known])
+            if far.size and far.max() > tol.disparity_file_px:
+                raise ValueError(f"the left true disparity (disp0GT.pfm) differs from the depth map's by up to "
+                                 f"{far.max():.3g} px: allowed {tol.disparity_file_px:g} px")
+        d0 = given
         top = np.ones(len(mesh.faces), bool) if top_faces is None else np.asarray(top_faces, bool)
         for a in (depth, d0, nonocc, mask_left, d1):
             a.setflags(write=False)
@@ -262,8 +284,8 @@ def score_disparity(disparity_px, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM,
                     what: str = "disparity map") -> DisparityScore:
     """Score a left-view disparity map (H, W) in px (module doc)."""
     d = _map(disparity_px, truth, what)
-    est = np.where(np.isfinite(d) & (d > 0), d, np.inf)
-    mb = middlebury_metrics(est, truth.disparity, truth.nonocc)
+    est = np.where(np.isfinite(d) & (d > 0), d, np.inf)  # ETH3D's and the implied depth's estimates
+    mb = middlebury_metrics(d, truth.disparity, truth.nonocc, max_disparity_px=ndisp_for(truth.disparity))
     eth = eth3d_metrics(est, truth.disparity, truth.nonocc)
     s = d + truth.pair.doffs_px
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -5,7 +5,13 @@
 it). Each field's metadata gives its unit and a human label, for tables and plots. A method
 fills what applies to it and leaves the rest None; method-specific figures (a dense method's
 Middlebury/ETH3D metrics, ...) go in ``extra`` (name -> number or bool, units in the names)
-and become further columns.
+and become further columns, labelled by the families of ``EXTRA_FAMILIES``.
+
+One column, one meaning. Sparse figures (at the paper's square centres: a few dozen points) and
+dense ones (over every plate pixel of a depth or disparity map) have different names:
+``centres_depth_rms_mm`` is the RMS depth error of the matched square centres, ``depth_rms_mm``
+the RMS depth error over the plate's pixels with an estimate. A table or plot that compares
+methods compares one column.
 
 ``from_score`` flattens the paper pipeline's typed ``Score``; the other kinds' scores
 (``evaluation.field_scores``) build theirs with ``metrics_row()``.
@@ -13,10 +19,11 @@ and become further columns.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
-__all__ = ["MetricsRow", "METRIC_FIELDS", "metric_unit", "metric_label"]
+__all__ = ["MetricsRow", "METRIC_FIELDS", "EXTRA_FAMILIES", "metric_unit", "metric_label", "is_metric"]
 
 
 def _m(unit: str, label: str, kind: str = "float"):
@@ -25,15 +32,17 @@ def _m(unit: str, label: str, kind: str = "float"):
 
 @dataclass(frozen=True)
 class MetricsRow:
-    depth_rms_mm: float | None = _m("mm", "depth RMS")
-    depth_max_mm: float | None = _m("mm", "depth max")
-    depth_median_mm: float | None = _m("mm", "depth median")
-    xy_radial_rms_mm: float | None = _m("mm", "x/y radial RMS")
-    xy_per_axis_rms_mm: float | None = _m("mm", "x/y RMS per axis")
-    err3d_rms_mm: float | None = _m("mm", "3D error RMS")
+    centres_depth_rms_mm: float | None = _m("mm", "depth RMS at the square centres")
+    centres_depth_max_mm: float | None = _m("mm", "depth max at the square centres")
+    depth_rms_mm: float | None = _m("mm", "depth RMS over the plate's pixels")
+    depth_max_mm: float | None = _m("mm", "depth max over the plate's pixels")
+    depth_median_mm: float | None = _m("mm", "depth median over the plate's pixels")
+    xy_radial_rms_mm: float | None = _m("mm", "x/y radial RMS at the square centres")
+    xy_per_axis_rms_mm: float | None = _m("mm", "x/y RMS per axis at the square centres")
+    err3d_rms_mm: float | None = _m("mm", "3D error RMS at the square centres")
     boundary_mean_mm: float | None = _m("mm", "boundary mean")
     boundary_hausdorff_mm: float | None = _m("mm", "boundary Hausdorff")
-    surface_rms_mm: float | None = _m("mm", "surface RMS")
+    surface_rms_mm: float | None = _m("mm", "surface RMS (estimate to the true surface)")
     coverage_frac: float | None = _m("fraction", "coverage of the plate")
     matched_count: int | None = _m("count", "points matched", "int")
     correct_match_count: int | None = _m("count", "points matched correctly", "int")
@@ -68,8 +77,8 @@ class MetricsRow:
         p, b, s = score.points, score.boundary_3d, score.surface
         mm = 1e3
         return cls(
-            depth_rms_mm=p.stats.depth.rms * mm if p else None,
-            depth_max_mm=p.stats.depth.max * mm if p else None,
+            centres_depth_rms_mm=p.stats.depth.rms * mm if p else None,
+            centres_depth_max_mm=p.stats.depth.max * mm if p else None,
             xy_radial_rms_mm=p.stats.xy_radial.rms * mm if p else None,
             xy_per_axis_rms_mm=p.xy_per_axis_rms_m * mm if p else None,
             err3d_rms_mm=p.stats.err3d.rms * mm if p else None,
@@ -105,10 +114,81 @@ METRIC_FIELDS = {f.name: f for f in fields(MetricsRow) if f.name != "extra"}
 METRIC_NAMES = tuple(METRIC_FIELDS)
 
 
+# The extra columns' families: (pattern of the name, label, unit). Names are built by
+# ``evaluation.field_scores`` (``AbsErrors.to_dict``, ``DepthScore``, ``PointCloudScore``, ``MeshScore``),
+# ``evaluation.disparity_metrics`` (``mb_*``, ``eth_*``) and the plug-ins (``method_*``: their own figures).
+_REGION = {"all": "all pixels with known truth", "nonocc": "non-occluded pixels"}
+_BENCH = {"mb": "Middlebury", "eth": "ETH3D"}
+_STAT = {"mean": "mean", "median": "median", "rms": "RMS", "max": "max"}
+_ERRS = {"depth": "depth error over the plate's pixels", "dist": "distance of the points to the true surface",
+         "accuracy": "accuracy (estimate to the true surface)",
+         "completeness": "completeness (true surface to estimate)"}
+EXTRA_FAMILIES: tuple[tuple[str, str, str], ...] = (
+    (r"(?P<e>depth|dist|accuracy|completeness)_(?P<s>mean|median|rms|max)_mm", "{E}, {S}", "mm"),
+    (r"(?P<e>depth|dist|accuracy|completeness)_a(?P<q>\d+)_mm", "{E}, A{q} ({q} % of values below)", "mm"),
+    (r"(?P<e>depth|dist|accuracy|completeness)_count", "{E}: values", "count"),
+    (r"centres_depth_median_mm", "depth median at the square centres", "mm"),
+    (r"depth_mean_signed_mm", "depth bias over the plate's pixels (mean signed error, + = too far)", "mm"),
+    (r"depth_bad_(?P<t>\d+_\d+)_mm_pct", "estimated plate pixels with depth error > {t} mm", "%"),
+    (r"plate_px", "plate pixels (left view)", "count"),
+    (r"estimated_px", "plate pixels with an estimate", "count"),
+    (r"off_plate_px", "estimates off the plate", "count"),
+    (r"nonocc_px", "non-occluded plate pixels", "count"),
+    (r"doffs_px", "disparity offset doffs", "px"),
+    (r"(?P<b>mb|eth)_(?P<r>all|nonocc)_bad_(?P<t>\d+_\d+)_pct", "{B} bad {t} px, {R}", "%"),
+    (r"mb_(?P<r>all|nonocc)_invalid_pct", "Middlebury invalid, {R}", "%"),
+    (r"(?P<b>mb|eth)_(?P<r>all|nonocc)_avgerr_px", "{B} average error, {R}", "px"),
+    (r"(?P<b>mb|eth)_(?P<r>all|nonocc)_rms_px", "{B} RMS error, {R}", "px"),
+    (r"(?P<b>mb|eth)_(?P<r>all|nonocc)_a(?P<q>\d+)_px", "{B} A{q} error, {R}", "px"),
+    (r"(?P<b>mb|eth)_(?P<r>all|nonocc)_gt_count", "{B} pixels scored, {R}", "count"),
+    (r"mb_(?P<r>all|nonocc)_valid_count", "Middlebury valid estimates, {R}", "count"),
+    (r"eth_(?P<r>all|nonocc)_est_count", "ETH3D estimated pixels, {R}", "count"),
+    (r"eth_(?P<r>all|nonocc)_coverage_frac", "ETH3D coverage, {R}", "fraction"),
+    (r"points_count", "points scored", "count"),
+    (r"points_dropped_count", "points dropped (not finite)", "count"),
+    (r"outlier_threshold_mm", "outlier threshold", "mm"),
+    (r"outlier_count", "outliers (points beyond the threshold)", "count"),
+    (r"outlier_frac", "outliers (share of the points)", "fraction"),
+    (r"coverage_radius_mm", "coverage radius", "mm"),
+    (r"covered_area_mm2", "plate area covered", "mm^2"),
+    (r"plate_area_mm2", "plate area", "mm^2"),
+    (r"sample_spacing_mm", "surface sample spacing", "mm"),
+    (r"faces_count", "mesh faces", "count"),
+    (r"overall_mm", "DTU overall (mean of accuracy and completeness means)", "mm"),
+    (r"(?P<k>precision|recall|fscore)_(?P<t>\d+_\d+)_mm_pct", "{K} at {t} mm", "%"),
+    (r"method_(?P<n>.+)", "the method's own figure {n!r}", ""),
+)
+_FAMILIES = tuple((re.compile(p), label, unit) for p, label, unit in EXTRA_FAMILIES)
+
+
+def _family(name: str):
+    """(label, unit) of an extra column from ``EXTRA_FAMILIES``; None when no family matches."""
+    for rx, label, unit in _FAMILIES:
+        m = rx.fullmatch(name)
+        if m:
+            g = m.groupdict()
+            words = dict(g)
+            if "t" in g:
+                words["t"] = g["t"].replace("_", ".")
+            words.update(E=_ERRS.get(g.get("e", ""), ""), S=_STAT.get(g.get("s", ""), ""),
+                         B=_BENCH.get(g.get("b", ""), ""), R=_REGION.get(g.get("r", ""), ""),
+                         K={"precision": "precision", "recall": "recall", "fscore": "F-score"}.get(g.get("k", ""), ""))
+            return label.format(**words), unit
+    return None
+
+
+def is_metric(name: str) -> bool:
+    """Whether ``name`` is a metric column: a shared field or one of ``EXTRA_FAMILIES``."""
+    return name in METRIC_FIELDS or _family(name) is not None
+
+
 def metric_unit(name: str) -> str:
-    """Unit of a metric column ('' for flags, counts say 'count'); from the name for extra columns."""
+    """Unit of a metric column ('' for flags, counts say 'count'): from its field, its family, or its name."""
     if name in METRIC_FIELDS:
         return METRIC_FIELDS[name].metadata["unit"]
+    fam = _family(name)
+    if fam is not None:
+        return fam[1]
     for suffix, unit in (("_mm", "mm"), ("_px", "px"), ("_pct", "%"), ("_frac", "fraction"), ("_count", "count")):
         if name.endswith(suffix):
             return unit
@@ -116,11 +196,12 @@ def metric_unit(name: str) -> str:
 
 
 def metric_label(name: str) -> str:
-    """Human label with unit, e.g. 'depth RMS (mm)'."""
+    """Human label with unit, e.g. 'depth RMS over the plate's pixels (mm)': from the field's metadata,
+    else from the column's family (``EXTRA_FAMILIES``), else the name as it is."""
     if name in METRIC_FIELDS:
         label, unit = METRIC_FIELDS[name].metadata["label"], METRIC_FIELDS[name].metadata["unit"]
-    else:  # an extra column: its name without the unit suffix, then the unit
-        unit = metric_unit(name)
-        suffix = {"mm": "_mm", "px": "_px", "%": "_pct", "fraction": "_frac", "count": "_count"}.get(unit, "")
-        label = (name[: -len(suffix)] if suffix and name.endswith(suffix) else name).replace("_", " ")
+    elif (fam := _family(name)) is not None:
+        label, unit = fam
+    else:  # a column of no known family: its own name, verbatim
+        label, unit = name, ""
     return f"{label} ({unit})" if unit and unit not in ("count",) else label

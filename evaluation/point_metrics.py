@@ -1,6 +1,6 @@
 """Metrics for sparse 3D points (the paper's square centres, grid corners, ...).
 
-Conventions (see DESIGN.md): metres in, millimetres out; world frame +Z up;
+Conventions (docs/architecture.md): metres in, millimetres out; world frame +Z up;
 camera frame OpenCV (x right, y down, z forward) with x_cam = R x_world + t.
 
 Point errors are split in the LEFT camera's frame, as the paper reports them
@@ -358,7 +358,7 @@ def closest_point_on_mesh(points, mesh, by_radius: bool = True) -> tuple[np.ndar
     Exact point-to-triangle distances (:func:`point_triangle_distance`) with a
     KD-tree over triangle centroids and a rigorous pruning bound
     (:func:`pruned_min_distance`). Not ``trimesh.proximity.closest_point``: its
-    per-triangle test uses absolute tolerances (``tol.zero`` ~ 1e-12 on squared
+    per-triangle test uses absolute tolerances (trimesh's ``tol.zero``, 1e-12 on squared
     lengths) that misclassify millimetre-sized triangles in metres, and measured
     here it returned distances up to 0.08 mm too large on a plate mesh with 1 mm
     cells (correct after scaling the same case to millimetres); it is also

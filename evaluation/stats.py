@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from platebench.tolerances import ceil_count
+from platebench.tolerances import ceil_count, tol
 
 __all__ = [
     "ErrorStats",
@@ -138,7 +138,7 @@ class ErrorStats:
             rms = float(np.sqrt(np.dot(w, v * v) / wsum))
             order = np.argsort(v, kind="stable")
             cw = np.cumsum(w[order])
-            i = int(np.searchsorted(cw, 0.95 * cw[-1] * (1 - 1e-12), side="left"))
+            i = int(np.searchsorted(cw, 0.95 * cw[-1] * (1 - tol.relative), side="left"))
             p95 = float(v[order][min(i, v.size - 1)])
         return cls(mean=mean, rms=rms, max=float(v.max()), p95=p95, count=int(v.size))
 

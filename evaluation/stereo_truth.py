@@ -1,7 +1,7 @@
 """Two-view ground truth derived from a sample's per-camera maps: both disparity maps, the
 non-occlusion masks and the rectification figures of Middlebury's ``calib.txt``.
 
-Conventions (DESIGN.md): conventional stereo (both cameras share R, the right camera is the left
+Conventions (docs/architecture.md, "Stereo"): conventional stereo (both cameras share R, the right camera is the left
 one moved by the baseline B along the left camera's +x), OpenCV intrinsics, pixel centres at
 integers, z-depth in metres. Middlebury's disparity convention: a pixel at column u of one view
 matches column u - d (left view) or u + d (right view) of the other, with
@@ -22,6 +22,7 @@ right silhouette) counts as seen: nothing of the plate lies in front of it.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +73,19 @@ def rectified_pair(rig: StereoRig) -> RectifiedPair:
     return RectifiedPair(float(L.K[0, 0]), float(rig.baseline_m), float(R.K[0, 2] - L.K[0, 2]),
                          float(L.K[0, 2]), float(L.K[1, 2]), float(R.K[0, 2]), float(R.K[1, 2]),
                          float(L.K[1, 1]), float(R.K[1, 1]), L.width, L.height)
+
+
+NDISP_MULTIPLE = 16  # Middlebury's ndisp is rounded up to a multiple of this (what OpenCV's matchers take)
+
+
+def ndisp_for(disparity) -> int:
+    """Middlebury's ``ndisp`` of a true disparity map (px, non-finite unknown): a conservative bound on
+    the disparity levels, max(d) rounded up plus one, then up to a multiple of ``NDISP_MULTIPLE``; it
+    is also the SDK's maxdisp, the clip of the estimates (``disparity_metrics.middlebury_metrics``)."""
+    d = np.asarray(disparity, np.float64)
+    known = d[np.isfinite(d)]
+    vmax = math.ceil(known.max()) if known.size else 0
+    return NDISP_MULTIPLE * math.ceil((max(vmax, 0) + 1) / NDISP_MULTIPLE)
 
 
 def disparity_from_depth(depth_m, pair: RectifiedPair) -> np.ndarray:

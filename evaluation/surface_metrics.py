@@ -2,7 +2,7 @@
 
 The estimate is a set of 3D points in world coordinates, metres: the vertices
 of a reconstructed mesh, or a point cloud (e.g. one point per pixel of a dense
-method). Conventions (DESIGN.md): metres in, millimetres out.
+method). Conventions (docs/architecture.md): metres in, millimetres out.
 
 Accuracy
     distance of every estimated point to the GT mesh surface (exact
@@ -41,6 +41,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from platebench.tolerances import tol
 
 from .point_metrics import closest_point_on_mesh
 from .stats import ErrorStats, check_array
@@ -123,7 +125,7 @@ def sample_mesh_surface(mesh, sample_spacing_m: float, seed: int = 0, faces=None
     area = float(face_area.sum() if weights is None else weights.sum())
     if not area > 0:
         raise ValueError("gt_mesh: the sampled faces have zero area")
-    n = max(1, math.ceil(area / sample_spacing_m**2 * (1 - 1e-9)))
+    n = max(1, math.ceil(area / sample_spacing_m**2 * (1 - tol.step_count)))
     if n > _MAX_SURFACE_SAMPLES:
         raise ValueError(
             f"sample_spacing_m: {sample_spacing_m} m gives {n} samples on {area} m^2 "
@@ -179,7 +181,7 @@ def score_surface(
     if n_use:
         from scipy.spatial import cKDTree  # noqa: PLC0415  (scipy.spatial takes a while to import)
 
-        d_s, _ = cKDTree(foot[use]).query(samples, k=1, distance_upper_bound=radius * (1 + 1e-12), workers=-1)
+        d_s, _ = cKDTree(foot[use]).query(samples, k=1, distance_upper_bound=radius * (1 + tol.relative), workers=-1)
         covered = int(np.count_nonzero(d_s <= radius))
     else:
         covered = 0

@@ -58,7 +58,7 @@ def _ruling_range(s: float, L: float, W: float, ca: float, sa: float) -> tuple[f
     lo, hi = -math.inf, math.inf
     # u = s ca - t sa, v = s sa + t ca
     for base, slope, half in ((s * ca, -sa, L / 2), (s * sa, ca, W / 2)):
-        if abs(slope) > 1e-15:
+        if abs(slope) > tol.parallel:
             t1, t2 = (-half - base) / slope, (half - base) / slope
             lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
     return lo, max(lo, hi)
@@ -97,14 +97,14 @@ def _strip_layout(spec: PlateSpec, tol_m: float, refine: float):
             radius = S / d.angle_rad
         fine = min(coarse, _arc_spacing(radius, spec.thickness_m, tol_m) / refine)
     span = curved[1] - curved[0]
-    s_nodes = _nodes(breaks, lambda lo, hi: fine if (lo >= curved[0] - 1e-12 * S
-                                                     and hi <= curved[1] + 1e-12 * S
+    s_nodes = _nodes(breaks, lambda lo, hi: fine if (lo >= curved[0] - tol.relative * S
+                                                     and hi <= curved[1] + tol.relative * S
                                                      and span > 0) else coarse)
     ranges = np.array([_ruling_range(s, L, W, ca, sa) for s in s_nodes])
     lengths = ranges[:, 1] - ranges[:, 0]
     longest = lengths.max()
     h_t = min(longest / MIN_SEGMENTS, max(MAX_RULING_ASPECT * fine, longest / 64)) / refine
-    counts = np.where(lengths > 1e-9 * max(L, W), np.maximum(1, np.ceil(lengths / h_t - tol.step_count)), 0)
+    counts = np.where(lengths > tol.unit_norm * max(L, W), np.maximum(1, np.ceil(lengths / h_t - tol.step_count)), 0)
     counts = counts.astype(int) + 1
     if counts.sum() > MAX_VERTICES:
         raise ValueError(f"plate mesh would need {counts.sum()} vertices; use a larger max_facet_error_m")
@@ -117,7 +117,7 @@ def _strip_layout(spec: PlateSpec, tol_m: float, refine: float):
         start += n
     half = np.array([L / 2, W / 2])
     uv = np.clip(np.concatenate(uv_rows), -half, half)
-    on_edge = np.abs(np.abs(uv) - half) < 1e-12 * max(L, W)
+    on_edge = np.abs(np.abs(uv) - half) < tol.relative * max(L, W)
     uv = np.where(on_edge, np.sign(uv) * half, uv)  # rulings end exactly on the outline
     faces = np.concatenate([_zip_strip(t_rows[k], t_rows[k + 1], idx_rows[k], idx_rows[k + 1])
                             for k in range(len(s_nodes) - 1)])

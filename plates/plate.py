@@ -32,6 +32,8 @@ __all__ = ["Plate", "build_plate"]
 _SAFETY = 0.8       # aim this fraction of the requested facet error at first
 _MAX_REFINES = 6
 
+MAX_FACET_ERROR_M = 1e-6  # default largest distance of a mesh facet from the exact surface (m)
+
 
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.ascontiguousarray(a)
@@ -154,7 +156,7 @@ def _assemble(spec: PlateSpec, uv: np.ndarray, faces: np.ndarray) -> Plate:
                  boundary=_readonly(r[loop]), boundary_uv=_readonly(uv[loop]))
 
 
-def build_plate(spec: PlateSpec, max_facet_error_m: float = 1e-6) -> Plate:
+def build_plate(spec: PlateSpec, max_facet_error_m: float = MAX_FACET_ERROR_M) -> Plate:
     """Mesh spec so that facet_error_m() < max_facet_error_m (metres).
 
     The grid is sized from the deformation's curvature (fine only across the bend

@@ -1,6 +1,6 @@
 """Pinhole camera model: OpenCV conventions, written once.
 
-Frames and units (see ../shared/DESIGN.md):
+Frames and units (docs/architecture.md, "Frames and units"):
 
 * World frame: right-handed, +Z up, metres.
 * Camera frame: OpenCV (x right, y down, z forward). A pose is (R, t) with
@@ -15,7 +15,7 @@ Frames and units (see ../shared/DESIGN.md):
   ``(u, v) = K distort(X/Z, Y/Z)``. ``rays`` inverts it exactly, so ``project``, ``rays`` and
   ``at_depth`` stay each other's inverses on a distorted camera.
 
-This module knows no renderer; ``scenes.mitsuba_convert`` is the one place that
+This module knows no renderer; ``scenes.render.mitsuba_convert`` is the one place that
 turns these poses into Mitsuba transforms.
 """
 from __future__ import annotations

@@ -11,7 +11,7 @@ Two Mitsuba light models sit behind this one type (``kind``):
   (non-square texels when W != H); the cone clips the texture's corners, and
   the beam falls off linearly between ``beam_width`` and ``cutoff``.
   The 180-degree rotation relative to the camera is absorbed in
-  ``scenes.mitsuba_convert``. Proven by the same test.
+  ``scenes.render.mitsuba_convert``. Proven by the same test.
 
 Units: metres, radians; frames as in ``scenes.camera``.
 """

@@ -114,7 +114,7 @@ class SceneSpec:
         return replace(self, rig=rig)
 
 
-# Reference experiment (paper V-A, DESIGN.md): cameras 0.40 m above the plate looking
+# Reference experiment (paper V-A; docs/architecture.md): cameras 0.40 m above the plate looking
 # straight down, 1280 x 960 px, f = 2000 px, baseline 0.10 m, projector between them.
 REFERENCE = dict(distance_m=0.40, width=1280, height=960, f_px=2000.0, baseline_m=0.10,
                  projector_width=1024, projector_height=768, projector_f_px=1600.0)

@@ -1,4 +1,4 @@
-"""Tests for reconstruction.boundary_plane (the paper's L1 boundary plane)."""
+"""Tests for reconstruction.paper.boundary_plane (the paper's L1 boundary plane)."""
 
 import numpy as np
 import pytest

@@ -47,7 +47,7 @@ def test_distortion_round_trip_returns_the_ideal_depth_error(configs, tmp_path):
     ideal, renderer = render_sample(ideal_cfg)
     proj = ideal.scene.projector
     ideal_rms = MetricsRow.from_score(_depth(ideal, ideal.scene.rig,
-                                             projector_feature_rays(proj.camera, proj.pattern))).depth_rms_mm
+                                             projector_feature_rays(proj.camera, proj.pattern))).centres_depth_rms_mm
 
     result, renderer = run_calibration(lens_cfg, target_z_m=(-0.02, 0.02))
     assert result.distortion_model == "free_distortion"  # chosen from the images
@@ -60,8 +60,8 @@ def test_distortion_round_trip_returns_the_ideal_depth_error(configs, tmp_path):
     rows = {k: MetricsRow.from_score(s) for k, s in cmp.items()}
     for k, s in cmp.items():
         assert s.points.count == 16 and s.matching.correct_match_count == 16, (k, rows[k])
-    assert rows["true"].depth_rms_mm < 2.0 * ideal_rms, (rows["true"], ideal_rms)  # the oracle undistorts exactly
-    assert rows["estimated"].depth_rms_mm < 2.0 * ideal_rms, (rows["estimated"], ideal_rms)
+    assert rows["true"].centres_depth_rms_mm < 2.0 * ideal_rms, (rows["true"], ideal_rms)  # the oracle undistorts exactly
+    assert rows["estimated"].centres_depth_rms_mm < 2.0 * ideal_rms, (rows["estimated"], ideal_rms)
 
     # the calibration.json the CLI writes hands the lens to `reconstruct --calibration`
     path = tmp_path / "calibration.json"
@@ -72,4 +72,4 @@ def test_distortion_round_trip_returns_the_ideal_depth_error(configs, tmp_path):
     # without undistortion the same images miss by millimetres: the lens matters
     distorted, _ = render_sample(lens_cfg, renderer)
     pinhole = _depth(distorted, result.stereo["fixed_distortion"].to_rig(), result.rays)
-    assert pinhole.points is None or MetricsRow.from_score(pinhole).depth_rms_mm > 10 * ideal_rms
+    assert pinhole.points is None or MetricsRow.from_score(pinhole).centres_depth_rms_mm > 10 * ideal_rms

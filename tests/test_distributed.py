@@ -1,7 +1,7 @@
 """Sweeps on a real Dask cluster: ``dask scheduler`` + 2 ``dask worker`` processes on 127.0.0.1.
 
 Not a mock and not LocalCluster: the CLIs of this environment are started on free loopback
-ports (bench.executors.LoopbackCluster) and always torn down. One test kills a worker
+ports (bench.sweep.executors.LoopbackCluster) and always torn down. One test kills a worker
 (kill -9 of its process group: nanny + worker process) while tasks run; no sample is lost.
 """
 from __future__ import annotations

@@ -110,32 +110,88 @@ def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_
     assert doc["format"] == "middlebury" and doc["samples"][0]["shift_px"] == s
 
 
-def test_kitti_export_reads_back_within_its_quantisation(small_sample_dir, tmp_path, capsys):
-    out = tmp_path / "kitti"
-    code, _, err = export(capsys, small_sample_dir, "--format", "kitti", "--out", out, "--shift", "auto")
-    assert code == 0, err
-    t = out / "training"
-    occ = cv2.imread(str(t / "disp_occ_0" / "000000_10.png"), cv2.IMREAD_UNCHANGED)
-    noc = cv2.imread(str(t / "disp_noc_0" / "000000_10.png"), cv2.IMREAD_UNCHANGED)
-    assert occ.dtype == np.uint16 and np.all(noc[noc > 0] == occ[noc > 0]) and (noc > 0).sum() <= (occ > 0).sum()
+def kitti_standard_loader(root, index: int):
+    """A frame of a KITTI 2015 export read as KITTI tools read it (a transcription, not our code):
+    calib_cam_to_cam parsed as pykitti's read_calib_file does ("key: numbers" per line, lines that
+    are not numbers skipped), f = P_rect_02[0, 0], the baseline from the two projection matrices'
+    [0, 3] entries (the cameras' x offsets, as pykitti derives b_rgb), disparity = uint16 PNG / 256
+    with 0 invalid, depth = f B / d. Returns (depth (H, W), valid, P_rect_02, P_rect_03)."""
     calib = {}
-    for line in (t / "calib_cam_to_cam" / "000000.txt").read_text().splitlines():
-        k, v = line.split(":", 1)
-        calib[k] = np.array([float(x) for x in v.split()])
+    for line in (root / "training" / "calib_cam_to_cam" / f"{index:06d}.txt").read_text().splitlines():
+        key, value = line.split(":", 1)
+        try:
+            calib[key] = np.array([float(x) for x in value.split()])
+        except ValueError:
+            pass
     P2, P3 = calib["P_rect_02"].reshape(3, 4), calib["P_rect_03"].reshape(3, 4)
-    f, B = P2[0, 0], -P3[0, 3] / P3[0, 0]
-    cx_diff = P3[0, 2] - P2[0, 2]  # the shift, as KITTI readers see it in the projection matrices
-    valid = occ > 0
-    d = occ[valid] / 256.0
-    z_true = gt_depth(small_sample_dir)
-    s = int(round(cx_diff))
-    z = f * B / (d + cx_diff)
-    rel = np.abs(z / z_true[:, s:][valid] - 1)
-    assert valid.sum() > 10000 and rel.max() < 1 / (256 * 2 * d.min()) + 1e-6
-    assert cv2.imread(str(t / "image_2" / "000000_10.png"), cv2.IMREAD_UNCHANGED).shape == occ.shape
-    # a shift that makes disparities negative does not fit KITTI's PNG: refused, nothing written
-    code, _, err = export(capsys, small_sample_dir, "--format", "kitti", "--out", tmp_path / "k2", "--shift", "400")
-    assert code == 2 and "do not fit KITTI" in err and not (tmp_path / "k2").exists()
+    f = P2[0, 0]
+    baseline = P2[0, 3] / P2[0, 0] - P3[0, 3] / P3[0, 0]
+    disp = cv2.imread(str(root / "training" / "disp_occ_0" / f"{index:06d}_10.png"), cv2.IMREAD_ANYDEPTH)
+    disp = disp.astype(np.float32) / 256.0
+    valid = disp > 0
+    depth = np.zeros(disp.shape)
+    depth[valid] = f * baseline / disp[valid]
+    return depth, valid, P2, P3
+
+
+def true_depth_by_ray_casting(sample, K, pixels_vu):
+    """z-depth (m) of the plate at the centres of ``pixels_vu`` ((N, 2) rows, columns) of a camera with
+    intrinsics K at the sample's left pose (calib.json): rays cast against the sample's mesh (trimesh)."""
+    import trimesh
+    cam = json.loads((sample / "calib.json").read_text())["left"]
+    R, t = np.array(cam["R"]), np.array(cam["t"])
+    mesh = trimesh.load(sample / "plate.ply", process=False, force="mesh")
+    uv1 = np.c_[pixels_vu[:, 1], pixels_vu[:, 0], np.ones(len(pixels_vu))].astype(np.float64)
+    rays = (np.linalg.inv(K) @ uv1.T).T @ R  # camera-frame directions to world (R^T d, row vectors)
+    origin = -R.T @ t
+    hits, ray_idx, _ = mesh.ray.intersects_location(np.repeat(origin[None], len(rays), 0), rays, multiple_hits=True)
+    z = np.full(len(rays), np.inf)
+    zc = (hits @ R.T + t)[:, 2]
+    np.minimum.at(z, ray_idx, zc)  # the first surface along each ray
+    return z
+
+
+@pytest.mark.parametrize("distance, bend, factor", [(None, None, 1), (0.30, 20, 2), (0.31, 12, 2)])
+def test_kitti_export_read_by_a_standard_kitti_loader_gives_the_true_depth(small_sample_dir, tmp_path, capsys,
+                                                                          distance, bend, factor):
+    if distance is None:  # 480 x 360, f 750 px, 0.4 m: disparities about 187 px fit KITTI as rendered
+        sample = small_sample_dir
+    else:  # 640 x 480, f 1000 px, 0.30 m: about 330 px, beyond KITTI's 256: the export resamples
+        sample = tmp_path / "near"
+        assert main(["render", "--out", str(sample), "--width", "640", "--height", "480", "--spp", "1",
+                     "--distance-m", str(distance), "--bend-deg", str(bend)]) == 0
+        capsys.readouterr()
+    out = tmp_path / "kitti"
+    code, text, err = export(capsys, sample, "--format", "kitti", "--out", out)
+    assert code == 0, err
+    assert "doffs" not in (out / "training" / "calib_cam_to_cam" / "000000.txt").read_text()
+    depth, valid, P2, P3 = kitti_standard_loader(out, 0)
+    assert np.array_equal(P2[:, :3], P3[:, :3])  # one K: equal principal points
+    doc = json.loads((out / "export.json").read_text())["samples"][0]
+    assert doc["resample_factor"] == factor and (doc["resampled"] is None) == (factor == 1)
+    if factor > 1:
+        assert "reduced 2x" in doc["resampled"] and "resampled: images reduced 2x" in text
+    src = cv2.imread(str(sample / "images" / "left_passive.png"), cv2.IMREAD_UNCHANGED)
+    im2 = cv2.imread(str(out / "training" / "image_2" / "000000_10.png"), cv2.IMREAD_UNCHANGED)
+    assert im2.shape == depth.shape == (src.shape[0] // factor, src.shape[1] // factor)
+    d = cv2.imread(str(out / "training" / "disp_occ_0" / "000000_10.png"), cv2.IMREAD_ANYDEPTH) / 256.0
+    assert 0 < d[valid].max() < 256
+    noc = cv2.imread(str(out / "training" / "disp_noc_0" / "000000_10.png"), cv2.IMREAD_ANYDEPTH)
+    assert np.all(noc[noc > 0] == (d * 256)[noc > 0]) and (noc > 0).sum() > 0.9 * valid.sum()
+    # the loader's depth against the plate's true depth at the same pixels of the same camera
+    vu = np.argwhere(valid)
+    z_true = true_depth_by_ray_casting(sample, P2[:, :3], vu)
+    hit = np.isfinite(z_true)
+    assert hit.mean() > 0.999 and valid.sum() > 2000
+    rel = np.abs(depth[valid][hit] / z_true[hit] - 1)
+    assert rel.max() < 1e-3, rel.max()  # within 0.1 % at every pixel
+
+
+def test_kitti_export_refuses_a_shift_with_the_reason(small_sample_dir, tmp_path, capsys):
+    for shift in ("auto", "40"):
+        code, _, err = export(capsys, small_sample_dir, "--format", "kitti", "--out", tmp_path / "k", "--shift", shift)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "equal principal points" in err, err
+        assert not (tmp_path / "k").exists()
 
 
 def test_bad_export_requests_are_one_line_errors(small_sample_dir, tmp_path, capsys):

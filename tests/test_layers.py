@@ -2,7 +2,7 @@
 nothing imports in a cycle. Also: the installed package is one namespace (no generic top-level
 names), and every folder with an ``__init__.py`` is listed in pyproject.toml.
 
-Layers (DESIGN.md): plates < scenes < reconstruction, evaluation < bench. Inside scenes, the
+Layers (docs/architecture.md, "Layers"): plates < scenes < reconstruction, evaluation < bench. Inside scenes, the
 plain-numpy scene description knows no renderer (``scenes.render`` is the only Mitsuba user);
 inside bench, cli > run/sweep/report/perf > io/config. Reconstruction never sees ground truth:
 it imports neither ``scenes.render`` (renderer, ground-truth caster) nor ``evaluation``.
@@ -71,7 +71,7 @@ GRAPH = {name: _imports(path, name) for name, path in MODULES.items()}
 
 
 def layer(name: str) -> tuple[int, int]:
-    """(layer across packages, layer inside bench/scenes) of a module; higher imports lower."""
+    """(layer across packages, layer inside bench or scenes) of a module; higher imports lower."""
     parts = name.split(".")
     top = parts[1] if len(parts) > 1 else ""
     if name in ("platebench.errors", "platebench.tolerances", "platebench.version"):
@@ -198,7 +198,7 @@ def test_import_platebench_does_not_load_the_renderer(tmp_path):
 
 
 def test_the_in_memory_pipeline_does_not_load_openexr(tmp_path):
-    """OpenEXR is read and written only where an EXR file is (bench/io/images, method_outputs)."""
+    """OpenEXR is read and written only where an EXR file is (bench/io/images.py, bench/io/method_outputs.py)."""
     mods = ("platebench.bench.run.paper_method", "platebench.bench.run.score", "platebench.bench.sweep.tasks",
             "platebench.bench.io.sample_files")
     r = _run([sys.executable, "-c", f"import sys, importlib; [importlib.import_module(m) for m in {mods!r}]; "

@@ -1,4 +1,4 @@
-"""Issue 13, item 13: installs are reproducible. The lock pins exact versions (pip-compile of
+"""Installs are reproducible. The lock pins exact versions (pip-compile of
 pyproject.toml), README's commands and CI install from it, ``platebench info`` compares."""
 from __future__ import annotations
 

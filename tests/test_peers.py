@@ -312,7 +312,8 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     assert "paper" in text and "sgbm" in text
     doc = json.loads((out / "compare.json").read_text())
     assert set(doc["methods"]) == {"paper", "sgbm"}
-    assert doc["methods"]["paper"]["depth_median_mm"] < 0.01
+    assert doc["methods"]["paper"]["centres_depth_median_mm"] < 0.01  # the square centres: sparse
+    assert "depth_median_mm" not in doc["methods"]["paper"]  # no figure over the plate's pixels for the paper
     assert doc["methods"]["sgbm"]["n_images"] == 1
     assert (out / "compare.png").stat().st_size > 1000
     capsys.readouterr()

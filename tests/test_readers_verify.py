@@ -4,6 +4,8 @@ allocated, and only regular files are read. The datasets are copies of one small
 (``small_sample_dir``), laid out as ``platebench sweep`` lays them, with the manifest's checksums."""
 from __future__ import annotations
 
+import base64
+
 import hashlib
 import json
 import os
@@ -17,9 +19,10 @@ import pytest
 
 from platebench.bench.cli.main import main
 from platebench.bench.io.dataset_reader import PlateBenchDataset
-from platebench.bench.io.images import DatasetError, check_ply, exr_size, load_npy, read_pfm, read_png, write_pfm
+from platebench.bench.io.images import DatasetError, check_ply, exr_size, load_npy, read_pfm, read_png, write_pfm, write_png
 from platebench.bench.io.method_outputs import read_disparity, read_points
 from platebench.bench.io.outputs import STAMP
+from platebench.bench.report.thumbs import thumbnail_png
 from platebench.bench.perf.bad_inputs_outputs import (
     _PLY_HUGE,
     _PLY_LYING,
@@ -53,7 +56,7 @@ def make_dataset(root: Path, sample: Path) -> Path:
             shutil.copy2(d / "images" / "right_passive.png", d / "images" / "left_passive.png")
             shutil.copy2(d / "images" / "right_active.png", d / "images" / "left_active.png")
             disp = read_pfm(d / "gt" / "disp0GT.pfm")
-            disp[np.isfinite(disp)] += 0.25
+            disp[np.isfinite(disp)] += 2e-4  # bytes that differ, within the truth files' agreement (tol)
             write_pfm(d / "gt" / "disp0GT.pfm", disp)
             meta = json.loads((d / "sample.json").read_text())
             meta["images"] = {}  # its pixels differ from the render's own record now
@@ -123,8 +126,8 @@ def test_links_in_a_dataset_are_refused(small_sample_dir, tmp_path, capsys):
 
 def test_report_warns_of_what_it_leaves_out_and_never_follows_a_link_out(small_sample_dir, tmp_path, capsys):
     ds = make_dataset(tmp_path / "ds", small_sample_dir)
-    secret = tmp_path / "secret.png"
-    shutil.copy2(small_sample_dir / "images" / "left_active.png", secret)
+    secret = tmp_path / "secret.png"  # a picture outside the dataset, like none of the sample's own
+    write_png(secret, 255 - read_png(small_sample_dir / "images" / "left_active.png"))
     img = ds / "samples" / "0000" / "sample" / "images" / "left_passive.png"
     img.unlink()
     os.symlink(secret, img)
@@ -136,8 +139,10 @@ def test_report_warns_of_what_it_leaves_out_and_never_follows_a_link_out(small_s
     assert any("the folder of sample 0001 is missing" in ln for ln in err)
     text = (ds / "report" / "index.html").read_text()
     assert 'images/left_passive.png"' not in text  # neither linked nor thumbnailed: only named in the note
-    thumbs = sorted(p.name for p in (ds / "report" / "thumbs").glob("*.png"))
-    assert thumbs and not any("left_passive" in t for t in thumbs)
+    # thumbnails are embedded: the other images of sample 0000 are shown, the linked file's pixels are not
+    shown = base64.b64encode(thumbnail_png(ds / "samples" / "0000" / "sample" / "images" / "left_active.png"))
+    hidden = base64.b64encode(thumbnail_png(secret))
+    assert shown.decode() in text and hidden.decode() not in text
     # a truncated PNG of a render without a stamp: said, not shown
     s = tmp_path / "s"
     shutil.copytree(small_sample_dir, s)

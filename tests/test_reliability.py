@@ -1,4 +1,4 @@
-"""Issue 13, items 3-8 and 12: concurrent runs, duplicate rows, poisoned samples, damaged files,
+"""Concurrent runs, duplicate rows, poisoned samples, damaged files,
 staged outputs, stale state. Real renders (small), real processes, real kills by PID."""
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def n_committed(out: Path) -> int:
     return len(list((out / "samples").glob(f"*/{RESULT}"))) if (out / "samples").is_dir() else 0
 
 
-# ----------------------------------------------------------------------------- item 3: the dataset lock
+# ----------------------------------------------------------------------------- the dataset lock
 @pytest.mark.render
 def test_second_sweep_into_a_dataset_is_refused_and_a_stale_lock_taken_over(tmp_path):
     spec = write_spec(tmp_path / "s.toml", [0, 5, 10, 15, 20, 25, 30, 35])
@@ -87,7 +87,7 @@ def test_second_sweep_into_a_dataset_is_refused_and_a_stale_lock_taken_over(tmp_
     assert not lock.exists() and not stale_files(out)
 
 
-# ----------------------------------------------------------------------------- item 4: a failed write
+# ----------------------------------------------------------------------------- a failed write
 @pytest.mark.render
 def test_a_failed_write_is_an_error_of_the_output_not_a_failed_sample(tmp_path):
     """The dataset lives on a 96 KiB tmpfs (a user namespace): the render succeeds, writing it fails
@@ -114,7 +114,7 @@ def test_a_failed_write_is_an_error_of_the_output_not_a_failed_sample(tmp_path):
     assert res == {"raised": "ENOSPC", "left": []}, res
 
 
-# ----------------------------------------------------------------------------- item 5: poisoned samples
+# ----------------------------------------------------------------------------- poisoned samples
 def _kill_attempts_of(out: Path, sid: str, stop: threading.Event, killed: list) -> None:
     """kill -9 every process that starts an attempt at sample ``sid`` (its attempt directory names it)."""
     from platebench.bench.io.atomic import temp_owner
@@ -162,7 +162,7 @@ def test_poisoned_sample_does_not_take_down_its_neighbour(tmp_path):
     assert not stale_files(out)
 
 
-# ----------------------------------------------------------------------------- item 6: resume verifies
+# ----------------------------------------------------------------------------- resume verifies
 @pytest.mark.render
 def test_resume_redoes_samples_whose_files_do_not_match(tmp_path):
     from platebench.bench.sweep.executors import LocalExecutor, run_sweep
@@ -184,7 +184,7 @@ def test_resume_redoes_samples_whose_files_do_not_match(tmp_path):
     assert read_manifest(out)["state"] == "complete"
 
 
-# ----------------------------------------------------------------------------- items 7, 8, 12: staged outputs
+# ----------------------------------------------------------------------------- staged outputs
 @pytest.mark.render
 def test_simultaneous_renders_to_one_out_one_wins_the_other_is_refused(tmp_path):
     out = tmp_path / "s"
@@ -281,7 +281,7 @@ def test_demo_is_staged(tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["demo"]
 
 
-# ----------------------------------------------------------------------------- item 12: stale manifests
+# ----------------------------------------------------------------------------- stale manifests
 def test_manifest_is_not_left_running_and_keeps_up_with_the_samples(tmp_path):
     spec = write_spec(tmp_path / "s.toml", [0, 10, 20, 30])
     out = tmp_path / "ds"

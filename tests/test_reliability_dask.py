@@ -1,4 +1,4 @@
-"""Issue 13, items 1, 2 and 11: Dask faults with a real scheduler and real workers on 127.0.0.1.
+"""Dask faults with a real scheduler and real workers on 127.0.0.1.
 
 The scheduler and workers are the ``dask`` CLIs of this environment (``LoopbackCluster``), killed
 by PID (kill -9 of the process group). A lost scheduler or the loss of every worker is an error
@@ -54,7 +54,7 @@ def listening(pids: set[int]) -> list[tuple[str, int]]:
 
 
 def test_cluster_binds_loopback_only_without_dashboard():
-    """Item 11: scheduler, nannies, workers and their HTTP servers listen on 127.0.0.1 only, and no
+    """Scheduler, nannies, workers and their HTTP servers listen on 127.0.0.1 only, and no
     dashboard is served (nothing on 8787) unless asked for."""
     from platebench.bench.sweep.executors import LoopbackCluster
     with LoopbackCluster(n_workers=2) as c:
@@ -65,7 +65,7 @@ def test_cluster_binds_loopback_only_without_dashboard():
 
 
 def test_lost_scheduler_is_an_error_of_the_sweep_and_resume_finishes_it(tmp_path):
-    """Item 1: kill -9 the scheduler after a few results: the sweep exits != 0 with one line, the
+    """Kill -9 the scheduler after a few results: the sweep exits != 0 with one line, the
     manifest says "interrupted" with no sample failed, the orphaned workers commit nothing; --resume
     on a new cluster redoes no committed sample and completes the sweep."""
     from platebench.bench.sweep.executors import LoopbackCluster
@@ -116,7 +116,7 @@ def test_lost_scheduler_is_an_error_of_the_sweep_and_resume_finishes_it(tmp_path
 
 
 def test_all_workers_lost_stops_the_sweep_with_an_error(tmp_path):
-    """Item 2: kill -9 every worker: the sweep stops within its worker timeout with one line instead of
+    """Kill -9 every worker: the sweep stops within its worker timeout with one line instead of
     waiting forever; the manifest says "interrupted"."""
     from platebench.bench.sweep.executors import LoopbackCluster
     spec = tmp_path / "s.toml"
@@ -150,7 +150,7 @@ def test_all_workers_lost_stops_the_sweep_with_an_error(tmp_path):
 
 
 def test_scheduler_address_errors_are_one_line_within_a_time_limit(tmp_path):
-    """Item 2: a listening port that is not Dask, and tcp://127.0.0.1 without a port, fail with one line
+    """A listening port that is not Dask, and tcp://127.0.0.1 without a port, fail with one line
     (no 'Exception ignored' traceback), within the connection time limit, writing nothing."""
     spec = tmp_path / "s.toml"
     spec.write_text(tomli_w.dumps({"base": SMALL, "grid": {"bend_deg": [0]}}))

@@ -52,8 +52,8 @@ def make_dataset(root: Path, columns: list[str] | None = None) -> Path:
                      "error": FAIL_MSG if failed else None, "family": "cylinder", "bend_deg": bend,
                      "direction": "up" if i % 2 == 0 else "down", "axis_deg": 0.0, "material": "diffuse",
                      "distance_m": 0.4, "noise": "none", "width_px": 320,
-                     "depth_rms_mm": None if failed else 0.02 + 0.01 * i,
-                     "depth_max_mm": None if failed else 0.05 * (i + 1),
+                     "centres_depth_rms_mm": None if failed else 0.02 + 0.01 * i,
+                     "centres_depth_max_mm": None if failed else 0.05 * (i + 1),
                      "xy_radial_rms_mm": None if failed else 0.03,
                      "boundary_mean_mm": None if failed else 0.2 + 0.1 * i,
                      "boundary_hausdorff_mm": None if failed else 0.8, "surface_rms_mm": None if failed else 0.1,
@@ -103,7 +103,7 @@ def make_study(root: Path, with_extras: bool = True) -> Path:
             else:
                 r.update(error="", detected=gt and bend > 90 or (not gt and bend == 60), counting_test=gt and bend > 90,
                          arrays_disagree=gt, squares_expected=16, squares_left=16 - int(gt) * 2,
-                         squares_right=16 - int(gt), depth_rms_mm=0.02 + bend / 1000, xy_radial_rms_mm=0.03,
+                         squares_right=16 - int(gt), centres_depth_rms_mm=0.02 + bend / 1000, xy_radial_rms_mm=0.03,
                          boundary_mean_mm=0.2 + bend / 100, matched=16)
                 if gt:
                     r.update(cure1_removed=bend < 120, cure1_hidden_frac=0.0 if bend < 120 else 0.05,
@@ -157,10 +157,24 @@ def _check_png(path: Path) -> tuple[int, int]:
     return img.shape[1], img.shape[0]
 
 
+def embedded_thumbnails(text: str) -> list[tuple[str, str, np.ndarray]]:
+    """(alt, href, decoded image) of every thumbnail a page embeds (an image linked to its full file)."""
+    import base64
+
+    import cv2
+    out = []
+    for href, alt, data in re.findall(r'<a href="([^"]+)"><img alt="([^"]+)" src="data:image/png;base64,([^"]+)">',
+                                      text):
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(data), np.uint8), cv2.IMREAD_UNCHANGED)
+        assert img is not None, alt
+        out.append((alt, href, img))
+    return out
+
+
 def _check_self_contained(index: Path) -> list[str]:
-    """The page needs nothing outside itself and its folder: no scripts, no external assets or links;
-    plots embedded as PNG data URIs, every other image and every link a relative path that exists.
-    Returns the embedded images' URIs."""
+    """The page is the report on its own: no scripts, no external assets or links; every image
+    embedded as a PNG data URI (plots and thumbnails: the page shows them when copied alone), every
+    link a relative path that exists. Returns the embedded images' URIs."""
     text = index.read_text()
     assert text.startswith("<!DOCTYPE html>")
     assert f'content="{GENERATOR}"' in text
@@ -169,7 +183,8 @@ def _check_self_contained(index: Path) -> list[str]:
         assert bad not in low, bad
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]*)"', text)
     embedded = [s for s in srcs if s.startswith("data:")]
-    assert embedded and all(s.startswith("data:image/png;base64,") for s in embedded)
+    assert embedded and all(s.startswith("data:image/png;base64,") for s in srcs)
+    assert not (index.parent / "thumbs").exists()
     for ref in [s for s in srcs if not s.startswith("data:")] + re.findall(r'href="([^"]*)"', text):
         if ref.startswith("#"):
             assert f'id="{ref[1:]}"' in text, ref
@@ -203,7 +218,7 @@ def test_dataset_report(tmp_path):
     assert "ReconstructionError: &lt;left_active.png&gt; found 0 squares &amp; see" in text  # escaped, verbatim
     assert "<left_active.png>" not in text
     assert "By bend angle" in text
-    assert "x/y radial RMS (mm)" in text  # labels from evaluation.metrics_row
+    assert "x/y radial RMS at the square centres (mm)" in text  # labels from evaluation.metrics_row
     names = _plot_names(ds / "report")
     assert {"dataset_method_comparison", "dataset_error_vs_bend", "dataset_detection_vs_bend"} <= names
     assert len(srcs) == len(names)
@@ -227,7 +242,8 @@ def test_method_summary_values(tmp_path):
     s = method_summary(frame)
     assert list(s) == ["paper", "sgbm"]
     assert s["paper"]["ok"] == 3 and s["paper"]["failed"] == 1
-    d = s["paper"]["metrics"]["depth_rms_mm"]
+    d = s["paper"]["metrics"]["centres_depth_rms_mm"]
+    assert "depth_rms_mm" not in s["paper"]["metrics"] and s["sgbm"]["metrics"]["depth_rms_mm"]["n"] == 3
     assert d["n"] == 3 and d["mean"] == pytest.approx(0.03) and d["median"] == pytest.approx(0.03)
     fb = s["paper"]["metrics"]["false_boundary_detected"]
     assert fb["kind"] == "rate" and fb["mean"] == pytest.approx(1 / 3) and fb["true"] == 1
@@ -264,7 +280,7 @@ def test_study_report(tmp_path):
     assert "Detection precision / recall" in text and "0.6667" in text
     assert "L formula" in text and "\u221e" in text  # the never-visible GT distance
     assert "Cases (10)" in text and "no plate region" in text
-    assert "x/y radial RMS (mm)" in text and "bend angle (deg)" in text  # labels from the registries
+    assert "x/y radial RMS at the square centres (mm)" in text and "bend angle (deg)" in text  # labels from the registries
     head = text[text.index('id="headline"'):text.index("<nav>")]
     assert "False-boundary study" in head and "GT false boundary" in head
     names = _plot_names(tmp_path / "out")
@@ -436,12 +452,11 @@ def test_error_map_on_a_real_tiny_sample(tmp_path):
     assert "Per-sample error maps" in text
     _check_png(ds / "report" / "plots" / "dataset_error_map_0000_paper.png")
     assert 'href="../samples/0000/"' in text
-    thumbs = sorted((ds / "report" / "thumbs").glob("*.png"))
-    assert [t.name for t in thumbs] == ["dataset_0000_left_active.png", "dataset_0000_left_passive.png"]
-    import cv2
-    t = cv2.imread(str(thumbs[0]), cv2.IMREAD_UNCHANGED)
+    thumbs = embedded_thumbnails(text)
+    assert [(alt, href) for alt, href, _ in thumbs] == [("0000 left_passive", "../samples/0000/sample/images/left_passive.png"),
+                                                        ("0000 left_active", "../samples/0000/sample/images/left_active.png")]
+    t = thumbs[1][2]
     assert t.dtype == np.uint8 and t.shape[1] == 160  # images narrower than a thumbnail are kept as they are
-    assert 'src="thumbs/dataset_0000_left_active.png"' in text
 
 
 # ----------------------------------------------------------------------------- swept axes (realism study)
@@ -470,7 +485,7 @@ def make_realism_dataset(root: Path, with_manifest: bool = True) -> Path:
                 r = {"sample_id": sid, "index": i, "method": m, "status": "ok", "error": None, "family": "cylinder",
                      "bend_deg": 10.0, "direction": "up", "material": "roughconductor", "metal": "Al",
                      "roughness": rough, "distance_m": 0.4, "noise": noise, "width_px": 320, "height_px": 240,
-                     "spp": 4, "seed": 0, "depth_rms_mm": depth}
+                     "spp": 4, "seed": 0, "centres_depth_rms_mm" if m == "paper" else "depth_rms_mm": depth}
                 if m == "paper":
                     incomplete = (rough, noise) == (0.05, "high")
                     r.update(matched_count=12 if incomplete else 16, expected_count_gt=16,
@@ -517,12 +532,13 @@ def test_axis_stats_failure_kinds_by_hand(tmp_path):
     c = st["cells"][("graycode-subpx", 0.5)]  # one crashed, one ok without a depth RMS; no verdicts
     assert (c["crashed"], c["rows"], c["bound_known"], c["match_known"], c["median"]) == (1, 2, 0, 0, None)
     assert st["cells"][("sgbm", 0.2)]["crashed"] == 0
-    sn = S.axis_stats(frame, "noise")
+    sn = S.axis_stats(frame, "noise", "depth_rms_mm")  # the dense maps' figure: sgbm's, graycode's
     assert not sn["numeric"] and [lv["key"] for lv in sn["levels"]] == ["none", "high"]
     c = sn["cells"][("sgbm", "high")]  # crashed at 0.05; ok at 0.2 and 0.5 -> 1/3
     assert (c["crashed"], c["rows"]) == (1, 3)
     assert c["median"] == pytest.approx(statistics.median([3.0 * 3 * 2, 3.0 * 6 * 2]))
     assert (sn["cells"][("paper", "high")]["bound_violated"], sn["cells"][("paper", "none")]["mismatched"]) == (1, 1)
+    assert sn["cells"][("paper", "high")]["median"] is None  # the paper has no figure over the pixels
 
 
 def test_axis_levels_order_and_bins():
@@ -573,7 +589,8 @@ def test_dataset_report_swept_axes(tmp_path):
     # the tables: each kind of failure with its count, medians in mm
     rough = text[text.index("<h4>roughness (GGX alpha)</h4>"):text.index("<h4>sensor noise</h4>")]
     # roughness 0.05: paper median 0.45, no crash, bound violated 1 of 2, mismatched 0 of 2
-    assert "<td>0.05</td><td>0.45</td><td>0 / 2</td><td>1 / 2</td><td>0 / 2</td>" in rough
+    # (each depth figure in its own column: the paper's at the centres, none over the pixels)
+    assert "<td>0.05</td><td>0.45</td><td>–</td><td>0 / 2</td><td>1 / 2</td><td>0 / 2</td>" in rough
     assert "<td>1 / 2</td><td>–</td><td>–</td>" in rough  # graycode at 0.5: 1 crash of 2, no verdicts
     noise = text[text.index("<h4>sensor noise</h4>"):]
     assert "<td>1 / 3</td>" in noise
@@ -583,8 +600,9 @@ def test_dataset_report_swept_axes(tmp_path):
     assert "every point pools their samples: roughness (GGX alpha) (0.05, 0.2, 0.5)" in noise
     # the method-specific metric is shown for the method that has it, and only for it
     extra = text[text.index("Method-specific metrics"):text.index("Failures by kind")]
-    assert "mb all bad 1 0 (%)" in extra and ">graycode-subpx<" in extra and ">sgbm<" not in extra
-    assert "mb all bad 1 0 (%)</td><td>2</td><td>2</td><td>5</td>" in extra  # (.5+.5+2+2+5)/5
+    label = "Middlebury bad 1.0 px, all pixels with known truth (%)"  # from the column's family
+    assert label in extra and ">graycode-subpx<" in extra and ">sgbm<" not in extra
+    assert f"{label}</td><td>2</td><td>2</td><td>5</td>" in extra  # (.5+.5+2+2+5)/5
     # without a manifest the same axes are found from the columns
     ds2 = make_realism_dataset(tmp_path / "ds2", with_manifest=False)
     write_report(ds2)
@@ -603,3 +621,53 @@ def test_plot_metric_vs_axis_edge_cases(tmp_path):
     # an axis no row has: a note, not an exception
     assert P.plot_metric_vs_axis(frame, "distance_mm", tmp_path / "c.png").read_bytes()[:8] == PNG_SIG
     assert P.plot_metric_vs_axis(frame.iloc[:0], "noise", tmp_path / "d.png").read_bytes()[:8] == PNG_SIG
+
+
+def flat_cloud(inputs):
+    """A plug-in for the report test: a flat grid of points in z = 0 over the plate's size (no truth used)."""
+    from platebench.bench.run.plugins import Points
+    x, y = np.meshgrid(np.linspace(-0.05, 0.05, 30), np.linspace(-0.03, 0.03, 20))
+    return Points(np.c_[x.ravel(), y.ravel(), np.zeros(x.size)])
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_a_real_sweep_report_has_an_error_map_for_every_method(tmp_path):
+    """A real (tiny) sweep with the paper's pipeline, SGBM (a disparity map) and a plug-in's point
+    cloud: each method gets its error maps, labelled; the headline compares each depth figure only among
+    the methods that report it, and says which figure it is."""
+    from platebench.bench.sweep.executors import LocalExecutor, run_sweep
+    from platebench.bench.sweep.spec import load_spec
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nname = "maps"\nmethods = ["paper", "sgbm", "tests.test_report:flat_cloud"]\n'
+                    '[base.scene]\nwidth = 320\nheight = 240\n[base.render]\nspp = 2\n[grid]\nbend_deg = [0, 20]\n')
+    ds = tmp_path / "ds"
+    summary = run_sweep(load_spec(spec), ds, LocalExecutor(0), progress=False)
+    assert summary.ok == 2, summary.results
+    index = write_report(ds)
+    _check_self_contained(index)
+    text = index.read_text()
+    names = _plot_names(ds / "report")
+    for m in ("paper", "sgbm", "tests_test_report_flat_cloud"):
+        assert {f"dataset_error_map_0000_{m}", f"dataset_error_map_0001_{m}"} <= names, (m, sorted(names))
+    assert "method sgbm; a disparity or depth map: the left view" in text
+    head = text[text.index('id="headline"'):text.index("<nav>")]
+    assert re.search(r"median depth RMS at the square centres: paper [0-9.]+ mm", head), head
+    assert re.search(r"median depth RMS over the plate&#39;s pixels: sgbm [0-9.]+ mm", head), head
+    assert "paper" not in head.split("median depth RMS over the plate")[1].split(";")[0]
+
+
+def test_results_read_back_with_their_types(tmp_path):
+    """results.csv's sample_id "0000" is text: platebench.results() reads it as such (a plain pandas
+    read_csv would make it the number 0; README says so and gives the dtype to pass)."""
+    import pandas as pd
+
+    import platebench
+    from platebench.errors import PlateBenchError
+    ds = make_dataset(tmp_path / "ds")
+    frame = platebench.results(ds)
+    assert frame["sample_id"].tolist()[:2] == ["0000", "0000"] and frame["sample_id"].map(type).eq(str).all()
+    assert pd.read_csv(ds / "results.csv")["sample_id"].iloc[0] == 0  # the pitfall, as README states it
+    assert pd.read_csv(ds / "results.csv", dtype={"sample_id": str})["sample_id"].iloc[0] == "0000"
+    with pytest.raises(PlateBenchError, match="holds no results"):
+        platebench.results(tmp_path)

@@ -19,7 +19,7 @@ from platebench.bench.config import SampleConfig
 from platebench.bench.report.html import ReportInputError, write_report
 from platebench.bench.report.inputs import detect_inputs, load_results, sample_folder
 from platebench.errors import UserValueError
-from tests.test_report import make_dataset, make_study
+from tests.test_report import embedded_thumbnails, make_dataset, make_study
 
 
 def _refused(capsys, path: Path, match: str) -> None:
@@ -194,7 +194,7 @@ def make_sensing(root: Path, outcome: str | None = "clean") -> Path:
                                          "false_boundary_detected": False}, "gt_visibility": vis}],
            "cures": 0, "final": {"matched": 16, "gt_visibility": vis,
                                  "false_boundary": {"false_boundary_detected": False},
-                                 "accuracy": {"depth_rms_mm": 0.016, "paper_bound_met": True}},
+                                 "accuracy": {"centres_depth_rms_mm": 0.016, "paper_bound_met": True}},
            "time_s": 32.0}
     if outcome:
         doc["final"]["outcome"] = outcome
@@ -223,10 +223,9 @@ def test_report_of_a_single_sample(tmp_path):
     head = _headline(text)
     assert "reference experiment" in head and "part of the true boundary is hidden" in head
     refs = _check_links(index)
-    thumbs = sorted((index.parent / "thumbs").glob("*.png"))
-    assert len(thumbs) == 4 and all(f"thumbs/{t.name}" in refs for t in thumbs)
-    for t in thumbs:
-        img = cv2.imread(str(t), cv2.IMREAD_UNCHANGED)
+    thumbs = embedded_thumbnails(text)  # in the page itself: no thumbnail files
+    assert len(thumbs) == 4 and all(href in refs for _, href, _ in thumbs) and not (index.parent / "thumbs").exists()
+    for _, _, img in thumbs:
         assert img.dtype == np.uint8 and img.shape == (150, 200)  # 640x480 scaled to 200 px wide, 8-bit
     assert "../images/left_active.png" in refs and "../" in refs  # each thumbnail opens its image; the folder
     assert "bend angle (deg)" in text and "sensor noise" in text  # the parameters, labelled by the registry
@@ -239,11 +238,12 @@ def test_report_of_a_reconstruction_with_its_score(tmp_path):
     head = _headline(text)
     assert "The paper&#39;s reference experiment (V)" in head
     assert '<span class="badge not">not met</span><b>paper&#39;s bound (V-D)</b>' in head
-    assert "14 / 16" in head and "0.0102" in head and "x/y radial RMS (mm)" in head
+    assert "14 / 16" in head and "0.0102" in head and "x/y radial RMS at the square centres" in head
+    assert "depth RMS at the square centres" in head  # the score's points part: the paper's sparse centres
     assert "false boundary detected" in text and "3, 7" in text  # recon.json's verdict and unmatched squares
     refs = _check_links(index)
     assert "../score.json" in refs and "../" in refs and "../../sample/" in refs
-    assert len(list((index.parent / "thumbs").glob("*.png"))) == 4
+    assert len(embedded_thumbnails(text)) == 4
     # the sample it came from is shown with it, not twice
     inp = detect_inputs(tmp_path / "x")
     assert inp.recons == [recon] and inp.samples == []
@@ -265,7 +265,7 @@ def test_report_of_a_sensing_run_gives_its_outcome(tmp_path):
     text = index.read_text()
     assert "Outcome: clean" in _headline(text)
     assert "stage 3 &lt;near&gt;" in text  # reasons escaped, verbatim
-    assert "depth RMS (mm)" in text  # the final accuracy, labelled by the metric registry
+    assert "depth RMS at the square centres" in text  # the final accuracy, labelled by the metric registry
     d2 = make_sensing(tmp_path / "sense2", outcome=None)  # today's sensing.json: no outcome class yet
     assert "The loop reports no false boundary" in _headline(write_report(d2).read_text())
 
@@ -308,8 +308,9 @@ def test_report_of_a_dataset_sample_with_peer_outputs(tmp_path):
     head = _headline(text)
     assert head.index("reference experiment (V)</h2>") < head.index("reference experiment (V): sgbm</h2>")
     sg = head[head.index(": sgbm"):]
-    assert "6.41" in sg and "1.16" in sg and "Middlebury bad 1.0 (all) (%)" in sg and "15.5" in sg
-    assert len(list((index.parent / "thumbs").glob("*.png"))) == 4  # the sample's images once
+    assert "6.41" in sg and "1.16" in sg and "Middlebury bad 1.0 px, all pixels with known truth" in sg
+    assert "depth RMS over the plate&#39;s pixels" in sg
+    assert len(embedded_thumbnails(text)) == 4  # the sample's images once
     assert "(shown above)" in text
     _check_links(index)
 
@@ -339,7 +340,7 @@ def test_render_reconstruct_evaluate_report_from_the_command_line(tmp_path):
     assert proc.returncode == 0 and proc.stdout.strip() == str(s / "report" / "index.html"), proc.stderr[-2000:]
     head = _headline((s / "report" / "index.html").read_text())
     assert "Sample s" in head and "the whole true boundary is visible" in head  # 320x240: not the reference
-    assert len(list((s / "report" / "thumbs").glob("*.png"))) == 4
+    assert len(embedded_thumbnails((s / "report" / "index.html").read_text())) == 4
     proc = run_cli("report", r)
     assert proc.returncode == 0, proc.stderr[-2000:]
     index = r / "report" / "index.html"
@@ -417,3 +418,45 @@ def test_a_sample_holding_its_reconstruction(tmp_path):
     inp = detect_inputs(sample)
     assert inp.recons == [inner] and inp.samples == []
     assert "reference experiment (V)" in _headline(write_report(sample).read_text())
+
+
+@pytest.mark.render
+def test_report_of_scores_that_evaluate_wrote_for_other_programs_outputs(small_sample_dir, tmp_path, capsys):
+    """A folder of a user's outputs, each scored with 'platebench evaluate' (F.score.json beside F): the
+    report shows each score with labelled figures, its plausibility hints and an error map of the file."""
+    import trimesh
+
+    from platebench.bench.io.field_truth import load_field_truth
+    from platebench.bench.io.images import write_pfm
+    from tests.test_report import _check_self_contained
+    t = load_field_truth(small_sample_dir)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    write_pfm(mine / "disp0.pfm", np.where(np.isfinite(t.disparity), t.disparity + 0.3, np.inf).astype(np.float32))
+    np.save(mine / "depth_mm.npy", np.where(t.mask, t.depth * 1e3, np.inf))
+    mesh = trimesh.load(small_sample_dir / "plate.ply", process=False, force="mesh")
+    np.save(mine / "cloud.npy", trimesh.sample.sample_surface(mesh, 2000, seed=1)[0])
+    for flag, name in (("disparity", "disp0.pfm"), ("depth", "depth_mm.npy"), ("points", "cloud.npy")):
+        assert main(["evaluate", str(small_sample_dir), f"--{flag}", str(mine / name)]) == 0
+    capsys.readouterr()
+    assert [p.name for p in detect_inputs(mine).scores] == ["cloud.score.json", "depth_mm.score.json",
+                                                            "disp0.score.json"]
+    index = write_report(mine)
+    _check_self_contained(index)
+    text = index.read_text()
+    for title in ("Score of disp0 (disparity output)", "Score of depth_mm (depth output)",
+                  "Score of cloud (points output)"):
+        assert title in text
+    assert "Middlebury bad 1.0 px, all pixels with known truth" in text  # labels from the column registry
+    assert "depth RMS over the plate&#39;s pixels" in text
+    assert "plausibility: the median depth error" in text and "is this file in millimetres?" in text
+    assert text.count("Error map of disp0&#39;s disparity output") == 1
+    assert text.count("Error map of cloud&#39;s points output") == 1
+    assert "error map unavailable" not in text
+    # a sensing run's merged reconstruction, scored as README shows it, is reported with the run
+    sense = make_sensing(tmp_path / "sense")
+    np.save(sense / "merged_points.npy", trimesh.sample.sample_surface(mesh, 500, seed=2)[0])
+    assert main(["evaluate", str(small_sample_dir), "--points", str(sense / "merged_points.npy")]) == 0
+    capsys.readouterr()
+    text = write_report(sense).read_text()
+    assert "Outcome: clean" in _headline(text) and "Score of merged_points (points output)" in text

@@ -137,6 +137,9 @@ def test_metrics_row_columns_and_units():
 
 
 def test_metric_labels_carry_the_unit_once():
-    assert metric_label("depth_rms_mm") == "depth RMS (mm)"
-    assert metric_label("eth_all_a50_px") == "eth all a50 (px)"
-    assert metric_label("mb_all_bad_1_0_pct") == "mb all bad 1 0 (%)"
+    assert metric_label("depth_rms_mm") == "depth RMS over the plate's pixels (mm)"
+    assert metric_label("centres_depth_rms_mm") == "depth RMS at the square centres (mm)"
+    assert metric_label("eth_all_a50_px") == "ETH3D A50 error, all pixels with known truth (px)"
+    assert metric_label("mb_all_bad_1_0_pct") == "Middlebury bad 1.0 px, all pixels with known truth (%)"
+    assert metric_label("depth_bad_0_1_mm_pct") == "estimated plate pixels with depth error > 0.1 mm (%)"
+    assert metric_label("method_lit_px") == "the method's own figure 'lit_px'"

@@ -73,7 +73,10 @@ def test_disparity_shifted_half_pixel_gives_avgerr_half_exactly(small_sample_dir
     from platebench.bench.io.field_truth import load_field_truth
     from platebench.evaluation.field_scores import score_disparity
     t = load_field_truth(small_sample_dir)
-    s = score_disparity(t.disparity + 0.5, t)  # float64: every error is exactly 0.5 px
+    # the truth scored against is the file the user is given, bit for bit
+    from platebench.bench.io.images import read_pfm
+    assert np.array_equal(t.disparity, read_pfm(small_sample_dir / "gt" / "disp0GT.pfm").astype(np.float64))
+    s = score_disparity(t.disparity + 0.5, t)  # the file's float32 truth + 0.5: every error is exactly 0.5 px
     for reg in (s.middlebury.all, s.middlebury.nonocc):
         assert reg.avgerr == 0.5 and reg.rms == 0.5 and reg.invalid_pct == 0.0
         assert dict(reg.bad_pct) == {0.5: 0.0, 1.0: 0.0, 2.0: 0.0, 4.0: 0.0}  # bad = error > T, strictly
@@ -81,9 +84,22 @@ def test_disparity_shifted_half_pixel_gives_avgerr_half_exactly(small_sample_dir
     assert s.middlebury.all.gt_count == int(t.mask.sum()) > 10000
     # Implied depth: Z = f B / (d + 0.5) is nearer than the truth by Z^2 / (f B + 0.5 Z) * 0.5.
     z = t.depth[t.mask]
-    expect = t.pair.fb / (t.pair.fb / z + 0.5) - z
+    expect = t.pair.fb / (t.disparity[t.mask] + 0.5 + t.pair.doffs_px) - z
     assert s.depth.errors.signed_mean_m == pytest.approx(expect.mean(), rel=1e-9)
     assert s.depth.coverage_frac == 1.0
+
+
+def test_truth_file_plus_half_pixel_as_a_file_is_not_bad_at_half_pixel(small_sample_dir, tmp_path, capsys):
+    """A user's file holding the sample's own disp0GT.pfm + 0.5 px (both float32, as the Middlebury SDK
+    reads them): every error is exactly 0.5, which is not > 0.5: bad 0.5 = 0 % (the SDK gives the same)."""
+    from platebench.bench.io.images import read_pfm, write_pfm
+    gt = read_pfm(small_sample_dir / "gt" / "disp0GT.pfm")
+    write_pfm(tmp_path / "d.pfm", np.where(np.isfinite(gt), gt + np.float32(0.5), np.inf).astype(np.float32))
+    code, _, err = evaluate(capsys, small_sample_dir, "--disparity", tmp_path / "d.pfm")
+    assert code == 0, err
+    doc = json.loads((tmp_path / "d.score.json").read_text())["score"]["middlebury"]
+    assert doc["mb_all_bad_0_5_pct"] == 0.0 and doc["mb_nonocc_bad_0_5_pct"] == 0.0
+    assert doc["mb_all_avgerr_px"] == 0.5 and doc["mb_all_bad_1_0_pct"] == 0.0
 
 
 def test_noisy_shifted_disparity_file_scores_near_analytic_values(small_sample_dir, tmp_path, capsys):
@@ -329,3 +345,25 @@ def test_nonocclusion_mask_agrees_with_ray_casting(tmp_path):
     both = np.isfinite(a) & np.isfinite(b)
     inside = (np.minimum(a, b) - 0.5 <= d0) & (d0 <= np.maximum(a, b) + 0.5)
     assert both.mean() > 0.8 and inside[both].mean() > 0.99
+
+
+def test_every_column_of_every_kind_has_a_label_of_its_own(small_sample_dir):
+    """Every results column the four kinds produce is a shared field or of a known family, and its label
+    is words, not a mangled name ("depth bad 0 1 mm", "mb all bad 1 0")."""
+    import re
+
+    from platebench.bench.io.field_truth import load_field_truth
+    from platebench.evaluation.field_scores import score_depth, score_disparity, score_mesh, score_point_cloud
+    from platebench.evaluation.metrics_row import METRIC_FIELDS, is_metric, metric_label
+    t = load_field_truth(small_sample_dir)
+    mesh = trimesh.load(small_sample_dir / "plate.ply", process=False, force="mesh")
+    scores = [score_disparity(t.disparity + 0.2, t), score_depth(t.depth + 1e-4, t),
+              score_point_cloud(trimesh.sample.sample_surface(mesh, 500, seed=0)[0], t), score_mesh(mesh, t)]
+    names = {k for s in scores for k in s.metrics_row().columns()} | {"method_lit_px"}
+    assert len(names) > 80
+    unknown = sorted(n for n in names if not is_metric(n))
+    assert not unknown, unknown
+    for n in names:
+        label = metric_label(n)
+        assert not re.search(r"\d \d|\b(mb|eth|pct|frac)\b", label), (n, label)
+        assert n in METRIC_FIELDS or "_" not in label.split("'")[0], (n, label)

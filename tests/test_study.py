@@ -57,7 +57,7 @@ def test_targets_and_detector_scores_count_against_ground_truth():
     t = targets(rows)
     assert (t["silent"], t["errors"], t["curable"], t["cured_of_curable"]) == (0, 1, 2, 1)
     assert t["cured_frac"] == 0.5 and t["false_alarm_frac"] == 0.5
-    assert (t["seen_all_of_curable"], t["seen_all_frac"]) == (2, 1.0)  # cured as the issue counts it
+    assert (t["seen_all_of_curable"], t["seen_all_frac"]) == (2, 1.0)  # cured as the study's first target counts it
     assert (t["verifiable"], t["cured_of_verifiable"]) == (1, 1)
     assert t["met"] == {"silent = 0": True, "errors = 0": False, "cured >= 90 %": True,
                         "verified >= 90 % of the verifiable": True, "false alarms <= 2 %": False}

@@ -1,5 +1,5 @@
 """``study --perturb``: the study's plates moved a little (bend axis, working distance), so that anyone
-can check that its rates are no knife-edge results (issue 12: axis +-1 degree, distance +-5 mm)."""
+can check that its rates are no knife-edge results (axis +-1 degree, distance +-5 mm)."""
 from __future__ import annotations
 
 import json

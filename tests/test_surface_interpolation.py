@@ -1,4 +1,4 @@
-"""Tests for reconstruction.surface_interpolation (energy-minimising interpolation)."""
+"""Tests for reconstruction.paper.surface_interpolation (energy-minimising interpolation)."""
 
 import numpy as np
 import pytest
@@ -143,7 +143,7 @@ def test_non_rectangular_domain_mask():
     grid = interpolate_surface(INNER16, np.zeros(16), triangle, 0.002)
     gx, gy = node_coordinates(grid)
     assert np.array_equal(grid.mask, points_in_polygon(np.c_[gx.ravel(), gy.ravel()], triangle,
-                                                       tol=1e-9).reshape(gx.shape))
+                                                       margin=1e-9).reshape(gx.shape))
     assert grid.mask[np.argmin(np.abs(grid.y - 0.03)), np.argmin(np.abs(grid.x + 0.04))] == False  # noqa: E712
 
 

@@ -1,4 +1,4 @@
-"""Tests for reconstruction.threshold (Tsai moment-preserving and Otsu thresholds)."""
+"""Tests for reconstruction.paper.threshold (Tsai moment-preserving and Otsu thresholds)."""
 
 import numpy as np
 import pytest

@@ -9,6 +9,7 @@ from platebench.bench.io.atomic import write_json
 from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
+from platebench.tolerances import tol
 
 # the calibration's modules (renderer, OpenCV, the pipeline) are imported in run(), once the flags are checked
 HELP = "calibrate cameras (ChArUco) and projector rays (paper IV-A) from renders"
@@ -85,11 +86,10 @@ def run(args) -> int:
 
 def format_table(report: dict, comparison: dict | None = None) -> str:
     """The calibration report (and the reference reconstruction per calibration, ``Score``s) as text."""
-    """The calibration errors (and the reconstruction with estimated vs true calibration) as text."""
     c = report["config"]
     est = report["estimate"]
     lines = [f"calibration at {c['width_px']}x{c['height_px']} px, f {c['f_px']:.1f} px"
-             + (f" (fy {c['fy_px']:.1f})" if abs(c.get("fy_px", c["f_px"]) - c["f_px"]) > 1e-9 else "")
+             + (f" (fy {c['fy_px']:.1f})" if abs(c.get("fy_px", c["f_px"]) - c["f_px"]) > tol.pixel else "")
              + f", spp {c['spp']}, {len(c['board_poses'])} board poses, "
              f"target z {[round(z * 1e3, 1) for z in c['target_z_m']]} mm",
              f"estimate handed to the pipeline: {est['distortion_model'].replace('_', ' ')} "
@@ -139,15 +139,16 @@ def format_table(report: dict, comparison: dict | None = None) -> str:
     if comparison is not None:
         lines.append("reference reconstruction:")
         lines.append(f"  {'calibration':26s} {'points':>6s} {'depth RMS':>10s} {'depth max':>10s} {'x/y RMS':>15s} "
-                     f"{'boundary':>9s} {'expected':>8s}  (mm)")
+                     f"{'boundary':>9s} {'expected':>8s}  (mm; depth and x/y at the square centres)")
         for name in ("true", "estimated", "true_rig_estimated_rays"):
             s = comparison[name]
             if s.points is None:
                 lines.append(f"  {name:26s} no points scored")
                 continue
             p, m = s.points.stats, MetricsRow.from_score(s)
-            lines.append(f"  {name:26s} {p.count:>6d} {m.depth_rms_mm:>10.4f} {m.depth_max_mm:>10.4f} "
-                         f"{p.x.rms * 1e3:>7.4f}/{p.y.rms * 1e3:<7.4f} {m.boundary_mean_mm:>9.4f} "
+            lines.append(f"  {name:26s} {p.count:>6d} {m.centres_depth_rms_mm:>10.4f} "
+                         f"{m.centres_depth_max_mm:>10.4f} {p.x.rms * 1e3:>7.4f}/{p.y.rms * 1e3:<7.4f} "
+                         f"{m.boundary_mean_mm:>9.4f} "
                          f"{s.matching.expected_count_method:>8d}")
     t = report["timings_s"]
     lines.append(f"{'time (s)':34s} board {t['board_render_s']:.1f}, target {t['target_render_s']:.1f}, "

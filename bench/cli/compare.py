@@ -3,7 +3,7 @@
 
 Re-creates the sample's plate and scene from ``SAMPLE_DIR/sample.json`` (its calibration
 must agree with ``calib.json``), renders the projector sequences the chosen methods need
-with one renderer (``bench.pattern_sequences``), runs each method (``reconstruction.peer_*``:
+with one renderer (``bench.run.pattern_sequences``), runs each method (``reconstruction.peers``:
 pure functions of images and calibration) and scores it against the sample's ground truth:
 
 * depth: |Z_est - Z_gt| (left camera z-depth, mm) over plate pixels with an estimate:
@@ -60,7 +60,7 @@ def _cells(r) -> tuple[str, float, float, str, str]:
     points, distance to the surface for point clouds, accuracy for meshes."""
     s = r.scores
     if r.kind == "paper":
-        return "points", s["depth_median_mm"], s["depth_rms_mm"], f"{s['points_on_plate']} pts", "-"
+        return "centres", s["centres_depth_median_mm"], s["centres_depth_rms_mm"], f"{s['points_on_plate']} pts", "-"
     if r.kind in ("disparity", "depth"):
         bad = f"{s['middlebury']['mb_all_bad_1_0_pct']:.1f}" if r.kind == "disparity" else "-"
         return r.kind, s["depth_median_mm"], s["depth_rms_mm"], f"{s['coverage_pct']:.1f} %", bad
@@ -80,8 +80,9 @@ def format_table(cmp: Comparison) -> str:
         kind, med, rms, cov, bad = _cells(r)
         lines.append(f"{r.name:24s} {kind:9s} {r.n_images:7d} {_num(med):>10s} {_num(rms):>10s} {cov:>9s} {bad:>7s} "
                      f"{r.time_s:7.3f} {r.render_s:8.1f}")
-    lines.append("median/RMS: |depth error| (maps, the paper's points), distance to the true surface (clouds), "
-                 "accuracy (meshes; coverage = recall at 1 mm)")
+    lines.append("median/RMS: |depth error| over the plate's pixels (maps: disparity, depth), at the square centres "
+                 "(kind centres: the paper's 16 points, sparse: not comparable with a map's), distance to the true "
+                 "surface (clouds), accuracy (meshes; coverage = recall at 1 mm)")
     return "\n".join(lines)
 
 

@@ -8,6 +8,11 @@ or exactly one file of another program's output, scored with the metrics of its 
 * ``--depth F``: left-view z-depth in metres, EXR/PFM/NPY;
 * ``--points F``: world points in metres, PLY/CSV/NPY;
 * ``--mesh F``: surface mesh in metres, PLY.
+
+A file whose errors lie orders of magnitude beyond the scene (a disparity given as ``--depth``,
+millimetres for metres, points in the camera's frame) is scored all the same, with a hint
+("is this file in millimetres?") printed and written to the score JSON's ``hints``
+(``evaluation.plausibility``).
 """
 from __future__ import annotations
 
@@ -36,12 +41,14 @@ def add_parser(sub) -> None:
                     "surface, outliers, coverage at a radius) or --mesh (accuracy and completeness both ways, "
                     "precision/recall/F-score at thresholds, as DTU and Tanks and Temples). Maps are the LEFT view "
                     "at the sample's resolution; points and meshes are in the world frame, metres.")
-    p.add_argument("sample_dir", type=Path, metavar="SAMPLE_DIR")
+    p.add_argument("sample_dir", type=Path, metavar="SAMPLE_DIR",
+                   help="sample directory with the exact ground truth (from 'platebench render' or a sweep)")
     p.add_argument("recon_dir", type=Path, nargs="?", metavar="RECON_DIR",
                    help="reconstruction directory from 'platebench reconstruct'")
     g = p.add_argument_group("another program's output (exactly one)")
     g.add_argument("--disparity", type=Path, metavar="F", help="left disparity in px: .pfm, or 16-bit .png with "
-                   "--disparity-scale; inf/NaN/<= 0 (PNG: 0) = no estimate")
+                   "--disparity-scale; +inf or NaN (PNG: 0) = no estimate; Middlebury's figures clip "
+                   "other values to [0, ndisp] as its SDK does")
     g.add_argument("--disparity-scale", type=float, metavar="S", help="16-bit PNG disparity: px = value / S "
                    "(KITTI: 256)")
     g.add_argument("--depth", type=Path, metavar="F", help="left z-depth in METRES: .exr (one channel), .pfm, .npy")
@@ -198,11 +205,17 @@ def run(args) -> int:
             coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
     else:
         score = score_output(output, truth, what)
+    from platebench.evaluation.plausibility import plausibility_hints  # noqa: PLC0415
+
+    hints = plausibility_hints(kind, getattr(output, kind), truth)
     name = args.name or path.stem
     doc = score_document(name, kind, score, args.sample_dir)
     doc["input"] = str(path)
+    doc["hints"] = list(hints)  # plausibility: is the file what its flag says? (evaluation.plausibility)
     write_json(out, doc)
     print(f"{'method':16s} {name} ({kind}: {path})")
     print(format_field_table(score))
+    for h in hints:
+        print(f"{'hint':16s} {h}")
     print(f"{'written':16s} {out}")
     return 0

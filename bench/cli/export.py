@@ -37,19 +37,25 @@ def add_parser(sub) -> None:
                     "in a layout stereo code reads. middlebury: OUT/<id>/im0.png, im1.png, disp0GT.pfm, "
                     "disp1GT.pfm, mask0nocc.png (255 seen by both cameras, 128 occluded, 0 unknown), calib.txt "
                     "(tight vmin/vmax, dyavg/dymax, doffs). kitti: OUT/training/image_2, image_3, disp_occ_0, "
-                    "disp_noc_0 (uint16 = 256 d), calib_cam_to_cam. Disparities and masks are computed from the "
-                    "samples' exact ground truth. --shift crops the right image's columns against the left's so "
-                    "that disparities fall where learned stereo works; doffs records it (Z = f B / (d + doffs)).")
-    p.add_argument("dataset", type=Path, metavar="DATASET")
-    p.add_argument("--format", required=True, choices=FORMATS, dest="fmt")
+                    "disp_noc_0 (uint16 = 256 d), calib_cam_to_cam (P_rect_02/03, one K: Z = f B / d as KITTI "
+                    "loaders read it; images reduced by a whole factor where the true disparities exceed 256 px, "
+                    "said in export.json). Disparities and masks are computed from the samples' exact ground truth. "
+                    "--shift (Middlebury only) crops the right image's columns against the left's so that "
+                    "disparities fall where learned stereo works; doffs records it (Z = f B / (d + doffs)).")
+    p.add_argument("dataset", type=Path, metavar="DATASET",
+                   help="a sample directory, a sweep dataset or a folder of samples")
+    p.add_argument("--format", required=True, choices=FORMATS, dest="fmt",
+                   help="middlebury (v3 / 2014 layout, calib.txt with doffs) or kitti (2015 layout, "
+                        "calib_cam_to_cam with P_rect_02/03)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created; must not exist "
                    "unless --overwrite)")
     p.add_argument("--images", choices=("passive", "active"), default="passive",
                    help="passive: plate under the overhead light; active: the projected square grid (default passive)")
     p.add_argument("--shift", type=str, default="0", metavar="PX|auto",
-                   help="shift disparities down by PX (crop the left image's first PX columns and the right's last "
-                        f"PX), or 'auto': per sample, so the smallest true disparity is {MIN_DISPARITY_PX} to "
-                        f"{MIN_DISPARITY_PX + 1} px (default 0)")
+                   help="middlebury: shift disparities down by PX (crop the left image's first PX columns and the "
+                        "right's last PX), or 'auto': per sample, so the smallest true disparity is "
+                        f"{MIN_DISPARITY_PX} to {MIN_DISPARITY_PX + 1} px (default 0; not with kitti, whose loaders assume equal "
+                        "principal points)")
     p.add_argument("--overwrite", action="store_true", help="replace a DIR 'platebench export' wrote (nothing else "
                    "is replaced)")
     p.set_defaults(run=run)
@@ -68,6 +74,7 @@ def run(args) -> int:
                                  overwrite=args.overwrite, progress=step)
     for s in summary.samples:
         print(f"{s['id']:24s} {s['width']}x{s['height']}  shift {s['shift_px']} px, disparity {s['vmin']} to "
-              f"{s['vmax']} px, doffs {s['doffs_px']:g} px")
+              f"{s['vmax']} px, doffs {s['doffs_px']:g} px"
+              + (f"; resampled: {s['resampled']}" if s.get("resampled") else ""))
     print(f"exported    {len(summary.samples)} sample(s), {args.fmt} layout, {args.images} images -> {summary.out}")
     return 0

@@ -46,7 +46,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
                "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     from platebench.version import __version__  # noqa: PLC0415  (package metadata: read once the handlers are in)
     parser.add_argument("--version", action="version", version=f"platebench {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, help="what to do (below)")
     for name, modname in COMMANDS.items():
         module = importlib.import_module(modname)
         if argv is None or name in argv:

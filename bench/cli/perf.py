@@ -35,9 +35,10 @@ def add_parser(sub) -> None:
                         "baseline: host pixels and subnormal floats, whole sample vs raw renders, cuda vs llvm, "
                         "the sweep pipeline, with --full the 61-plate study; on a machine without a GPU the llvm "
                         "figures, saying so)")
-    p.add_argument("--width", type=int, default=1280)
-    p.add_argument("--height", type=int, default=960)
-    p.add_argument("--spp", type=int, default=16)
+    p.add_argument("--width", type=int, default=1280, help="image width in px of the rendered samples (default 1280; "
+                   "f scales with it)")
+    p.add_argument("--height", type=int, default=960, help="image height in px (default 960)")
+    p.add_argument("--spp", type=int, default=16, help="samples per pixel of the renders (default 16)")
     p.add_argument("--repeat", type=int, default=2, help="timed repetitions (best is reported)")
     p.add_argument("--json", type=Path, help="also write the figures as JSON here (a new file, or with --overwrite "
                    "one 'platebench perf' wrote)")

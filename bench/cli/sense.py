@@ -99,7 +99,8 @@ def summary_lines(s: SensingResult) -> list[str]:
     def mm(v):
         return "-" if v is None else f"{v:.3f} mm"
     lines.append(f"ground truth: boundary visible L/R at stage 2 {_pct(f.gt_visibility_first)}, from the final poses "
-                 f"{_pct(f.gt_visibility)}; stage 3 depth RMS {mm(a.get('depth_rms_mm'))}")
+                 f"{_pct(f.gt_visibility)}; stage 3 depth RMS at the square centres "
+                 f"{mm(a.get('centres_depth_rms_mm'))}")
     lines.append(f"outcome: {f.outcome} ({OUTCOME_TEXT[f.outcome]})")
     lines.append(f"time: {s.time_s:.1f} s")
     return lines

@@ -33,8 +33,10 @@ def add_parser(sub) -> None:
                                    "the targets, the smallest hiding bend and the L formula. Writes study.json and "
                                    "study.csv.")
     p.add_argument("which", choices=["false-boundary"], help="the study to run")
-    p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--overwrite", action="store_true")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+                   help="output directory: study.json, study.csv and one folder per plate (created; must not exist "
+                        "unless --overwrite or --resume)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output directory")
     p.add_argument("--bend", default=",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG),
                    help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
                         + ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG) + "; allowed 0 to 350)")

@@ -1,7 +1,7 @@
 """``platebench sweep``: expand a sweep spec into samples; render, reconstruct and score each.
 
-The spec format is documented in ``bench/sweep_spec.py``, the dataset layout in
-``bench/dataset.py``, the executors in ``bench/executors.py``.
+The spec format is documented in ``bench/sweep/spec.py``, the dataset layout in
+``bench/sweep/dataset.py`` and ``bench/io/layout.py``, the executors in ``bench/sweep/executors.py``.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "sweep", help=HELP,
         description="Expand SPEC.toml (grids or seeded random draws over plate family, bend, size, material, "
-                    "distance and pose, pattern, noise, resolution, spp, seed; see bench/sweep_spec.py) into "
+                    "distance and pose, pattern, noise, resolution, spp, seed; see bench/sweep/spec.py) into "
                     "samples, validate all of them, then render, reconstruct and score each one. DATASET gets "
                     "manifest.json, results.csv and results.parquet (one row per sample and method) and "
                     "samples/<id>/. Runs on a local process pool (--workers) or a Dask cluster (--scheduler). "

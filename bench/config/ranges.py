@@ -16,11 +16,11 @@ import math
 import numpy as np
 
 from platebench.bench.config.sample_config import ConfigError
+from platebench.tolerances import tol
 
 __all__ = ["RangeError", "MAX_VALUES", "range_count", "expand_range", "parse_range_text"]
 
 MAX_VALUES = 100_000
-_EPS = 1e-9  # a stop within this fraction of a step of the grid is included (0:180:20 ends at 180)
 
 
 class RangeError(ConfigError):
@@ -40,7 +40,8 @@ def range_count(key: str, start, stop, step, max_count: int = MAX_VALUES) -> int
         raise RangeError(f"{key}: step = {step!r} is out of range: allowed > 0")
     if b < a:
         raise RangeError(f"{key}: stop = {stop!r} is below start = {start!r}: allowed stop >= start")
-    n = math.floor((b - a) / c + _EPS) + 1  # a float: no huge list is ever made
+    # a stop within tol.step_count of a step of the grid is included (0:180:20 ends at 180)
+    n = math.floor((b - a) / c + tol.step_count) + 1  # a float: no huge list is ever made
     if not n <= max_count:
         raise RangeError(f"{key}: {start!r} to {stop!r} in steps of {step!r} is {n:.3g} values: allowed at most "
                          f"{max_count}")

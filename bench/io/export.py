@@ -16,10 +16,22 @@ KITTI 2015 (``--format kitti``), ``OUT/training/``::
 
     image_2/NNNNNN_10.png, image_3/NNNNNN_10.png        left / right image
     disp_occ_0/NNNNNN_10.png, disp_noc_0/NNNNNN_10.png  uint16 = round(256 d), 0 = unknown; all / non-occluded
-    calib_cam_to_cam/NNNNNN.txt                          P_rect_02, P_rect_03 (3 x 4; baseline in metres
-                                                         in P_rect_03[0, 3] = -f B; the shift in the
-                                                         principal points) and the Middlebury doffs
-    KITTI's 16-bit disparities hold 0 < d < 256 px: a larger true disparity is refused (use --shift auto).
+    calib_cam_to_cam/NNNNNN.txt                          S/R/P_rect_02 and _03: both cameras' rectified
+                                                         projection matrices (3 x 4), the same K (equal
+                                                         principal points), P_rect_03[0, 3] = -f B (m)
+
+What KITTI's tools assume, and this layout keeps: the two rectified cameras share K, so depth is
+Z = f B / d with f = P_rect_02[0, 0] and B = P_rect_02[0, 3] / f - P_rect_03[0, 3] / f (no disparity
+offset: the Middlebury ``doffs`` has no place in KITTI's calibration), and 0 < d < 256 px (the
+uint16 PNG holds 256 d). The bench's rigs give larger disparities (about 500 px at 1280 x 960, f
+2000 px, B 0.1 m, Z 0.4 m), and a crop (``--shift``) would make the principal points differ, which
+KITTI loaders misread. So the KITTI export resamples instead: each sample's images are reduced by
+the smallest whole factor k that brings its largest true disparity under 256 px (area averaging of
+k x k pixel blocks, OpenCV INTER_AREA), K with them (f / k; a principal point (c + 0.5) / k - 0.5),
+and the disparities are the mean over each block where all its pixels have a true disparity,
+divided by k (exact for a plane, where d is affine in the image). ``export.json`` says so for every
+sample (``resample_factor``, ``resampled``, ``f_px``, ``baseline_m``). A rig whose principal points
+differ (doffs not 0) or a ``--shift`` is refused with the reason.
 
 ``OUT/export.json`` lists every exported sample with its source directory and shift. The output
 follows the output rule (``bench.io.outputs``: never the dataset itself nor inside it; an existing
@@ -29,9 +41,11 @@ checksums (``PlateBenchDataset.check``) before the first is written or ``progres
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from platebench.bench.io.atomic import write_json, write_text
@@ -39,11 +53,16 @@ from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX, PlateBenchDatas
 from platebench.bench.io.images import DatasetError, write_pfm, write_png
 from platebench.bench.io.middlebury import write_calib
 from platebench.bench.io.outputs import check_output, output_dir
+from platebench.tolerances import tol
 
-__all__ = ["FORMATS", "ExportSummary", "export_dataset", "KITTI_SCALE", "nocc_mask_png"]
+__all__ = ["FORMATS", "ExportSummary", "export_dataset", "KITTI_SCALE", "KITTI_MAX_DISPARITY_PX", "nocc_mask_png",
+           "KittiPair", "kitti_pair", "kitti_resample_factor"]
 
 FORMATS = ("middlebury", "kitti")
 KITTI_SCALE = 256.0  # KITTI's disparity PNG: uint16 value = 256 d
+KITTI_MAX_DISPARITY_PX = 65535 / KITTI_SCALE  # the largest disparity a KITTI PNG holds (255.996 px)
+_DEPTH_RULE = {"middlebury": "Z = baseline f / (d + doffs), from calib.txt (baseline in mm)",
+               "kitti": "Z = f B / d, f = P_rect_02[0, 0], B = (P_rect_02[0, 3] - P_rect_03[0, 3]) / f (metres)"}
 
 
 @dataclass(frozen=True)
@@ -68,36 +87,89 @@ def _write_middlebury(d: Path, pair: StereoPair) -> None:
     write_calib(d / "calib.txt", pair.calib)
 
 
-def _kitti_disp(disp: np.ndarray, keep: np.ndarray, where: str) -> np.ndarray:
-    d = np.where(keep & np.isfinite(disp), disp.astype(np.float64), np.nan)
-    known = d[np.isfinite(d)]
-    if known.size and (known.max() >= 65535 / KITTI_SCALE or known.min() <= 0.5 / KITTI_SCALE):
-        raise DatasetError(f"{where}: true disparities {known.min():.2f} to {known.max():.2f} px do not fit KITTI's "
-                           f"16-bit PNG (0 < d < {65535 / KITTI_SCALE:.2f}): export with --shift auto")
-    return np.where(np.isfinite(d), np.rint(np.nan_to_num(d) * KITTI_SCALE), 0).astype(np.uint16)
+@dataclass(frozen=True)
+class KittiPair:
+    """A stereo pair as KITTI 2015 holds it: ``left``/``right`` images, ``disparity`` (H, W) float64
+    px (NaN unknown), ``nonocc`` (H, W) bool, ``K`` the shared 3x3 intrinsics (px), ``baseline_m``,
+    ``factor`` the whole factor the sample's images were reduced by (1: as rendered)."""
+
+    left: np.ndarray
+    right: np.ndarray
+    disparity: np.ndarray
+    nonocc: np.ndarray
+    K: np.ndarray
+    baseline_m: float
+    factor: int
 
 
-def _kitti_calib(pair: StereoPair) -> str:
+def kitti_resample_factor(max_disparity_px: float) -> int:
+    """The smallest whole k with max_disparity_px / k under KITTI's largest disparity (module doc)."""
+    return max(1, math.floor(max_disparity_px / KITTI_MAX_DISPARITY_PX) + 1)
+
+
+def _blocks(a: np.ndarray, k: int) -> np.ndarray:
+    """(H//k, W//k, k*k) blocks of a 2D array (the last rows/columns that fill no block are dropped)."""
+    H, W = (a.shape[0] // k) * k, (a.shape[1] // k) * k
+    return a[:H, :W].reshape(H // k, k, W // k, k).transpose(0, 2, 1, 3).reshape(H // k, W // k, k * k)
+
+
+def kitti_pair(pair: StereoPair) -> KittiPair:
+    """``pair`` (unshifted) in KITTI's conventions: equal principal points, Z = f B / d, d < 256 px;
+    reduced by ``kitti_resample_factor`` where its disparities are larger (module doc)."""
     c = pair.calib
-    b_m = c.baseline_mm * 1e-3
+    where = str(pair.sample_dir)
+    if pair.shift_px:
+        raise DatasetError(f"{where}: --shift {pair.shift_px} is not allowed with --format kitti: KITTI loaders take "
+                           "Z = f B / d with equal principal points, which a shift breaks (the export resamples "
+                           "instead; use --shift 0)")
+    if not np.allclose(c.cam0, c.cam1, atol=tol.pixel, rtol=0):
+        raise DatasetError(f"{where}: the cameras' intrinsics differ (doffs {c.doffs:g} px): KITTI's calibration "
+                           "holds one K for both cameras and no disparity offset; export --format middlebury")
+    d = np.where(pair.mask & np.isfinite(pair.disparity), pair.disparity.astype(np.float64), np.nan)
+    known = d[np.isfinite(d)]
+    if known.size and known.min() <= 0.5 / KITTI_SCALE:
+        raise DatasetError(f"{where}: true disparities down to {known.min():.3f} px: KITTI's PNG holds only "
+                           f"d > {0.5 / KITTI_SCALE:g} px (a plate this far away has no KITTI disparity)")
+    k = kitti_resample_factor(float(known.max()) if known.size else 0.0)
+    K = np.array(c.cam0, np.float64)
+    if k == 1:
+        return KittiPair(pair.left, pair.right, d, pair.nonocc & np.isfinite(d), K, c.baseline_mm * 1e-3, 1)
+    H, W = pair.left.shape[0] // k, pair.left.shape[1] // k
+    shrink = [cv2.resize(np.ascontiguousarray(im[:H * k, :W * k]), (W, H), interpolation=cv2.INTER_AREA)
+              for im in (pair.left, pair.right)]
+    blocks = _blocks(d, k)
+    with np.errstate(invalid="ignore"):
+        dk = np.where(np.all(np.isfinite(blocks), axis=2), blocks.mean(axis=2), np.nan) / k
+    nonocc = np.all(_blocks(pair.nonocc, k), axis=2) & np.isfinite(dk)
+    Kk = np.array([[K[0, 0] / k, 0.0, (K[0, 2] + 0.5) / k - 0.5], [0.0, K[1, 1] / k, (K[1, 2] + 0.5) / k - 0.5],
+                   [0.0, 0.0, 1.0]])
+    return KittiPair(shrink[0], shrink[1], dk, nonocc, Kk, c.baseline_mm * 1e-3, k)
 
-    def P(K, tx):
-        M = np.hstack([K, [[tx], [0.0], [0.0]]])
+
+def _kitti_disp(disp: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """KITTI's uint16 disparity PNG: round(256 d) where ``keep``, 0 elsewhere."""
+    return np.where(keep & np.isfinite(disp), np.rint(np.nan_to_num(disp) * KITTI_SCALE), 0).astype(np.uint16)
+
+
+def _kitti_calib(kp: KittiPair) -> str:
+    """calib_cam_to_cam: both rectified cameras with one K; the right one's P[0, 3] = -f B (metres)."""
+    h, w = kp.left.shape[:2]
+
+    def P(tx):
+        M = np.hstack([kp.K, [[tx], [0.0], [0.0]]])
         return " ".join(f"{v:.12e}" for v in M.ravel())
-    K0, K1 = c.cam0, c.cam1
-    return (f"S_rect_02: {c.width:.6e} {c.height:.6e}\nR_rect_02: 1 0 0 0 1 0 0 0 1\nP_rect_02: {P(K0, 0.0)}\n"
-            f"S_rect_03: {c.width:.6e} {c.height:.6e}\nR_rect_03: 1 0 0 0 1 0 0 0 1\n"
-            f"P_rect_03: {P(K1, -K1[0, 0] * b_m)}\ndoffs: {c.doffs:.12g}\n")
+    return (f"S_rect_02: {w:.6e} {h:.6e}\nR_rect_02: 1 0 0 0 1 0 0 0 1\nP_rect_02: {P(0.0)}\n"
+            f"S_rect_03: {w:.6e} {h:.6e}\nR_rect_03: 1 0 0 0 1 0 0 0 1\nP_rect_03: {P(-kp.K[0, 0] * kp.baseline_m)}\n")
 
 
-def _write_kitti(root: Path, k: int, pair: StereoPair) -> None:
+def _write_kitti(root: Path, k: int, kp: KittiPair) -> None:
     name = f"{k:06d}_10.png"
     t = root / "training"
-    write_png(t / "image_2" / name, pair.left)
-    write_png(t / "image_3" / name, pair.right)
-    write_png(t / "disp_occ_0" / name, _kitti_disp(pair.disparity, pair.mask, str(pair.sample_dir)))
-    write_png(t / "disp_noc_0" / name, _kitti_disp(pair.disparity, pair.nonocc, str(pair.sample_dir)))
-    write_text(t / "calib_cam_to_cam" / f"{k:06d}.txt", _kitti_calib(pair))
+    write_png(t / "image_2" / name, kp.left)
+    write_png(t / "image_3" / name, kp.right)
+    write_png(t / "disp_occ_0" / name, _kitti_disp(kp.disparity, np.isfinite(kp.disparity)))
+    write_png(t / "disp_noc_0" / name, _kitti_disp(kp.disparity, kp.nonocc))
+    write_text(t / "calib_cam_to_cam" / f"{k:06d}.txt", _kitti_calib(kp))
 
 
 def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", shift: int | str = 0,
@@ -106,6 +178,10 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
     """Write every sample under ``root`` to ``out`` in ``fmt`` ("middlebury" or "kitti"; module doc)."""
     if fmt not in FORMATS:
         raise DatasetError(f"format {fmt!r} is not known: choose {' or '.join(FORMATS)}")
+    if fmt == "kitti" and shift != 0:
+        raise DatasetError(f"--shift {shift} is not allowed with --format kitti: KITTI loaders take Z = f B / d with "
+                           "equal principal points, which a shift breaks; the KITTI export resamples the images "
+                           "instead where the disparities exceed 256 px (leave --shift out)")
     check_output(out, "export", overwrite=overwrite, inputs=[root])
     ds = PlateBenchDataset(root, images=images, shift=shift, min_disparity_px=min_disparity_px)
     ds.check()
@@ -119,15 +195,27 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
                 raise DatasetError(f"{pair.sample_dir}: no plate pixel with a true disparity in the exported view")
             if fmt == "middlebury":
                 _write_middlebury(d / pair.sample_id, pair)
-                where = pair.sample_id
+                rows.append({"id": pair.sample_id, "files": pair.sample_id, "source": str(pair.sample_dir.resolve()),
+                             "shift_px": pair.shift_px, "doffs_px": pair.calib.doffs, "vmin": pair.calib.vmin,
+                             "vmax": pair.calib.vmax, "width": pair.calib.width, "height": pair.calib.height})
             else:
-                _write_kitti(d, k, pair)
-                where = f"training/*/{k:06d}_10.png"
-            rows.append({"id": pair.sample_id, "files": where, "source": str(pair.sample_dir.resolve()),
-                         "shift_px": pair.shift_px, "doffs_px": pair.calib.doffs, "vmin": pair.calib.vmin,
-                         "vmax": pair.calib.vmax, "width": pair.calib.width, "height": pair.calib.height})
+                kp = kitti_pair(pair)
+                _write_kitti(d, k, kp)
+                known = kp.disparity[np.isfinite(kp.disparity)]
+                rows.append({"id": pair.sample_id, "files": f"training/*/{k:06d}_10.png",
+                             "source": str(pair.sample_dir.resolve()), "shift_px": 0, "doffs_px": 0.0,
+                             "resample_factor": kp.factor,
+                             "resampled": (f"images reduced {kp.factor}x (area average of {kp.factor}x{kp.factor} "
+                                           f"pixel blocks) so that the true disparities, "
+                                           f"{pair.calib.vmin} to {pair.calib.vmax} px as rendered, fit KITTI's "
+                                           f"d < {KITTI_MAX_DISPARITY_PX:.2f} px") if kp.factor > 1 else None,
+                             "f_px": float(kp.K[0, 0]), "baseline_m": kp.baseline_m,
+                             "vmin": math.floor(known.min()) if known.size else 0,
+                             "vmax": math.ceil(known.max()) if known.size else 0,
+                             "width": int(kp.left.shape[1]), "height": int(kp.left.shape[0])})
         write_json(d / "export.json", {"format": fmt, "images": images, "shift": shift,
                                        "min_disparity_px": min_disparity_px, "samples": rows,
                                        "units": "px; baseline in calib.txt in mm (Middlebury), in P_rect_03 in m "
-                                                "(KITTI)"})
+                                                "(KITTI)",
+                                       "depth": _DEPTH_RULE[fmt]})
     return ExportSummary(Path(out), fmt, tuple(rows))

@@ -1,6 +1,8 @@
 """A written sample's ground truth for scoring dense maps, point clouds and meshes
 (``evaluation.field_scores.FieldTruth``): read once from the sample's files, both views' maps
-turned into disparities and the non-occlusion mask (``evaluation.stereo_truth``).
+turned into disparities and the non-occlusion mask (``evaluation.stereo_truth``); the left
+disparity is the sample's own ``gt/disp0GT.pfm`` (float32, the file a user is given), checked
+against the depth map's.
 
 The plate mesh (``plate.ply``) keeps the layout of ``plates.Plate``: its first faces are the top
 surface; with a thickness the bottom twins and the side walls (two faces per outline segment)
@@ -41,6 +43,6 @@ def load_field_truth(sample_dir: Path) -> FieldTruth:
     top = top_faces(len(gt.mesh.faces), len(gt.mesh.vertices), len(gt.boundary), thickness)
     try:
         return FieldTruth.from_maps(rig, gt.depth["left"], gt.mask["left"], gt.points["left"], gt.depth["right"],
-                                    gt.mask["right"], gt.mesh, top)
+                                    gt.mask["right"], gt.mesh, top, disparity_left=gt.disparity)
     except ValueError as e:
         raise DatasetError(f"{sample_dir}: {e}") from None

@@ -3,8 +3,8 @@
 =========  ==========================================  ======================================
 kind       reads                                       meaning
 =========  ==========================================  ======================================
-disparity  ``.pfm`` (Middlebury, float32; inf/NaN or   left view, px, d = u_left - u_right
-           <= 0 = no estimate); ``.png`` 16-bit with
+disparity  ``.pfm`` (Middlebury, float32; +inf or   left view, px, d = u_left - u_right
+           NaN = no estimate); ``.png`` 16-bit with
            a scale S: d = value / S, 0 = no estimate
            (KITTI: S = 256)
 depth      ``.exr`` (one channel, or Z/Y/depth/R), left view z-depth, metres
@@ -72,8 +72,11 @@ def _npy(path: Path) -> np.ndarray:
 
 
 def read_disparity(path: Path, scale: float | None = None) -> np.ndarray:
-    """(H, W) float64 disparity (px), +inf where the file has no estimate. ``scale``: required for a
-    16-bit PNG (disparity = value / scale, 0 = no estimate), refused otherwise."""
+    """(H, W) float64 disparity (px), +inf where the file has no estimate. A PFM's values are kept as
+    they are, as the Middlebury SDK reads them (+inf: no estimate; 0, negative values and -inf are
+    estimates, which its metrics clip to [0, ndisp]), except NaN, read as +inf (no estimate).
+    ``scale``: required for a 16-bit PNG (disparity = value / scale, 0 = no estimate, as KITTI),
+    refused otherwise."""
     path = Path(path)
     ext = _check(path, "disparity")
     if ext == ".pfm":
@@ -82,7 +85,7 @@ def read_disparity(path: Path, scale: float | None = None) -> np.ndarray:
         d = read_pfm(path).astype(np.float64)
         if d.ndim != 2:
             raise DatasetError(f"{path}: a disparity PFM must have one channel ('Pf'), got 3 ('PF')")
-        return np.where(np.isfinite(d) & (d > 0), d, np.inf)
+        return np.where(np.isnan(d), np.inf, d)
     if scale is None:
         raise DatasetError(f"{path}: a PNG disparity needs --disparity-scale (PNG value / scale = px; KITTI: 256)")
     if not (np.isfinite(scale) and scale > 0):

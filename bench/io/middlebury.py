@@ -33,12 +33,17 @@ import numpy as np
 from platebench.bench.files import JSON_MAX_BYTES, read_capped
 from platebench.bench.io.atomic import write_text
 from platebench.bench.io.images import DatasetError
-from platebench.evaluation.stereo_truth import RectifiedPair, rectified_pair, vertical_disparity
+from platebench.evaluation.stereo_truth import (
+    NDISP_MULTIPLE,
+    RectifiedPair,
+    ndisp_for,
+    rectified_pair,
+    vertical_disparity,
+)
 from platebench.scenes.rig import StereoRig
 
 __all__ = ["MiddleburyCalib", "calib_txt", "read_calib", "write_calib", "NDISP_MULTIPLE"]
 
-NDISP_MULTIPLE = 16
 
 
 @dataclass(frozen=True)
@@ -91,7 +96,7 @@ class MiddleburyCalib:
         cam0 = np.array([[pair.f_px, 0, pair.cx_left - x0_left], [0, pair.fy_left, pair.cy_left - y0], [0, 0, 1]])
         cam1 = np.array([[pair.f_px, 0, pair.cx_right - x0_right], [0, pair.fy_right, pair.cy_right - y0],
                          [0, 0, 1]])
-        ndisp = NDISP_MULTIPLE * math.ceil((max(vmax, 0) + 1) / NDISP_MULTIPLE)
+        ndisp = ndisp_for(d)
         return cls(cam0, cam1, float(cam1[0, 2] - cam0[0, 2]), pair.baseline_m * 1e3,
                    int(width if width is not None else pair.width), int(height if height is not None else pair.height),
                    ndisp, vmin, vmax, float(dy.mean()), float(dy.max()))

@@ -1,4 +1,4 @@
-"""Bad-input harness: every input a user can get wrong, tried as a new user would, and scored.
+"""Bad inputs: every input a user can get wrong, tried as a new user would, and scored.
 
 ``python -m platebench.bench.perf.bad_inputs [--json FILE] [-k SUBSTRING]`` (or
 ``platebench perf bad-input``) makes a scratch directory with two small rendered samples, a
@@ -17,7 +17,9 @@ before the command is changed or gone afterwards), *tracebacks* ("Traceback" or 
 ignored" on stderr), *exit 0 on failure* (a case that expects a refusal exited 0), *leftovers*
 (a new output, a staging directory, a lock left by a failed command). A case with ``scratch``
 runs in a directory of its own (a copy of the material, the working directory set there), so a
-destructive command can destroy nothing else. Goal: every case clean, and 0 of each.
+destructive command can destroy nothing else. Goal: every case clean, and 0 of each. The cases that
+run as user ``nobody`` are left out, with the reason, where ``nobody`` cannot reach this checkout
+(``nobody_blocker``: a clone under a directory closed to others).
 
 Other modules add cases without editing this one: a module ``bench/perf/bad_inputs_<name>.py``
 is imported by ``cases()`` and appends a function returning ``[Case, ...]`` to ``CASE_SOURCES``
@@ -342,6 +344,28 @@ def _as_nobody() -> bool:
     return os.geteuid() == 0 and shutil.which("setpriv") is not None
 
 
+def nobody_blocker() -> str | None:
+    """Why the cases that run as user ``nobody`` cannot run here, or None when they can: this process
+    must be root with ``setpriv``, and ``nobody`` must reach the Python and the package it runs (a
+    checkout under a directory closed to others, such as a ``mktemp -d`` folder, is not reachable)."""
+    if os.geteuid() != 0:
+        return "not running as root: the unreadable/unwritable cases need to switch to user nobody"
+    if shutil.which("setpriv") is None:
+        return "setpriv is not installed: the unreadable/unwritable cases cannot switch to user nobody"
+    probe = subprocess.run(["setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups", sys.executable,
+                            "-c", "import platebench.bench.cli.main"], capture_output=True, text=True, cwd="/",
+                           timeout=120)
+    if probe.returncode == 0:
+        return None
+    for path in (Path(sys.executable), REPO):
+        for d in reversed([path, *path.parents]):
+            if d.is_dir() and not (d.stat().st_mode & 0o001):
+                return (f"user nobody cannot enter {d} (mode {d.stat().st_mode & 0o777:o}), which holds "
+                        f"{'the Python' if path != REPO else 'the checkout'} {path}")
+    last = (probe.stderr.strip().splitlines() or ["no output"])[-1]
+    return f"user nobody cannot run {sys.executable} with this package ({last[:200]})"
+
+
 def run_case(case: Case, work: Path, port: int, timeout: float | None = None) -> Outcome:
     if case.scratch:
         work = _scratch(work, case.name)
@@ -398,7 +422,9 @@ def _run(case: Case, work: Path, port: int, timeout: float) -> Outcome:
                    exit0_on_failure=case.expect_rc != 0 and rc == 0)
 
 
-def run_all(select: str | None = None, work: Path | None = None) -> list[Outcome]:
+def run_all(select: str | None = None, work: Path | None = None, as_nobody: bool = True) -> list[Outcome]:
+    """Run every case (``select``: those whose name contains it; ``as_nobody`` False: leave out the cases
+    that run as user nobody) in ``work`` (default a scratch directory, removed afterwards)."""
     own = work is None
     work = Path(tempfile.mkdtemp(prefix="platebench-badinput-")) if own else Path(work)
     os.chmod(work, 0o755)
@@ -414,7 +440,7 @@ def run_all(select: str | None = None, work: Path | None = None) -> list[Outcome
         os.chmod(work / "pub", 0o777)
         out = []
         for case in cases():
-            if select and select not in case.name:
+            if (select and select not in case.name) or (case.as_nobody and not as_nobody):
                 continue
             out.append(run_case(case, work, srv.getsockname()[1]))
         from platebench.bench.perf.run_attacks import run_attacks  # noqa: PLC0415  (signals, plug-ins, full disks)
@@ -447,8 +473,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("-k", dest="select", help="only cases whose name contains this")
     p.add_argument("--json", type=Path, help="also write the outcomes as JSON here")
     args = p.parse_args(argv)
-    outcomes = run_all(args.select)
+    blocker = nobody_blocker()
+    outcomes = run_all(args.select, as_nobody=blocker is None)
     print(table(outcomes))
+    if blocker:
+        print(f"left out: the {sum(c.as_nobody for c in cases())} cases run as user nobody ({blocker})")
     if args.json:
         from platebench.bench.io.atomic import write_json  # noqa: PLC0415
         write_json(args.json, {"generator": "platebench perf", "target": "bad-input",

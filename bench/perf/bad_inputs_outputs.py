@@ -17,7 +17,7 @@ from pathlib import Path
 
 from platebench.bench.perf.bad_inputs import Case, _write, register_cases
 
-TINY = ["--width", "64", "--height", "48", "--spp", "1"]
+SMALL_RENDER = ["--width", "64", "--height", "48", "--spp", "1"]
 
 
 def _do(*steps):
@@ -142,10 +142,10 @@ def output_cases() -> list[Case]:
     """--out that would replace what the user did not hand over (module doc)."""
     c = []
     victim = _file("victim/precious.txt")
-    for cmd, args in (("render", ["render", *TINY]), ("reconstruct", ["reconstruct", "good"]),
+    for cmd, args in (("render", ["render", *SMALL_RENDER]), ("reconstruct", ["reconstruct", "good"]),
                       ("compare", ["compare", "good", "--methods", "sgbm"]),
                       ("export", ["export", "ds", "--format", "middlebury"]),
-                      ("calibrate", ["calibrate", *TINY]), ("sense", ["sense", *TINY]),
+                      ("calibrate", ["calibrate", *SMALL_RENDER]), ("sense", ["sense", *SMALL_RENDER]),
                       ("study", ["study", "false-boundary", "--limit", "1"]),
                       ("sweep", ["sweep", "ds.toml", "--workers", "0"]), ("report", ["report", "good"]),
                       ("demo", ["demo", "--quick"])):
@@ -162,11 +162,11 @@ def output_cases() -> list[Case]:
               lambda w: shutil.copy2(w / "ds.toml", w / "sub" / "spec.toml"))
     note = "mine, not PlateBench's\n"
     for name, args, expect, setup, cwd in (
-            ("render --out . --overwrite", ["render", *TINY, "--out", ".", "--overwrite"], ("working directory",),
+            ("render --out . --overwrite", ["render", *SMALL_RENDER, "--out", ".", "--overwrite"], ("working directory",),
              None, ""),
-            ("render --out the cwd's parent", ["render", *TINY, "--out", "..", "--overwrite"],
+            ("render --out the cwd's parent", ["render", *SMALL_RENDER, "--out", "..", "--overwrite"],
              ("working directory",), sub, "sub"),
-            ("render --out /", ["render", *TINY, "--out", "/", "--overwrite"], ("file-system root",), None, ""),
+            ("render --out /", ["render", *SMALL_RENDER, "--out", "/", "--overwrite"], ("file-system root",), None, ""),
             ("reconstruct --out its sample", ["reconstruct", "good", "--out", "good", "--overwrite"],
              ("good", "is the input"), None, ""),
             ("reconstruct --out inside its sample", ["reconstruct", "good", "--out", "good/images", "--overwrite"],
@@ -210,9 +210,9 @@ def output_cases() -> list[Case]:
             ("sweep --overwrite a dataset with a note", ["sweep", "ds.toml", "--out", "ds", "--overwrite",
                                                          "--workers", "0"], ("notes.txt", "did not write"),
              _file("ds/notes.txt", note), ""),
-            ("render --overwrite a sample with a note", ["render", *TINY, "--out", "good", "--overwrite"],
+            ("render --overwrite a sample with a note", ["render", *SMALL_RENDER, "--out", "good", "--overwrite"],
              ("good", "images/notes.txt", "did not write"), _file("good/images/notes.txt", note), ""),
-            ("render beside a user's lock-named file", ["render", *TINY, "--out", "o"], (".o.lock",),
+            ("render beside a user's lock-named file", ["render", *SMALL_RENDER, "--out", "o"], (".o.lock",),
              _file(".o.lock", note), ""),
             ("study beside a user's journal-named file", ["study", "false-boundary", "--limit", "1", "--out", "o"],
              ("o.journal.jsonl", "not a study journal"), _file("o.journal.jsonl", note), ""),

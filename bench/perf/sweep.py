@@ -19,7 +19,8 @@ a shared machine the scheduler may give a session one share however many process
 (Linux's per-session autogroups); Dask workers and the pipeline's run in sessions of their own.
 
 A warm-up sample is run first so that no configuration pays for kernel compilation
-that the others then reuse from the drjit disk cache. Run ``python -m bench.perf_sweep``.
+that the others then reuse from the drjit disk cache. Run ``platebench perf sweep`` or
+``python -m platebench.bench.perf.sweep``.
 """
 from __future__ import annotations
 
@@ -125,7 +126,7 @@ def perf_sweep(n_samples: int = 20, width: int = 320, height: int = 240, spp: in
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m bench.perf_sweep", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m platebench.bench.perf.sweep", description=__doc__.splitlines()[0])
     p.add_argument("--samples", type=int, default=20)
     p.add_argument("--width", type=int, default=320)
     p.add_argument("--height", type=int, default=240)

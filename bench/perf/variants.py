@@ -24,6 +24,7 @@ from platebench.bench.io.atomic import write_bytes
 from platebench.bench.run.render import render_sample
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.scenes.scene_spec import RenderSettings
+from platebench.tolerances import tol
 
 EQUAL_WITHIN = 1e-5  # radiance units: pixels this close count as equal
 
@@ -49,9 +50,9 @@ def _one(variant: str, width: int, height: int, spp: int, repeat: int, log) -> t
            "whole_sample_s": total, "ground_truth_s": gt}
     try:
         row = MetricsRow.from_score(score_in_memory(sample, reconstruct_sample(sample)))
-        fig.update(depth_rms_mm=row.depth_rms_mm, correct_match_count=row.correct_match_count,
+        fig.update(centres_depth_rms_mm=row.centres_depth_rms_mm, correct_match_count=row.correct_match_count,
                    boundary_mean_mm=row.boundary_mean_mm)
-        scored = (f"depth RMS {row.depth_rms_mm:.4f} mm  boundary mean {row.boundary_mean_mm:.4f} mm  "
+        scored = (f"centres depth RMS {row.centres_depth_rms_mm:.4f} mm  boundary mean {row.boundary_mean_mm:.4f} mm  "
                   f"correct {row.correct_match_count}")
     except ReconstructionError as e:  # too small an image for the pipeline: say so, time the renders anyway
         fig["paper_error"] = scored = f"paper's pipeline: {e}"
@@ -96,7 +97,7 @@ def perf_variants(variants: list[str], width: int = 640, height: int = 480, spp:
         for what, cmp in (("first", fig.get("images_vs_first")), ("saved", fig.get("images_vs_saved"))):
             if cmp:
                 eq = min(c["frac_pixels_equal"] for c in cmp.values())
-                worst = max(c["mean_abs_diff"] / max(c["mean_abs_seed_noise"], 1e-30) for c in cmp.values())
+                worst = max(c["mean_abs_diff"] / max(c["mean_abs_seed_noise"], tol.tiny) for c in cmp.values())
                 log(f"{'':14s} vs {what}: >= {eq * 100:.3f} % of pixels within {EQUAL_WITHIN:g}; mean |diff| at most "
                     f"{worst:.2g} x the seed noise" + (f"; throughput x{fig['throughput_ratio_vs_first']:.2f}"
                                                        if what == "first" else ""))

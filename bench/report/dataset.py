@@ -24,7 +24,7 @@ from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
 __all__ = ["dataset_section", "MAX_TABLE_ROWS", "MAX_ERROR_MAPS", "MAX_THUMB_SAMPLES", "MAX_AXIS_PLOTS"]
 
 MAX_TABLE_ROWS = 200
-MAX_ERROR_MAPS = 4
+MAX_ERROR_MAPS = 4  # per method
 MAX_THUMB_SAMPLES = 40
 MAX_AXIS_PLOTS = 8
 _THUMB_IMAGES = ("left_passive", "left_active")
@@ -49,9 +49,12 @@ def dataset_section(page: Page, ds: Path, prefix: str) -> dict:
     sec["plots"] = [page.plot(f"{prefix}method_comparison", P.plot_method_comparison, _bar_table(summ),
                               title=f"{name}: median over samples per method",
                               caption="Median of each error metric over the sweep's rows with status ok, per "
-                                      "method (the table above gives the means too). Bars: errors in millimetres "
-                                      "(log scale when they span decades); right panel: coverage as a fraction of "
-                                      "the plate (0..1), where the method reports it.")]
+                                      "method (the table above gives the means too). One group of bars per "
+                                      "metric, with the methods that report it: depth at the square centres (the "
+                                      "paper's sparse points) and depth over the plate's pixels (dense maps) are "
+                                      "separate groups, never compared. Errors in millimetres (log scale when they "
+                                      "span decades); right panel: coverage as a fraction of the plate (0..1), "
+                                      "where the method reports it.")]
     sec.update(_bend_part(page, frame, name, prefix))
     sec["axes"] = _axes_part(page, frame, manifest, name, prefix)
     sec["error_maps"] = _error_maps(page, ds, frame, prefix)
@@ -160,10 +163,12 @@ def _bend_part(page: Page, frame: pd.DataFrame, name: str, prefix: str) -> dict:
         return {"bend_plots": [], "bend_table": None, "detection": None}
     rows = records(frame)
     plots = [page.plot(f"{prefix}error_vs_bend", P.plot_error_vs_bend, rows, title=f"{name}: error against bend angle",
-                       caption="Depth RMS error of the square centres / dense depth (mm, left) and mean symmetric "
-                               "boundary distance (mm, right) against the bend angle (degrees), one colour per "
-                               "method, solid = bend up, dashed = bend down; dots are samples, lines join the "
-                               "median per bend; red crosses on the bottom edge mark failed rows at that bend.")]
+                       caption="One panel per figure, each comparing only the methods that report it: depth RMS "
+                               "error at the square centres (mm; the paper's sparse points), depth RMS error over "
+                               "the plate's pixels (mm; dense maps) and mean symmetric boundary distance (mm), "
+                               "against the bend angle (degrees), one colour per method, solid = bend up, dashed = "
+                               "bend down; dots are samples, lines join the median per bend; red crosses on the "
+                               "bottom edge mark failed rows at that bend.")]
     detection = None
     det = frame[frame["false_boundary_detected"].notna()] if "false_boundary_detected" in frame.columns \
         else frame.iloc[:0]
@@ -187,7 +192,7 @@ def _bend_table(frame: pd.DataFrame) -> dict | None:
     if len(bends) > 40:
         return None
     methods = S.method_order(t.index.get_level_values(1))
-    shown = [k for k in ("depth_rms_mm", "boundary_mean_mm") if k in t.columns]
+    shown = [k for k in (*S.DEPTH_METRICS, "boundary_mean_mm") if k in t.columns]
     cols = [f"median {metric_label(k)}" for k in shown] + ["ok / rows", "bound violated", "mismatched"]
     rows = []
     for b in bends:
@@ -210,13 +215,14 @@ def _bend_table(frame: pd.DataFrame) -> dict | None:
 
 # ----------------------------------------------------------------------------- swept axes
 def _axes_part(page: Page, frame: pd.DataFrame, manifest: dict, name: str, prefix: str) -> dict:
-    """Per swept axis: a plot of depth RMS and the three failure rates per method, and a table."""
+    """Per swept axis: a plot of each depth RMS (at the square centres, over the plate's pixels: one panel
+    each, with the methods that report it) and the three failure rates per method, and a table."""
     axes, varying = S.swept_axes(manifest, frame)
-    metric = "depth_rms_mm"
+    metrics = [m for m in S.DEPTH_METRICS if m in frame.columns and frame[m].notna().any()]
     out = {"items": [], "note": "", "more": axes[MAX_AXIS_PLOTS:]}
     if not axes:
         return out
-    if metric not in frame.columns or frame[metric].isna().all():
+    if not metrics:
         out["note"] = "no row has a depth RMS: nothing to plot against the swept axes."
         return out
     for axis in axes[:MAX_AXIS_PLOTS]:
@@ -225,10 +231,12 @@ def _axes_part(page: Page, frame: pd.DataFrame, manifest: dict, name: str, prefi
         pooled = ("Other swept axes vary too, and every point pools their samples: "
                   + "; ".join(f"{parameter_label(k)} ({', '.join(v)})" for k, v in others.items()) + "."
                   if others else "No other swept axis varies.")
-        st = S.axis_stats(frame, axis, metric)
-        fig = page.plot(f"{prefix}vs_{_safe(axis)}", P.plot_metric_vs_axis, frame, axis, metrics=(metric,),
+        stats = [S.axis_stats(frame, axis, m) for m in metrics]
+        what = " and ".join(f"{metric_label(m).replace(' (mm)', '')} (a panel of its own)" for m in metrics)
+        fig = page.plot(f"{prefix}vs_{_safe(axis)}", P.plot_metric_vs_axis, frame, axis, metrics=tuple(metrics),
                         pooled=others or None, title=f"{name}: depth RMS and failures against {label}",
-                        caption=f"Top left: median depth RMS error (mm) against {label}, one line per method "
+                        caption=f"Top: the median {what}, in mm, against {label}, one line per method that "
+                                "reports it "
                                 "(small hollow dots: the samples; log scale when they span more than a decade; a "
                                 "hollow median marker: some rows at that value failed in one of the three ways; a "
                                 "cross on the bottom edge: no row of the method gave a value there). The other "
@@ -236,21 +244,24 @@ def _axes_part(page: Page, frame: pd.DataFrame, manifest: dict, name: str, prefi
                                 "some failed: crashed (status failed), the paper's bound violated, points "
                                 "mismatched; a method that cannot say is left out of a panel. Methods are offset "
                                 f"sideways a little so that equal values stay visible. {pooled}")
-        out["items"].append({"label": label, "plot": fig, "table": _axis_table(st, label),
-                             "no_value": st["no_value"]})
+        out["items"].append({"label": label, "plot": fig, "table": _axis_table(stats, label),
+                             "no_value": stats[0]["no_value"]})
     return out
 
 
-def _axis_table(st: dict, label: str) -> dict:
-    """Median depth RMS (mm) and the failures (k / n per kind) per method and value of the axis."""
-    cols = ["median depth RMS (mm)", "crashed", "bound violated", "mismatched"]
+def _axis_table(stats: list[dict], label: str) -> dict:
+    """Median depth RMS (mm: each depth metric in its own column) and the failures (k / n per kind) per
+    method and value of the axis."""
+    st = stats[0]
+    cols = [f"median {metric_label(s['metric'])}" for s in stats] + ["crashed", "bound violated", "mismatched"]
     rows = []
     for lv in st["levels"]:
         line = [lv["label"]]
         for m in st["methods"]:
             c = st["cells"].get((m, lv["key"]))
             line += [None] * len(cols) if c is None else \
-                [c["median"]] + [_rate(c[k], c[d]) for k, d, _ in S.FAILURE_KINDS]
+                [(s["cells"].get((m, lv["key"])) or {}).get("median") for s in stats] \
+                + [_rate(c[k], c[d]) for k, d, _ in S.FAILURE_KINDS]
         rows.append(line)
     return {"title": "", "caption": "", "cls": "axis",
             "groups": [{"label": "", "span": 1}] + [{"label": m, "span": len(cols)} for m in st["methods"]],
@@ -263,13 +274,19 @@ def _recon_dir(ds: Path, sample_id: str, method: str) -> Path:
 
 
 def _has_map_files(recon: Path) -> bool:
-    return (recon / "points.csv").is_file() and (recon.parent.parent / "sample" / "plate.ply").is_file()
+    """Whether a method's folder holds what its error map is drawn from (the paper's points.csv, or
+    another method's output file) beside its sample."""
+    if not (recon.parent.parent / "sample" / "plate.ply").is_file():
+        return False
+    return (recon / "points.csv").is_file() or P.output_file(recon) is not None
 
 
 def _pick_error_maps(ds: Path, frame: pd.DataFrame) -> list[tuple[dict, Path]]:
-    """Up to MAX_ERROR_MAPS (row, recon dir) of ok rows of the first method (the paper's pipeline
-    first) that writes points.csv: spread over the bend angles, plus the worst depth RMS."""
+    """For every method (the paper's pipeline first) whose folders hold a map's files: up to
+    MAX_ERROR_MAPS (row, recon dir) of its ok rows, spread over the bend angles, plus its worst row
+    by its own error figure (depth RMS at the centres or over the pixels, else surface RMS)."""
     ok = frame[S.ok_mask(frame) & frame["method"].notna()]
+    out = []
     for m in S.method_order(ok["method"]):
         rows = ok[ok["method"] == m]
         if not any(_has_map_files(_recon_dir(ds, r.sample_id, m)) for r in rows.head(20).itertuples()):
@@ -278,17 +295,23 @@ def _pick_error_maps(ds: Path, frame: pd.DataFrame) -> list[tuple[dict, Path]]:
         n = len(rows)
         k = min(MAX_ERROR_MAPS, n)
         order = {round(i * (n - 1) / max(k - 1, 1)) for i in range(k)}
-        if "depth_rms_mm" in rows.columns and rows["depth_rms_mm"].notna().any():
-            worst = int(rows["depth_rms_mm"].fillna(-1.0).to_numpy().argmax())
+        figure = next((c for c in (*S.DEPTH_METRICS, "surface_rms_mm") if c in rows.columns
+                       and rows[c].notna().any()), None)
+        if figure is not None:
+            worst = int(rows[figure].fillna(-1.0).to_numpy().argmax())
             if worst not in order and len(order) >= MAX_ERROR_MAPS:
                 order.discard(max(order))
             order.add(worst)
         picked = [records(rows.iloc[[i]])[0] for i in sorted(order)]
-        return [(r, _recon_dir(ds, r["sample_id"], m)) for r in picked
+        out += [(r, _recon_dir(ds, r["sample_id"], m)) for r in picked
                 if _has_map_files(_recon_dir(ds, r["sample_id"], m))]
-    return []
+    return out
 
 
+_PAPER_MAP_CAPTION = ("top view of the plate in world X/Y (mm). Left: the reconstructed surface coloured by its exact "
+                      "distance to the ground-truth mesh (mm), black = true boundary, red dashed = reconstructed "
+                      "boundary. Right: the triangulated square centres coloured by their 3D error against the true "
+                      "centres (mm), values printed above each.")
 def _error_maps(page: Page, ds: Path, frame: pd.DataFrame, prefix: str) -> list[dict]:
     out = []
     for r, recon in _pick_error_maps(ds, frame):
@@ -298,13 +321,13 @@ def _error_maps(page: Page, ds: Path, frame: pd.DataFrame, prefix: str) -> list[
             page.leave_out(f"{problem}: the error map of sample {sid} is not shown")
             continue
         desc = ", ".join(_describe(k, r.get(k)) for k in _DESCRIBE if r.get(k) is not None)
-        out.append(page.plot(f"{prefix}error_map_{_safe(sid)}_{_safe(meth)}", P.plot_error_map,
-                             recon.parent.parent / "sample", recon, title=f"sample {sid}, {meth}: {desc}",
-                             caption=f"Sample {sid} ({desc}), method {meth}; top view of the plate in world X/Y "
-                                     "(mm). Left: the reconstructed surface coloured by its exact distance to the "
-                                     "ground-truth mesh (mm), black = true boundary, red dashed = reconstructed "
-                                     "boundary. Right: the triangulated square centres coloured by their 3D error "
-                                     "against the true centres (mm), values printed above each."))
+        name, sample = f"{prefix}error_map_{_safe(sid)}_{_safe(meth)}", recon.parent.parent / "sample"
+        if (recon / "points.csv").is_file():
+            out.append(page.plot(name, P.plot_error_map, sample, recon, title=f"sample {sid}, {meth}: {desc}",
+                                 caption=f"Sample {sid} ({desc}), method {meth}; {_PAPER_MAP_CAPTION}"))
+        else:
+            out.append(page.plot(name, P.plot_output_error_map, sample, recon, title=f"sample {sid}, {meth}: {desc}",
+                                 caption=f"Sample {sid} ({desc}), method {meth}; {P.OUTPUT_MAP_CAPTION}"))
     return out
 
 
@@ -315,6 +338,8 @@ def _samples(page: Page, ds: Path, frame: pd.DataFrame, prefix: str, manifest: d
     axes, _ = S.swept_axes(manifest, frame)
     shown = axes or [c for c in _DESCRIBE if c in frame.columns][:3]
     methods = S.method_order(frame["method"].dropna())
+    depth = {m: _depth_metric(frame, m) for m in methods}
+    heads = {m: f"{m} ({_DEPTH_WHERE.get(depth[m], 'no depth figure')})" for m in methods}
     out = []
     for i, (sid, rows) in enumerate(frame.groupby("sample_id", sort=True)):
         folder = sample_folder(ds, sid)
@@ -327,15 +352,24 @@ def _samples(page: Page, ds: Path, frame: pd.DataFrame, prefix: str, manifest: d
         elif not sample.is_dir() and any(r.get("status") == "ok" for r in by_method.values()):
             page.leave_out(f"{sample}: sample {sid} is done in the results table, but its sample folder is missing")
         elif i < MAX_THUMB_SAMPLES and sample.is_dir():
-            thumbs = page.thumbnails(sample, f"{prefix}{_safe(sid)}_", _THUMB_IMAGES)
+            thumbs = page.thumbnails(sample, _THUMB_IMAGES)
         out.append({"id": sid, "href": page.link(folder) if folder.is_dir() else None,
                     "values": [(parameter_label(c), first.get(c)) for c in shown],
-                    "methods": [(m, *((by_method.get(m) or {}).get(k) for k in ("status", "depth_rms_mm",
-                                                                                 "paper_bound_met")))
-                                for m in methods],
+                    "methods": [(heads[m], (by_method.get(m) or {}).get("status"),
+                                 (by_method.get(m) or {}).get(depth[m]) if depth[m] else None,
+                                 (by_method.get(m) or {}).get("paper_bound_met")) for m in methods],
                     "thumbs": thumbs})
     note = (f"thumbnails of the first {MAX_THUMB_SAMPLES} samples only" if len(out) > MAX_THUMB_SAMPLES else "")
     return out[:MAX_TABLE_ROWS], note
+
+
+_DEPTH_WHERE = {"centres_depth_rms_mm": "at the square centres", "depth_rms_mm": "over the plate's pixels"}
+
+
+def _depth_metric(frame: pd.DataFrame, method: str) -> str | None:
+    """The depth RMS column a method's rows fill (``summary.DEPTH_METRICS``), or None."""
+    rows = frame[frame["method"] == method]
+    return next((k for k in S.DEPTH_METRICS if k in rows.columns and rows[k].notna().any()), None)
 
 
 # ----------------------------------------------------------------------------- failures, headline
@@ -353,7 +387,8 @@ def _failures(frame: pd.DataFrame) -> dict:
 
 def _headline(name: str, sec: dict, frame: pd.DataFrame | None) -> dict:
     """One line per dataset for the page's headline: samples ok/failed, the paper's bound met in
-    how many rows, the median depth RMS per method, crashes and mismatches."""
+    how many rows, crashes and mismatches, and the median depth RMS per method, grouped by what it
+    measures (at the square centres; over the plate's pixels), so that the line compares like with like."""
     c = sec["counts"]
     parts = [f"{c['total']} samples, {c['ok']} ok, {c['failed']} failed"]
     bound = None
@@ -364,10 +399,14 @@ def _headline(name: str, sec: dict, frame: pd.DataFrame | None) -> dict:
             bound = bad == 0
             parts.append(f"paper's bound met in {known - bad} of {known} rows")
         parts.append(f"{int(f['crashed'].sum())} crashed, {int(f['mismatched'].sum())} with mismatched points")
-        med = frame[S.ok_mask(frame)].groupby("method")["depth_rms_mm"].median() \
-            if "depth_rms_mm" in frame.columns else pd.Series(dtype=float)
-        parts += [f"{m}: median depth RMS {fmt(float(med[m]), 3)} mm" for m in S.method_order(med.index)
-                  if pd.notna(med[m])]
+        ok = frame[S.ok_mask(frame)]
+        for k in S.DEPTH_METRICS:  # like with like: each depth figure with the methods that report it
+            if k not in ok.columns:
+                continue
+            med = ok.groupby("method")[k].median()
+            told = [f"{m} {fmt(float(med[m]), 3)} mm" for m in S.method_order(med.index) if pd.notna(med[m])]
+            if told:
+                parts.append(f"median {metric_label(k).replace(' (mm)', '')}: " + ", ".join(told))
     return {"label": f"Sweep {name} ({sec['rel']})", "text": "; ".join(parts), "met": bound}
 
 

@@ -20,23 +20,33 @@ from platebench.bench.report.inputs import (
     load_compare,
     load_recon,
     load_sample_meta,
+    load_score_document,
     read_json,
     recon_sample_dir,
+    score_document_paths,
 )
 from platebench.bench.report.page import Page
 from platebench.bench.report.values import finite, flag, fmt
+from platebench.evaluation.metrics_row import metric_label, metric_unit
 
-__all__ = ["recon_section", "sample_section", "compare_section", "is_reference", "score_figures"]
+__all__ = ["recon_section", "sample_section", "compare_section", "score_section", "is_reference", "score_figures"]
 
 _TITLES = {p.name: p.title for p in PARAMETERS}
-# key figures of a score: (name of the figure in score.json, at any depth; label; unit), in card order.
-# The paper's score.json nests them by part (points.depth_rms_mm), a dense method's under "scores".
+# key figures of a score: (key in score.json, dotted from the top; the results column whose label and unit
+# it takes: ``evaluation.metrics_row.metric_label``), in card order. The paper's score.json nests its
+# figures by part (points: the square centres), another method's score document under "score".
 _SCORE_FIGURES = (
-    ("depth_rms_mm", "depth RMS", "mm"), ("depth_median_mm", "depth median", "mm"),
-    ("depth_max_mm", "depth max", "mm"), ("xy_radial_rms_mm", "x/y radial RMS", "mm"),
-    ("xy_per_axis_max_mm", "x/y max per axis", "mm"), ("mean_sym_mm", "boundary mean", "mm"),
-    ("dist_rms_mm", "surface RMS", "mm"), ("coverage_frac", "coverage of the plate", "fraction"),
-    ("coverage_pct", "coverage of the plate", "%"), ("mb_all_bad_1_0_pct", "Middlebury bad 1.0 (all)", "%"),
+    ("points.depth_rms_mm", "centres_depth_rms_mm"), ("points.depth_max_mm", "centres_depth_max_mm"),
+    ("points.xy_radial_rms_mm", "xy_radial_rms_mm"), ("points.err3d_rms_mm", "err3d_rms_mm"),
+    ("boundary_3d.mean_sym_mm", "boundary_mean_mm"), ("surface.dist_rms_mm", "surface_rms_mm"),
+    ("surface.coverage_frac", "coverage_frac"),
+    ("score.depth_rms_mm", "depth_rms_mm"), ("score.depth_median_mm", "depth_median_mm"),
+    ("score.depth_max_mm", "depth_max_mm"), ("score.coverage_frac", "coverage_frac"),
+    ("score.middlebury.mb_all_bad_1_0_pct", "mb_all_bad_1_0_pct"),
+    ("score.middlebury.mb_nonocc_bad_1_0_pct", "mb_nonocc_bad_1_0_pct"),
+    ("score.dist_rms_mm", "dist_rms_mm"), ("score.outlier_frac", "outlier_frac"),
+    ("score.accuracy_rms_mm", "accuracy_rms_mm"), ("score.completeness_rms_mm", "completeness_rms_mm"),
+    ("score.fscore_1_0_mm_pct", "fscore_1_0_mm_pct"),
 )
 
 
@@ -57,21 +67,23 @@ def is_reference(config: dict) -> bool:
 
 
 def score_figures(score: dict) -> list[dict]:
-    """The key figures of a score.json (cards): points matched of expected, then each of
-    ``_SCORE_FIGURES`` found at any depth (its first occurrence)."""
+    """The key figures of a score.json or score document (cards): points matched of expected, then
+    each of ``_SCORE_FIGURES`` it holds, labelled as its results column."""
     flat = _flatten(score)
+    flat.update({"score." + k[len("scores."):]: v for k, v in flat.items() if k.startswith("scores.")})  # a peer's
     out = []
     m = score.get("matching") or {}
     if m.get("matched_count") is not None:
         out.append({"label": "points matched / expected", "value": f"{m['matched_count']} / "
                     f"{fmt(m.get('expected_count_gt'))}", "unit": "",
                     "status": "good" if m.get("matched_count") == m.get("expected_count_gt") else "bad"})
-    labels = set()
-    for name, label, unit in _SCORE_FIGURES:
-        v = next((v for k, v in flat.items() if k.rsplit(".", 1)[-1] == name and finite(v) is not None), None)
-        if v is not None and label not in labels:
-            labels.add(label)
-            out.append({"label": label, "value": v, "unit": unit, "status": ""})
+    for key, column in _SCORE_FIGURES:
+        v = finite(flat.get(key))
+        if v is not None:
+            unit = metric_unit(column)
+            label = metric_label(column)
+            out.append({"label": label[: -len(f" ({unit})")] if unit and label.endswith(f" ({unit})") else label,
+                        "value": v, "unit": unit if unit != "count" else "", "status": ""})
     return out
 
 
@@ -138,7 +150,7 @@ def _sample_part(page: Page, sample: Path, prefix: str, thumbs: bool = True) -> 
     return {"href": page.link(sample), "rel": page.rel(sample), "facts": _config_facts(config),
             "variant": meta.get("variant"), "render_s": timings.get("total_s"),
             "visibility": _visibility(sample), "reference": is_reference(config),
-            "thumbs": page.thumbnails(sample, prefix) if thumbs else [],
+            "thumbs": page.thumbnails(sample) if thumbs else [],
             "packages": [(k, v if v is not None else "not installed")
                          for k, v in (meta.get("packages") or {}).items()]}
 
@@ -192,6 +204,9 @@ def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True
                                               "black = true boundary, red dashed = reconstructed boundary. Right: "
                                               "the triangulated square centres coloured by their 3D error against "
                                               "the true centres (mm)."))
+    elif P.output_file(recon) is not None:
+        rec["plots"].append(page.plot(f"{prefix}error_map", P.plot_output_error_map, sample, recon,
+                                      caption=f"Error map of {method}'s output: {P.OUTPUT_MAP_CAPTION}"))
     headline = {"label": title, "figures": rec["figures"], "verdicts": rec["verdicts"],
                 "text": "" if score else "not scored yet (no score.json)", "met": None,
                 "paper": "The paper (V): 16 points, depth error within 2 mm, x/y error within 1 mm." if ref else ""}
@@ -201,12 +216,16 @@ def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True
 
 
 # ----------------------------------------------------------------------------- compare.json
-_COMPARE_COLUMNS = (("n_images", "images / camera"), ("depth_median_mm", "depth median (mm)"),
-                    ("depth_rms_mm", "depth RMS (mm)"), ("depth_p95_mm", "depth p95 (mm)"),
-                    ("depth_max_mm", "depth max (mm)"), ("coverage_pct", "coverage (%)"),
-                    ("points_on_plate", "points on plate"), ("surface_rms_mm", "surface RMS (mm)"),
-                    ("middlebury.mb_all_bad_1_0_pct", "Middlebury bad 1.0 (%)"), ("time_s", "time (s)"),
+_COMPARE_COLUMNS = (("n_images", "images / camera"),
+                    *((k, metric_label(k)) for k in ("centres_depth_median_mm", "centres_depth_rms_mm",
+                                                     "centres_depth_max_mm", "depth_median_mm", "depth_rms_mm",
+                                                     "depth_max_mm")),
+                    ("coverage_pct", "coverage (%)"), ("points_on_plate", "square centres on the plate"),
+                    ("surface_rms_mm", metric_label("surface_rms_mm")),
+                    ("middlebury.mb_all_bad_1_0_pct", metric_label("mb_all_bad_1_0_pct")), ("time_s", "time (s)"),
                     ("render_s", "render (s)"))
+_COMPARE_BARS = ("centres_depth_median_mm", "centres_depth_rms_mm", "centres_depth_max_mm", "depth_median_mm",
+                 "depth_rms_mm", "depth_max_mm", "surface_rms_mm")
 
 
 def compare_section(page: Page, path: Path, prefix: str) -> dict:
@@ -217,15 +236,58 @@ def compare_section(page: Page, path: Path, prefix: str) -> dict:
     cols = [(k, t) for k, t in _COMPARE_COLUMNS if any(m.get(k) is not None for m in methods.values())]
     table = {"title": "", "caption": "", "cls": "", "groups": [], "columns": ["method"] + [t for _, t in cols],
              "rows": [[n] + [m.get(k) for k, _ in cols] for n, m in methods.items()]}
-    bars = {n: {**{k: m.get(k) for k in ("depth_median_mm", "depth_rms_mm", "depth_max_mm", "surface_rms_mm")},
+    bars = {n: {**{k: m.get(k) for k in _COMPARE_BARS},
                 "coverage_frac": None if finite(m.get("coverage_pct")) is None else m["coverage_pct"] / 100.0}
             for n, m in methods.items() if n not in failed}
     rel = page.rel(path)
-    plots = [page.plot(f"{prefix}compare", P.plot_method_comparison, bars, title=f"compare: {rel}",
-                       caption="Depth error of each method on this sample (mm: median, RMS, max over plate pixels "
-                               "with an estimate, or over the paper's square centres; log scale when they span "
-                               "decades) and coverage of the plate (fraction 0..1, dense methods).")] if bars else []
+    plots = [page.plot(f"{prefix}compare", P.plot_method_comparison, bars, metrics=list(_COMPARE_BARS),
+                       title=f"compare: {rel}",
+                       caption="Depth error of each method on this sample (mm; log scale when the values span "
+                               "decades), one group of bars per figure, each group comparing only the methods "
+                               "that report that figure: at the square centres (the paper's points, sparse) and "
+                               "over the plate's pixels with an estimate (dense maps) are separate groups, never "
+                               "side by side. Right: coverage of the plate (fraction 0..1, dense methods).")] \
+        if bars else []
     return {"kind": "compare", "title": f"Method comparison: {rel}", "sample": doc.get("sample", "?"),
             "units": doc.get("units") or "", "table": table, "plots": plots,
             "descriptions": [(n, m.get("description")) for n, m in methods.items() if m.get("description")],
             "notes": [str(n) for n in doc.get("notes") or []] + [f"{n} failed: {e}" for n, e in failed.items()]}
+
+
+# ----------------------------------------------------------------------------- score documents
+def score_section(path: Path, out_dir: Path) -> dict:
+    """A generic section (``page.normalise_section``) of a score document that ``platebench
+    evaluate`` wrote for another program's output (``--disparity``, ``--depth``, ``--points``,
+    ``--mesh``): its key figures, its plausibility hints, every figure by part, and the error
+    map of the output against the sample's ground truth (when both files are found)."""
+    doc = load_score_document(path)
+    method, kind = str(doc.get("method") or Path(path).stem), str(doc.get("kind"))
+    sample, output = score_document_paths(path, doc)
+    notes = [f"plausibility: {h}" for h in doc.get("hints") or []]
+    plots = []
+    if sample is not None and output is not None:
+        name = P.plot_output_error_map(sample, output, Path(out_dir) / "error_map.png", kind=kind,
+                                       title=f"{method} ({kind}) against {sample.name}'s ground truth").name
+        plots.append({"file": name, "caption": f"Error map of {method}'s {kind} output: {P.OUTPUT_MAP_CAPTION}"})
+    else:
+        notes.append(f"no error map: the {'sample ' + str(doc.get('sample')) if sample is None else ''}"
+                     f"{' and the ' if sample is None and output is None else ''}"
+                     f"{'output ' + str(doc.get('input')) if output is None else ''} named in {Path(path).name} "
+                     "could not be found")
+    score = doc.get("score") or {}
+    tables = []
+    for part, body in [("score", {k: v for k, v in score.items() if not isinstance(v, dict)})] + \
+            [(k, v) for k, v in score.items() if isinstance(v, dict)]:
+        flat = _flatten(body)
+        if flat:
+            tables.append({"title": part.replace("_", " "), "columns": [{"key": "figure", "label": "figure"},
+                                                                        {"key": "key", "label": "key"},
+                                                                        {"key": "value", "label": "value"}],
+                           "rows": [{"figure": metric_label(k.rsplit(".", 1)[-1]), "key": k, "value": v}
+                                    for k, v in flat.items()]})
+    links = [{"label": "score document", "path": str(Path(path).resolve())}]
+    links += [{"label": what, "path": str(p.resolve())} for what, p in (("sample", sample), ("output", output)) if p]
+    return {"title": f"Score of {method} ({kind} output)",
+            "summary": f"{method}'s {kind} output, scored by 'platebench evaluate' against the exact ground truth of "
+                       f"sample {doc.get('sample')}" + (f" ({doc['input']})" if doc.get("input") else "") + ".",
+            "figures": score_figures(doc), "tables": tables, "plots": plots, "links": links, "notes": notes}

@@ -1,14 +1,16 @@
 """``write_report(input_dir, out_dir=None)``: the HTML report of whatever ``input_dir`` holds.
 
 Inputs (``bench.report.inputs``): sweep datasets, false-boundary studies, sensing runs,
-reconstructions (with their score.json), rendered samples and compare.json files, in
+reconstructions (with their score.json), rendered samples, compare.json files and the score
+documents of ``platebench evaluate`` on other programs' outputs, in
 ``input_dir`` itself or up to two levels below it (the demo's folder is one report). The page
 (``OUT/index.html``, default ``OUT = input_dir/report``) starts with a headline (the
 experiment's key figures and the paper's bound met or not, each dataset's and study's summary,
 a sensing run's outcome), then one section per input. It comes from the Jinja2 templates in
-``templates/`` (autoescaped; no scripts, no external assets). Plots are written to
-``OUT/plots/`` and embedded as data URIs; thumbnails of the samples' images go to
-``OUT/thumbs/``; links to sample and reconstruction folders are relative to ``OUT``.
+``templates/`` (autoescaped; no scripts, no external assets). Every image is embedded as a data
+URI, so ``index.html`` alone is the report: the plots (kept as PNG files in ``OUT/plots/`` too)
+and thumbnails of the samples' images; links to sample and reconstruction folders are relative
+to ``OUT``.
 
 The report follows the output rule (``bench.io.outputs``): ``OUT`` is new, or, with
 ``overwrite``, an earlier report (its ``index.html`` carries ``<meta name="generator"
@@ -34,7 +36,7 @@ from platebench.bench.files import require_dir
 from platebench.bench.io.atomic import write_text
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.report.dataset import dataset_section
-from platebench.bench.report.experiment import compare_section, recon_section, sample_section
+from platebench.bench.report.experiment import compare_section, recon_section, sample_section, score_section
 from platebench.bench.report.inputs import GENERATOR, Inputs, ReportInputError, detect_inputs, recon_sample_dir
 from platebench.bench.report.page import Page, normalise_section
 from platebench.bench.report.sensing import sensing_section, study_section
@@ -83,6 +85,8 @@ def _sections(page: Page, inp: Inputs) -> list[dict]:
         shown.add(key)
     for path, a in _numbered(inp.samples, "sample"):
         out.append({**sample_section(page, path, f"{a}_"), "anchor": a, "nav": f"sample {page.rel(path)}"})
+    for path, a in _numbered(inp.scores, "score"):
+        out.append(_generic(page, score_section, path, a, f"score {page.rel(path)}"))
     for path, a in _numbered(inp.sensing, "sensing"):
         out.append(_generic(page, sensing_section, path, a, f"sensing {page.rel(path)}"))
     for path, a in _numbered(inp.datasets, "dataset"):
@@ -99,7 +103,8 @@ def _sections(page: Page, inp: Inputs) -> list[dict]:
 
 def _found(inp: Inputs) -> str:
     kinds = (("datasets", "dataset(s)"), ("studies", "study(ies)"), ("sensing", "sensing run(s)"),
-             ("recons", "reconstruction(s)"), ("samples", "sample(s)"), ("compares", "compare.json file(s)"))
+             ("recons", "reconstruction(s)"), ("samples", "sample(s)"), ("compares", "compare.json file(s)"),
+             ("scores", "score document(s)"))
     return ", ".join(f"{len(getattr(inp, k))} {label}" for k, label in kinds if getattr(inp, k))
 
 
@@ -121,8 +126,8 @@ def write_report(input_dir, out_dir=None, overwrite: bool = False, warn=None) ->
     if inp.empty:
         raise ReportInputError(f"{root} holds neither a sweep dataset (manifest.json / results.csv) nor a "
                                "false-boundary study (study.json / study.csv) nor a sensing run (sensing.json) nor "
-                               "a reconstruction (recon.json) nor a sample (sample.json) nor a compare.json: "
-                               "nothing to report")
+                               "a reconstruction (recon.json) nor a sample (sample.json) nor a compare.json nor a "
+                               "score document of 'platebench evaluate' (F.score.json): nothing to report")
     out = Path(out_dir) if out_dir is not None else root / "report"
     with output_dir(out, "report", overwrite=overwrite, inputs=[root], slots=[root / "report"]) as stage:
         page = Page(stage, out, root, warn=warn)

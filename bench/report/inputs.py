@@ -11,7 +11,10 @@ Kinds of input, each recognised by the file that defines it:
   ``score.json`` beside it once ``platebench evaluate`` has scored it; or another method's
   output with its ``score.json`` (a peer's folder in a dataset sample);
 * ``sample``   a rendered sample (``platebench render``): ``sample.json``;
-* ``compare``  ``compare.json`` files of ``platebench compare``.
+* ``compare``  ``compare.json`` files of ``platebench compare``;
+* ``score``    score documents of ``platebench evaluate`` on another program's output
+  (``--disparity``, ``--depth``, ``--points``, ``--mesh``: ``F.score.json`` beside the file, or
+  ``--out``): any JSON file holding ``kind`` (one of those four) and a ``score`` object.
 
 ``detect_inputs`` looks at the directory itself, then (where it is neither a dataset, a study,
 a sensing run nor a reconstruction) two levels of subdirectories, so that the demo's folder
@@ -44,7 +47,8 @@ from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS
 
 __all__ = ["ReportInputError", "Inputs", "detect_inputs", "read_json", "read_manifest", "load_results",
-           "load_study", "sample_folder", "records", "GENERATOR", "DATASET_FORMAT"]
+           "load_study", "sample_folder", "records", "GENERATOR", "DATASET_FORMAT", "load_score_document",
+           "score_document_paths", "SCORE_KINDS"]
 
 GENERATOR = GENERATOR_REPORT  # index.html's <meta name="generator">: what marks a folder as a report
 DATASET_FORMAT = FORMAT  # the sweep dataset's names come from bench/io/layout.py
@@ -77,10 +81,12 @@ class Inputs:
     samples: list = field(default_factory=list)
     compares: list = field(default_factory=list)
     links: list = field(default_factory=list)  # symbolic links under root: not followed (the report says so)
+    scores: list = field(default_factory=list)  # score documents (files) of 'platebench evaluate' on outputs
 
     @property
     def empty(self) -> bool:
-        return not (self.datasets or self.studies or self.sensing or self.recons or self.samples or self.compares)
+        return not (self.datasets or self.studies or self.sensing or self.recons or self.samples or self.compares
+                    or self.scores)
 
 
 # ----------------------------------------------------------------------------- files
@@ -194,6 +200,7 @@ def detect_inputs(input_dir: Path) -> Inputs:
                              ("recon", inp.recons), ("sample", inp.samples)):
             if kind in kinds:
                 bucket.append(d)
+        inp.scores += _score_documents(d)  # e.g. a sensing run's merged surface, scored with evaluate --mesh
         if not kinds - {"sample"} and depth < MAX_DEPTH:  # a sample may hold its reconstruction
             queue += [(s, depth + 1) for s in _subdirs(d, inp.links)]
     inp.recons.sort(key=lambda r: (str(r.parent), r.name != "paper", r.name))  # the paper's pipeline first
@@ -201,6 +208,68 @@ def detect_inputs(input_dir: Path) -> Inputs:
     inp.samples = [s for s in inp.samples if s.resolve() not in shown]
     inp.compares = _find_compares(root, inp.datasets)
     return inp
+
+
+SCORE_KINDS = ("disparity", "depth", "points", "mesh")
+# JSON files that are something else: never read as score documents
+_NOT_SCORES = {"manifest.json", "study.json", "sensing.json", "recon.json", "sample.json", "calib.json",
+               "pattern.json", "compare.json", "visibility.json", "export.json", "result.json", "score.json"}
+_MAX_SCORE_BYTES = 4 * 2**20
+
+
+def _score_documents(d: Path) -> list[Path]:
+    """The score documents in folder ``d`` (module doc), sorted by name."""
+    out = []
+    try:
+        files = sorted(p for p in d.glob("*.json") if p.is_file() and p.name not in _NOT_SCORES)
+    except OSError:
+        return out
+    for p in files:
+        if p.stat().st_size > _MAX_SCORE_BYTES:
+            continue
+        try:
+            doc = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            continue  # not a score document (any other JSON file of the folder)
+        if isinstance(doc, dict) and doc.get("kind") in SCORE_KINDS and isinstance(doc.get("score"), dict):
+            out.append(p)
+    return out
+
+
+def load_score_document(path: Path) -> dict:
+    """A score document (module doc); anything else is a ReportInputError naming the file."""
+    doc = _read_dict(Path(path), "score document")
+    if doc.get("kind") not in SCORE_KINDS or not isinstance(doc.get("score"), dict):
+        raise ReportInputError(f"{path}: not a score document of 'platebench evaluate' (needs kind one of "
+                               f"{', '.join(SCORE_KINDS)} and a score object)")
+    return doc
+
+
+def _found_path(text, near: Path, sibling_stem: str | None = None) -> Path | None:
+    """A path a score document names, as written when it was scored (relative to where evaluate ran):
+    as it is, else relative to the document's folder or the folders above it; for the output, else
+    a file beside the document with its stem (F.score.json is written beside F)."""
+    cands = []
+    if isinstance(text, str) and text:
+        p = Path(text)
+        cands.append(p)
+        if not p.is_absolute():
+            cands += [base / p for base in [near, *list(near.parents)[:3]]]
+            cands += [near / p.name]
+    if sibling_stem:
+        cands += sorted(q for q in near.glob(f"{sibling_stem}.*") if not q.name.endswith(".json"))
+    return next((c for c in cands if c.exists()), None)
+
+
+def score_document_paths(path: Path, doc: dict) -> tuple[Path | None, Path | None]:
+    """(the sample directory, the scored output file) a score document names, where they are found."""
+    path = Path(path)
+    stem = path.name[: -len(".score.json")] if path.name.endswith(".score.json") else None
+    sample = _found_path(doc.get("sample"), path.parent)
+    if sample is not None and not (sample / "sample.json").is_file():
+        sample = None
+    output = _found_path(doc.get("input"), path.parent, stem)
+    return sample, (output if output is not None and output.is_file() else None)
 
 
 def _find_compares(root: Path, datasets: list) -> list[Path]:

@@ -26,7 +26,7 @@ _CASE_COLUMNS = (("bend_deg", None), ("direction", None), ("axis_deg", None), ("
                  ("hidden_frac_right", "hidden R"), ("false_boundary_gt", "GT false bnd"), ("status", "status"),
                  ("detected", "detected"), ("counting_test", "count test"), ("arrays_disagree", "arrays differ"),
                  ("squares_expected", "sq. exp."), ("squares_left", "sq. L"), ("squares_right", "sq. R"),
-                 ("matched", "matched"), ("depth_rms_mm", None), ("xy_radial_rms_mm", None),
+                 ("matched", "matched"), ("centres_depth_rms_mm", None), ("xy_radial_rms_mm", None),
                  ("boundary_mean_mm", None), ("cure1_removed", "cure 1 ok"), ("cure1_hidden_frac", "hidden after 1"),
                  ("cure2_removed", "cure 2 ok"), ("cure2_hidden_frac", "hidden after 2"),
                  ("cure2_steps", "cure 2 steps"), ("cure2_distance_m", "cure 2 dist (m)"),
@@ -126,7 +126,7 @@ def _study_plots(doc: dict, rows: list[dict], out_dir: Path) -> list[dict]:
                                      "which each cure leaves the whole true boundary visible, by bend angle "
                                      "(degrees). Right: hidden fraction of the true boundary (0..1) before (black "
                                      "bars) and after each cure."})
-        if any(finite(r.get(k)) is not None for r in rows for k in ("depth_rms_mm", "boundary_mean_mm")):
+        if any(finite(r.get(k)) is not None for r in rows for k in ("centres_depth_rms_mm", "boundary_mean_mm")):
             plots.append({"file": P.plot_error_vs_bend(rows, out_dir / "error_vs_bend.png", series=_series(rows),
                                                        title="Study: error against bend angle").name,
                           "caption": "Depth RMS error of the square centres (mm) and mean boundary distance (mm) "

@@ -1,12 +1,13 @@
 """What every section builder shares: the staged report directory, plots, thumbnails and links.
 
-The report is staged as a whole (``index.html``, ``plots/``, ``thumbs/``) and renamed into
-place. Plots are written into ``plots/`` and embedded in the page as data URIs (the page
-shows them even when copied alone); thumbnails go to ``thumbs/`` and links to sample and
-reconstruction folders are relative to the report's final place, so they work where the
-report sits beside its data. What cannot be shown faithfully (an image that is missing,
-truncated, differs from its recorded checksum, or is a link) is left out and said
-(``Page.leave_out``: the page's notes and the ``warn`` callback).
+The report is staged as a whole (``index.html`` and ``plots/``) and renamed into place. Every
+image the page shows is embedded in it as a data URI, so ``index.html`` alone is the report (it
+shows everything when copied alone): plots (also kept as PNG files in ``plots/``, for reuse) and
+thumbnails of the samples' images. Links to sample and reconstruction folders (and to the
+full-size images) are relative to the report's final place, so they work where the report sits
+beside its data. What cannot be shown faithfully (an image that is missing, truncated, differs
+from its recorded checksum, or is a link) is left out and said (``Page.leave_out``: the page's
+notes and the ``warn`` callback).
 
 Sections hand the templates plain dicts. A *generic section* (what
 ``bench.report.sensing.study_section`` / ``sensing_section`` return, and the interim adapters
@@ -39,7 +40,7 @@ from platebench.bench.io.layout import SAMPLE, SAMPLES
 from platebench.bench.io.verify import dataset_manifest, find_links, sample_checksums, verify_sample
 from platebench.bench.report.thumbs import sample_thumbnails
 from platebench.bench.report.values import flag
-from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
+from platebench.evaluation.metrics_row import is_metric, metric_label
 from platebench.scenes.naming import IMAGE_NAMES
 
 __all__ = ["Page", "normalise_section", "table_of", "column_label"]
@@ -84,11 +85,6 @@ class Page:
         (self.plot_dir / anchor).mkdir(exist_ok=True)
         return self.plot_dir / anchor
 
-    @property
-    def thumb_dir(self) -> Path:
-        (self.stage / "thumbs").mkdir(exist_ok=True)
-        return self.stage / "thumbs"
-
     def figure(self, path: Path, caption: str, alt: str = "") -> dict:
         """A PNG already in ``plots/`` as a template figure (embedded as a data URI)."""
         data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
@@ -126,9 +122,10 @@ class Page:
             return str(e)
         return None
 
-    def thumbnails(self, sample_dir: Path, prefix: str, names=IMAGE_NAMES) -> list[dict]:
-        """Thumbnails of a sample's camera images (default all four): [{"name", "src" and "href" (the full
-        image, relative); both None when the image is not shown, which ``leave_out`` says}]."""
+    def thumbnails(self, sample_dir: Path, names=IMAGE_NAMES) -> list[dict]:
+        """Thumbnails of a sample's camera images (default all four), embedded: [{"name", "src" (a PNG
+        data URI) and "href" (the full image, relative); both None when the image is not shown, which
+        ``leave_out`` says}]."""
         sample_dir = Path(sample_dir)
         try:  # the folders from the input down to the sample (a link above the input is the user's own)
             inside = [self.root.joinpath(*sample_dir.relative_to(self.root).parts[:k + 1])
@@ -145,23 +142,24 @@ class Page:
         def check(image: Path) -> None:
             verify_sample(sample_dir, checks, [image.relative_to(sample_dir).as_posix()], then="")
         out = []
-        for t in sample_thumbnails(sample_dir, self.thumb_dir, prefix, names, check=check):
+        for t in sample_thumbnails(sample_dir, names, check=check):
             if t["problem"]:
                 self.leave_out(f"{t['problem']}: its thumbnail is not shown")
-            shown = t["file"] is not None
-            out.append({"name": t["name"], "src": f"thumbs/{t['file']}" if shown else None,
+            shown = t["png"] is not None
+            out.append({"name": t["name"],
+                        "src": "data:image/png;base64," + base64.b64encode(t["png"]).decode() if shown else None,
                         "href": self.link(sample_dir / "images" / f"{t['name']}.png") if shown else None})
         return out
 
 
 # ----------------------------------------------------------------------------- generic sections
 def column_label(key: str) -> str:
-    """A column's label with its unit: a metric's (``metric_label``), a parameter's
-    (``parameter_label``), else the name with spaces."""
-    if key in METRIC_FIELDS:
-        return metric_label(key)
+    """A column's label with its unit: a parameter's (``parameter_label``), a metric's (``metric_label``:
+    a shared field or an extra column's family), else the name with spaces."""
     if key in PARAMETER_NAMES:
         return parameter_label(key)
+    if is_metric(key):
+        return metric_label(key)
     return str(key).replace("_", " ")
 
 

@@ -27,14 +27,18 @@ from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
-           "plot_metric_vs_axis", "error_map_data", "bend_bins", "compare_error_figure"]
+           "plot_metric_vs_axis", "error_map_data", "bend_bins", "compare_error_figure", "plot_output_error_map",
+           "output_file"]
 
 DPI = 100
 _DIRECTION_STYLE = {"up": "-", "down": "--"}
 _FLAG_LABELS = {"detected": "detected (either symptom)", "counting_test": "counting test",
                 "arrays_disagree": "arrays disagree (Fig. 2)", "false_boundary_detected": "detected"}
-# error metrics (mm) a method-comparison bar chart shows, in the results table's order
+# error metrics (mm) a method-comparison bar chart shows, in the results table's order; each is a group of
+# bars of its own (the methods that report it), so that sparse and dense figures are never side by side
 _BAR_METRICS = tuple(n for n, f in METRIC_FIELDS.items() if f.metadata["unit"] == "mm")
+_MIN_COLOUR_RANGE_MM = 1e-3  # a colour scale spans at least this (mm): an exact method's zero errors still get one
+_MAX_MAP_POINTS = 20_000  # a point cloud's or mesh's error map draws at most this many points (seeded sample)
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -92,7 +96,8 @@ def _positive_span(values) -> bool:
 
 
 # ----------------------------------------------------------------------------- error vs bend
-def plot_error_vs_bend(rows, path, metrics=("depth_rms_mm", "boundary_mean_mm"), series=("method", "direction"),
+def plot_error_vs_bend(rows, path, metrics=("centres_depth_rms_mm", "depth_rms_mm", "boundary_mean_mm"),
+                       series=("method", "direction"),
                        title: str | None = None) -> Path:
     """One panel per metric: error (mm) against bend angle (deg), one series per method and direction.
 
@@ -160,7 +165,7 @@ def bend_bins(bends, max_bins: int = 10) -> np.ndarray:
     if b.size <= max_bins:
         mids = 0.5 * (b[1:] + b[:-1])
         return np.concatenate([[b[0] - (mids[0] - b[0])], mids, [b[-1] + (b[-1] - mids[-1])]])
-    return np.linspace(b[0], b[-1] + 1e-9, max_bins + 1)
+    return np.linspace(b[0], np.nextafter(b[-1], np.inf), max_bins + 1)
 
 
 def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arrays_disagree"),
@@ -442,15 +447,18 @@ def _has(rows, bend, key) -> bool:
 
 # ----------------------------------------------------------------------------- method comparison
 def plot_method_comparison(table: dict, path, metrics=None, title: str | None = None) -> Path:
-    """Grouped bars: one group per error metric (mm, log scale when values span decades), one bar
-    per method; a second panel for coverage (fraction of the plate, 0..1) when present.
+    """Grouped bars: one group per error metric (mm, log scale when values span decades), with a bar
+    for each method that reports it (one column, one meaning: a group never mixes the paper's
+    square centres with a dense map's pixels); a second panel for coverage (fraction of the plate,
+    0..1) when present.
 
     ``table``: {method: {metric: value}} (e.g. the mean over a sweep's samples, or compare.json)."""
     table = {str(m): dict(v or {}) for m, v in (table or {}).items()}
     methods = list(table)
     if metrics is None:
-        metrics = [k for k in _BAR_METRICS if any(_num(t.get(k)) is not None for t in table.values())]
-    err_metrics = [m for m in metrics if m != "coverage_frac"]
+        metrics = _BAR_METRICS
+    err_metrics = [k for k in metrics if k != "coverage_frac"
+                   and any(_num(t.get(k)) is not None for t in table.values())]
     has_cov = any(_num(t.get("coverage_frac")) is not None for t in table.values())
     fig = _figure(9.5 if has_cov else 7.5, 4.2)
     if has_cov:
@@ -623,7 +631,7 @@ def _draw_rate_panel(ax, st: dict, xa: _XAxis, style: dict, kind: str, denominat
     ax.legend(fontsize=7, loc="best")
 
 
-def plot_metric_vs_axis(frame, axis: str, path, metrics=("depth_rms_mm",), title: str | None = None,
+def plot_metric_vs_axis(frame, axis: str, path, metrics=("centres_depth_rms_mm",), title: str | None = None,
                         pooled: dict | None = None, max_levels: int = 10) -> Path:
     """A results frame against one swept ``axis`` (a results column): per metric, the median over
     samples at each level, one line per method (``_draw_metric_panel``); then one panel per kind
@@ -739,7 +747,7 @@ def _draw_surface_panel(fig, ax, d: dict) -> None:
         dist = d["surface_dist_mm"]
         vmax = float(np.percentile(dist, 99)) if dist.size else 1.0
         im = ax.tripcolor(Triangulation(v[:, 0], v[:, 1], d["surface_faces"]), dist, shading="gouraud",
-                          cmap="viridis", vmin=0.0, vmax=max(vmax, 1e-3))
+                          cmap="viridis", vmin=0.0, vmax=max(vmax, _MIN_COLOUR_RANGE_MM))
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
         ax.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
                      f"({len(v)} vertices)", fontsize=9)
@@ -761,7 +769,8 @@ def _draw_centres_panel(fig, ax, d: dict) -> None:
         ax.set_title("no triangulated square centres", fontsize=9)
         return
     p = pts * 1e3
-    style = dict(cmap="plasma", vmin=0, vmax=max(float(err.max()), 1e-3), s=70, edgecolors="k", linewidths=0.6,
+    style = dict(cmap="plasma", vmin=0, vmax=max(float(err.max()), _MIN_COLOUR_RANGE_MM), s=70, edgecolors="k",
+                 linewidths=0.6,
                  zorder=3)
     three = kind == "3d"
     sc = []
@@ -820,6 +829,108 @@ def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: 
     return _save(fig, path)
 
 
+OUTPUT_MAP_CAPTION = ("a disparity or depth map: the left view cropped to the plate, coloured by the signed depth "
+                      "error Z_est - Z_gt (mm; a disparity through Z = f B / (d + doffs)), plate pixels without an "
+                      "estimate dark grey; a point cloud or mesh: a top view in world X/Y (mm) of its points "
+                      "(vertices) coloured by their exact distance to the true surface (mm), the true outline black.")
+
+
+def output_file(where) -> tuple[str, Path] | None:
+    """(kind, file) of a method's output: ``where`` is the file itself (its kind from its name or
+    suffix) or a reconstruction directory holding one of ``method_outputs.OUTPUT_FILES``."""
+    from platebench.bench.io.method_outputs import OUTPUT_FILES  # noqa: PLC0415
+
+    where = Path(where)
+    if where.is_dir():
+        return next(((k, where / n) for k, n in OUTPUT_FILES.items() if (where / n).is_file()), None)
+    if not where.is_file():
+        return None
+    by_name = {n: k for k, n in OUTPUT_FILES.items()}
+    if where.name in by_name:
+        return by_name[where.name], where
+    suffix = where.suffix.lower()
+    kind = {".pfm": "disparity", ".exr": "depth", ".npy": "depth", ".csv": "points"}.get(suffix)
+    return (kind, where) if kind else None
+
+
+def plot_output_error_map(sample_dir, where, path, kind: str | None = None, title: str | None = None) -> Path:
+    """Error map of another method's output against a sample's ground truth (``where``: the output
+    file, or a reconstruction directory holding it; ``kind`` overrides the kind the name says).
+
+    Disparity and depth maps: the left view, cropped to the plate, coloured by the signed depth
+    error Z_est - Z_gt (mm; a disparity through Z = f B / (d + doffs)); plate pixels without an
+    estimate dark grey. Point clouds and meshes: a top view in world X/Y (mm) of the points (the
+    mesh's vertices) coloured by their exact distance to the true surface (mm), the true outline in
+    black. Files that cannot be read give a figure saying so."""
+    from platebench.bench.io.field_truth import load_field_truth  # noqa: PLC0415
+    from platebench.bench.io.method_outputs import read_depth, read_disparity, read_mesh, read_points  # noqa: PLC0415
+    from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
+
+    fig = _figure(7.5, 5.4)
+    ax = fig.add_subplot(111)
+    found = output_file(where)
+    try:
+        if found is None:
+            raise ValueError(f"{where}: no method output (disparity, depth, points or mesh) found")
+        kind, file = (kind or found[0]), found[1]
+        truth = load_field_truth(Path(sample_dir))
+        if kind in ("disparity", "depth"):
+            if kind == "disparity":
+                d = read_disparity(file).astype(np.float64) + truth.pair.doffs_px
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    z = np.where(np.isfinite(d) & (d > 0), truth.pair.fb / d, np.nan)
+            else:
+                z = read_depth(file).astype(np.float64)
+            if z.shape != truth.shape:
+                raise ValueError(f"{file}: {z.shape[1]}x{z.shape[0]} px, the sample is "
+                                 f"{truth.shape[1]}x{truth.shape[0]}")
+            mask = truth.mask
+            with np.errstate(invalid="ignore"):  # inf - inf off the plate, masked out
+                err = np.where(mask & np.isfinite(z) & (z > 0), (z - truth.depth) * 1e3, np.nan)
+            vs, us = np.nonzero(mask)
+            v0, v1 = max(vs.min() - 5, 0), min(vs.max() + 6, mask.shape[0])
+            u0, u1 = max(us.min() - 5, 0), min(us.max() + 6, mask.shape[1])
+            a = np.abs(err[np.isfinite(err)])
+            lim = max(float(np.percentile(a, 95)) if a.size else 1.0, _MIN_COLOUR_RANGE_MM)
+            ax.imshow(np.where(mask, 0.45, 0.05)[v0:v1, u0:u1], cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+            im = ax.imshow(err[v0:v1, u0:u1], cmap="coolwarm", vmin=-lim, vmax=lim, interpolation="nearest")
+            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="Z_est - Z_gt (mm)")
+            rms = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
+            ax.set_title(f"left view, {kind}: depth error over the plate's pixels, median "
+                         f"{np.median(a) if a.size else float('nan'):.3g} / RMS {rms:.3g} mm, coverage "
+                         f"{a.size / max(int(mask.sum()), 1):.3f}", fontsize=8)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        elif kind in ("points", "mesh"):
+            P = np.asarray(read_points(file) if kind == "points" else read_mesh(file).vertices, np.float64)
+            P = P[np.all(np.isfinite(P), axis=1)]
+            if len(P) > _MAX_MAP_POINTS:
+                P = P[np.random.default_rng(0).choice(len(P), _MAX_MAP_POINTS, replace=False)]
+            dist = point_to_surface_distance(P, truth.mesh) * 1e3
+            boundary = Path(sample_dir) / "boundary.npy"
+            if boundary.is_file():
+                b = np.load(boundary) * 1e3
+                ax.plot(np.r_[b[:, 0], b[:1, 0]], np.r_[b[:, 1], b[:1, 1]], "k-", lw=1.0)
+            lim = max(float(np.percentile(dist, 95)) if dist.size else 1.0, _MIN_COLOUR_RANGE_MM)
+            sc = ax.scatter(P[:, 0] * 1e3, P[:, 1] * 1e3, c=dist, s=2, cmap="viridis", vmin=0, vmax=lim)
+            fig.colorbar(sc, ax=ax, fraction=0.046, pad=0.04, label="distance to the true surface (mm)")
+            ax.set_aspect("equal")
+            ax.set_xlabel("world X (mm)")
+            ax.set_ylabel("world Y (mm)")
+            ax.set_title(f"{kind} ({len(P)} shown): distance to the true surface, median {np.median(dist):.3g} / "
+                         f"RMS {np.sqrt(np.mean(dist * dist)):.3g} mm", fontsize=8)
+        else:
+            raise ValueError(f"{file}: kind {kind!r} has no error map")
+    except (OSError, ValueError) as e:  # missing or damaged files (DatasetError is a ValueError)
+        _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
+    import textwrap  # noqa: PLC0415
+    ax.set_title(textwrap.fill(ax.get_title(), 80), fontsize=8)
+    head = title or f"Error of {Path(where).name} against {Path(sample_dir).name}'s ground truth"
+    fig.suptitle(textwrap.fill(head, 90), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def compare_error_figure(cmp) -> bytes:
     """PNG: signed depth error (mm) per dense method on the plate's bounding box."""
     import io  # noqa: PLC0415
@@ -841,7 +952,7 @@ def compare_error_figure(cmp) -> bytes:
         err = np.where(res.valid & mask, (res.depth.astype(np.float64) - cmp.gt_depth) * 1e3, np.nan)
         a = np.abs(err[np.isfinite(err)])
         lim = float(np.percentile(a, 95)) if a.size else 1.0
-        lim = max(lim, 1e-3)
+        lim = max(lim, _MIN_COLOUR_RANGE_MM)
         back = np.where(mask, 0.45, 0.05)[v0:v1, u0:u1]
         ax.imshow(back, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
         im = ax.imshow(err[v0:v1, u0:u1], cmap="coolwarm", vmin=-lim, vmax=lim, interpolation="nearest")

@@ -169,8 +169,9 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
                            ("surface_rms_mm", "merged surface RMS", "mm")):
         if finite(merged.get(k)) is not None:
             figures.append({"label": label, "value": round(merged[k], 3), "unit": unit})
-    if finite(acc.get("depth_rms_mm")) is not None:
-        figures.append({"label": "stage-3 depth RMS", "value": round(acc["depth_rms_mm"], 4), "unit": "mm"})
+    if finite(acc.get("centres_depth_rms_mm")) is not None:
+        figures.append({"label": "stage-3 depth RMS at the square centres",
+                        "value": round(acc["centres_depth_rms_mm"], 4), "unit": "mm"})
     if finite(doc.get("time_s")) is not None:
         figures.append({"label": "time", "value": round(doc["time_s"], 1), "unit": "s"})
     summary = (f"Outcome: {outcome} ({final.get('outcome_text', '')}). Verdict (no ground truth): "

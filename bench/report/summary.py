@@ -30,6 +30,9 @@ __all__ = ["ok_mask", "metric_columns", "extra_metric_columns", "method_order", 
            "precision_recall", "FAILURE_KINDS", "CATEGORY_ORDER", "REPLICATE_AXES"]
 
 # (column of failure_flags, denominator column, label)
+# The depth errors a sweep's methods report, one meaning each: at the paper's square centres (sparse) and
+# over the plate's pixels (dense maps). Tables and plots compare methods within one of them, never across.
+DEPTH_METRICS = ("centres_depth_rms_mm", "depth_rms_mm")
 FAILURE_KINDS = (("crashed", "rows", "crashed (status failed)"),
                  ("bound_violated", "bound_known", "paper's bound violated"),
                  ("mismatched", "match_known", "points mismatched"))
@@ -137,7 +140,7 @@ def failure_table(frame: pd.DataFrame, keys) -> pd.DataFrame:
     return f.groupby(keys if len(keys) > 1 else keys[0], sort=False).sum().astype(int)
 
 
-def by_bend(frame: pd.DataFrame, metrics=("depth_rms_mm", "boundary_mean_mm")) -> pd.DataFrame:
+def by_bend(frame: pd.DataFrame, metrics=(*DEPTH_METRICS, "boundary_mean_mm")) -> pd.DataFrame:
     """Per bend angle (deg, rounded to 1e-6) and method: the median of each metric over the ok rows,
     and the failure counts. Indexed by (bend_deg, method), bends ascending."""
     bend = frame["bend_deg"].round(6).rename("bend_deg")
@@ -201,7 +204,7 @@ def axis_levels(frame: pd.DataFrame, axis: str, max_levels: int = 10) -> tuple[l
     return [{"key": n, "label": n, "x": float(i)} for i, n in enumerate(names)], vals, False
 
 
-def axis_stats(frame: pd.DataFrame, axis: str, metric: str = "depth_rms_mm", max_levels: int = 10) -> dict:
+def axis_stats(frame: pd.DataFrame, axis: str, metric: str = DEPTH_METRICS[0], max_levels: int = 10) -> dict:
     """Per method and level of ``axis``: rows, the three failure counts with their denominators
     (``failure_flags``), and the median and values of ``metric`` over the ok rows with a value
     (a paper row that violates the bound still gives its value here).

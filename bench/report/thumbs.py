@@ -1,11 +1,12 @@
-"""Thumbnails: small 8-bit PNG copies of a sample's camera images, written next to the report.
+"""Thumbnails: small 8-bit PNG copies of a sample's camera images, embedded in the report page.
 
 A sample's ``images/{left,right}_{passive,active}.png`` are 8- or 16-bit camera DN (see
 ``bench.io.sample_files``); a thumbnail is the image scaled to ``width`` pixels (area
-averaging, OpenCV), 16-bit data shifted to 8 bits, written atomically as PNG. The image is read
-with ``bench.io.images.read_png`` (its size checked from the header before decoding, a truncated
-or damaged file refused), and only from inside the sample: an image that is a symbolic link, or
-leads out of the sample folder, is not read.
+averaging, OpenCV), 16-bit data shifted to 8 bits, encoded as PNG bytes. The page embeds them
+as data URIs, so that ``index.html`` alone shows them (no thumbnail files are written). The image
+is read with ``bench.io.images.read_png`` (its size checked from the header before decoding, a
+truncated or damaged file refused), and only from inside the sample: an image that is a symbolic
+link, or leads out of the sample folder, is not read.
 """
 from __future__ import annotations
 
@@ -15,11 +16,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from platebench.bench.io.atomic import write_bytes
 from platebench.bench.io.images import DatasetError, read_png
 from platebench.scenes.naming import IMAGE_NAMES
 
-__all__ = ["write_thumbnail", "sample_thumbnails", "image_problem", "THUMB_WIDTH"]
+__all__ = ["thumbnail_png", "sample_thumbnails", "image_problem", "THUMB_WIDTH"]
 
 THUMB_WIDTH = 200  # pixels
 
@@ -41,9 +41,9 @@ def image_problem(sample_dir: Path, image_path: Path) -> str | None:
     return None
 
 
-def write_thumbnail(image_path: Path, out_path: Path, width: int = THUMB_WIDTH) -> Path:
-    """Write a ``width``-pixel-wide 8-bit PNG of ``image_path``; ``DatasetError`` (one line naming the
-    file) when the image is missing, truncated, damaged or too large."""
+def thumbnail_png(image_path: Path, width: int = THUMB_WIDTH) -> bytes:
+    """PNG bytes of a ``width``-pixel-wide 8-bit copy of ``image_path``; ``DatasetError`` (one line
+    naming the file) when the image is missing, truncated, damaged or too large."""
     img = read_png(image_path)
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
@@ -53,25 +53,24 @@ def write_thumbnail(image_path: Path, out_path: Path, width: int = THUMB_WIDTH) 
     ok, buf = cv2.imencode(".png", small)
     if not ok:
         raise DatasetError(f"{image_path}: its thumbnail could not be encoded")
-    write_bytes(Path(out_path), buf.tobytes())
-    return Path(out_path)
+    return buf.tobytes()
 
 
-def sample_thumbnails(sample_dir: Path, out_dir: Path, prefix: str, names=IMAGE_NAMES, check=None) -> list[dict]:
-    """Thumbnails of a sample's camera images into ``out_dir``: [{"name", "file" (name in out_dir, or
-    None), "problem" (why not shown, or None)}] in ``names`` order. ``check(image_path)``: a further
-    test (a checksum) raising ``DatasetError`` when the image may not be shown."""
+def sample_thumbnails(sample_dir: Path, names=IMAGE_NAMES, check=None) -> list[dict]:
+    """Thumbnails of a sample's camera images: [{"name", "png" (bytes, or None when not shown),
+    "problem" (why not shown, or None)}] in ``names`` order. ``check(image_path)``: a further test
+    (a checksum) raising ``DatasetError`` when the image may not be shown."""
     out = []
     for name in names:
         image = Path(sample_dir) / "images" / f"{name}.png"
         problem = image_problem(sample_dir, image)
-        path = None
+        png = None
         if problem is None:
             try:
                 if check is not None:
                     check(image)
-                path = write_thumbnail(image, Path(out_dir) / f"{prefix}{name}.png")
+                png = thumbnail_png(image)
             except DatasetError as e:
                 problem = str(e)
-        out.append({"name": name, "file": path.name if path is not None else None, "problem": problem})
+        out.append({"name": name, "png": png, "problem": problem})
     return out

@@ -1,6 +1,6 @@
 """Calibration experiment (paper IV-A): render calibration images, calibrate, compare with the truth.
 
-1. Stereo cameras: a ChArUco board (``scenes.board_renderer``) in 20 poses (flat, tilted
+1. Stereo cameras: a ChArUco board (``scenes.render.board_renderer``) in 20 poses (flat, tilted
    15-35 degrees about both image axes, rolled, shifted, 0.36-0.50 m away) seen by both
    cameras through the same lens, sensor and noise as the samples -> ``reconstruction.calibration``:
    per-camera ``calibrateCamera`` (distortion fixed to zero, and free with k3 fixed, both

@@ -48,6 +48,7 @@ from platebench.reconstruction.peers import graycode, phase_shift, sgbm
 from platebench.scenes.naming import image_seed
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings
+from platebench.tolerances import tol
 
 __all__ = ["METHODS", "ALL_METHODS", "DESCRIPTIONS", "MethodRow", "Comparison", "compare_sample",
            "find_paper_reconstruction", "comparison_json"]
@@ -126,8 +127,8 @@ class Comparison:
 def _check_calibration(spec, calib) -> None:
     for name in ("left", "right"):
         a, b = getattr(spec.rig, name), getattr(calib.rig, name)
-        if not (np.allclose(a.K, b.K, atol=1e-6) and np.allclose(a.R, b.R, atol=1e-9)
-                and np.allclose(a.t, b.t, atol=1e-9) and (a.width, a.height) == (b.width, b.height)):
+        if not (np.allclose(a.K, b.K, atol=tol.rebuilt_px) and np.allclose(a.R, b.R, atol=tol.rebuilt_pose)
+                and np.allclose(a.t, b.t, atol=tol.rebuilt_pose) and (a.width, a.height) == (b.width, b.height)):
             raise DatasetError(f"sample.json's configuration does not reproduce calib.json ({name} camera); "
                                "the sample cannot be re-rendered for the peer methods")
 

@@ -9,7 +9,7 @@ camera images (``left_passive``, ``right_passive``: plate under ambient light; `
 camera, baseline; the projector's model) and the projected pattern. It returns, in the left
 camera's image or the world frame:
 
-* ``Disparity(disparity)``: (H, W) px, d = u_left - u_right; non-finite or <= 0 = no estimate;
+* ``Disparity(disparity)``: (H, W) px, d = u_left - u_right; +inf or NaN = no estimate;
 * ``Depth(depth)``: (H, W) z-depth in metres along the left optical axis;
 * ``Points(points)``: (N, 3) world frame, metres;
 * ``Mesh(mesh)``: a ``trimesh.Trimesh`` in the world frame, metres.
@@ -112,7 +112,8 @@ class MethodInputs:
 
 @dataclass(frozen=True)
 class Disparity:
-    """(H, W) left-view disparity, px (d = u_left - u_right; non-finite or <= 0: no estimate)."""
+    """(H, W) left-view disparity, px (d = u_left - u_right; +inf or NaN: no estimate; the Middlebury metrics
+    clip any other value to [0, ndisp], as the Middlebury SDK does; ETH3D's and the implied depth skip <= 0)."""
 
     disparity: np.ndarray
     metrics: Mapping[str, float] = field(default_factory=dict)

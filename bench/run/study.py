@@ -2,7 +2,7 @@
 every deformation family, its outcome classes, and each detector's precision and recall; plus the
 geometry-only questions (the smallest hiding bend, the L formula against ground truth).
 
-Ground-truth visibility (``scenes.ground_truth``) is the referee throughout: a plate is "hidden"
+Ground-truth visibility (``scenes.render.ground_truth``) is the referee throughout: a plate is "hidden"
 when the stage-2 pose misses part of its true boundary, "reachable" when the poses the loop could
 reach (all its candidates) see all of it. Geometry-only questions need no images: they move the
 rig and ask the ground-truth caster. World frame, metres; angles in degrees in tables and flags.
@@ -32,6 +32,7 @@ from platebench.reconstruction.strategy.exploring import bending_curve, tangent_
 from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import scene_for_pose
+from platebench.tolerances import tol
 from platebench.version import __version__
 
 
@@ -68,7 +69,7 @@ def smallest_hiding_bend(probe: VisibilityProbe, cfg: SampleConfig, direction: s
     """Smallest bend (deg) at which a straight-down rig at ``distance_m`` misses part of the true
     boundary: a coarse scan, then bisection. None if no bend up to 350 degrees hides it."""
     prev = 0.0
-    for b in np.arange(step_deg, 350.0 + 1e-9, step_deg):
+    for b in np.arange(step_deg, 350.0 + tol.step_count * step_deg, step_deg):
         if probe.any_hidden(bent_plate(cfg, b, direction), distance_m, baseline_dir):
             lo, hi = prev, float(b)
             while hi - lo > tol_deg:
@@ -285,7 +286,7 @@ def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = Sen
                merged_surface_rms_mm=m.get("surface_rms_mm"), merged_surface_coverage=m.get("surface_coverage"),
                merged_points=m.get("points"), merged_points_rms_mm=m.get("points_rms_mm"),
                merged_points_max_mm=m.get("points_max_mm"),
-               depth_rms_mm=(f.accuracy or {}).get("depth_rms_mm"), unverified_parts=len(f.unverified_parts),
+               centres_depth_rms_mm=(f.accuracy or {}).get("centres_depth_rms_mm"), unverified_parts=len(f.unverified_parts),
                verdict=f.verdict_reason, time_s=time.perf_counter() - t0)
     return row
 
@@ -322,11 +323,11 @@ def outcome_counts(rows: list[dict], key=None) -> dict:
 
 
 def targets(rows: list[dict]) -> dict:
-    """The issue's targets: silent = 0, errors = 0, cured >= 90 % of the plates whose stage-2 pose
+    """The study's targets: silent = 0, errors = 0, cured >= 90 % of the plates whose stage-2 pose
     hides part of the boundary and whose reachable poses see all of it ("curable"), false alarms
     <= 2 % of the plates where nothing is hidden.
 
-    "Cured" is the issue's: the final poses see the whole boundary (outcome "cured" or
+    "Cured" in the first target means: the final poses see the whole boundary (outcome "cured" or
     "unconfirmed", ``seen_all_of_curable``). The loop's own verdict is stricter, and is scored
     beside it: the outcome "cured" asks that the loop also *verified* the boundary
     (``cured_of_curable``, ``cured_frac``). A verification needs a pair of poses turned about

@@ -9,7 +9,7 @@ Layout (format ``platebench-sweep`` version 1)::
     DATASET/spec.toml              the spec file as given
     DATASET/results.csv            one row per sample and method (``COLUMNS``); units in the names
     DATASET/results.parquet        the same table (pyarrow), typed
-    DATASET/samples/<id>/sample/   the rendered sample (layout version 1, see bench/sample.py)
+    DATASET/samples/<id>/sample/   the rendered sample (layout version 1, see bench/io/layout.py)
     DATASET/samples/<id>/recon/<method>/   the method's reconstruction + score.json
     DATASET/samples/<id>/result.json       status, error, metrics per method, timings, worker,
                                    the sha256 of EVERY file of the sample directory

@@ -10,7 +10,7 @@ seconds and at the end, also after Ctrl-C).
 Executors yield ``(task, result, exception)`` as samples finish:
 
 * ``LocalExecutor(workers)``: ``concurrent.futures.ProcessPoolExecutor`` with the
-  spawn context; no server. Each worker process keeps one renderer (``bench.jobs``).
+  spawn context; no server. Each worker process keeps one renderer (``bench.sweep.tasks``).
   Workers die with the sweep process (PR_SET_PDEATHSIG). If a worker dies (killed,
   out of memory) the pool is rebuilt and the samples it was running are retried
   (``retries`` times; the task is idempotent), the others resubmitted. ``workers=0``
@@ -108,7 +108,7 @@ class LocalExecutor:
             raise ExecutorError(f"--workers = {workers!r} is out of range: allowed 0 to 256")
         self.workers = workers
         self.retries = retries
-        self.render_threads = render_threads  # None: cores // workers (if scenes.runtime can set it)
+        self.render_threads = render_threads  # None: cores // workers (if scenes.render.runtime can set it)
         self._pool = None
         self.isolated: list[str] = []  # sample ids run alone after a worker death (for reports and tests)
 

@@ -2,7 +2,7 @@
 
 ``platebench sweep SPEC.toml --out DATASET`` reads a spec, builds every sample's
 ``SampleConfig`` up front (so a bad value is refused before anything is rendered or
-written), then renders, reconstructs and scores each sample (see ``bench.executors``).
+written), then renders, reconstructs and scores each sample (see ``bench.sweep.executors``).
 
 Spec format
 ===========
@@ -23,7 +23,7 @@ Four tables; unknown keys are refused by name::
                                  # longer is stopped and recorded as that method's failure
 
     [base]                       # the fixed part: a sample configuration, the same tables
-    [base.plate]                 # as `platebench render --config` (bench/config.py), SI units
+    [base.plate]                 # as `platebench render --config` (bench/config/sample_config.py), SI units
     length_m = 0.1165
     [base.plate.deformation]
     family = "cylinder"
@@ -113,7 +113,7 @@ allows). ``sample.json`` holds no pose (``result.json`` and the manifest do), so
 that re-create the scene from ``sample.json`` to render their own patterns (graycode,
 phase) are refused together with a non-zero tilt.
 
-Output: see ``bench/dataset.py`` (manifest.json, results.csv/.parquet, samples/<id>/).
+Output: see ``bench/sweep/dataset.py`` (manifest.json, results.csv/.parquet, samples/<id>/).
 
 Validation: every sample's ``SampleConfig`` (and scene) is built before anything is
 rendered; the first bad value is refused with one line naming the spec key, the

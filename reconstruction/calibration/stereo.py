@@ -30,6 +30,7 @@ from platebench.errors import UserValueError
 from platebench.scenes.camera import Camera
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import StereoRig
+from platebench.tolerances import tol
 
 __all__ = ["MIN_CORNERS", "DISTORTION_EXPLAINED_PX", "CalibrationError", "BoardDetection", "detect_charuco",
            "CameraCalibration", "calibrate_camera", "distortion_explained_px", "distortion_is_needed",
@@ -46,7 +47,7 @@ FREE_DISTORTION_FLAGS = cv2.CALIB_FIX_K3
 # camera's lens (with or without its noise, line jitter and defocus, which raise both RMS to 0.15-0.25
 # px), 0.001-0.006 px without a lens distortion (noise-free or not): the extra terms then fit noise.
 DISTORTION_EXPLAINED_PX = 0.05
-_CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, 1e-12)
+_CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, tol.solver_eps)
 # cv2.undistortPoints' fixed-point iteration run to convergence (its default stops after 5 steps)
 UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-14)
 
@@ -101,7 +102,7 @@ def detect_charuco(image: np.ndarray, board, refine: bool = True) -> BoardDetect
         win = max(3, int(np.median(d.min(axis=1)) // 12))
         blurred = cv2.GaussianBlur(full, (0, 0), REFINE_SIGMA_PX)
         uv = cv2.cornerSubPix(blurred, uv.astype(np.float32).reshape(-1, 1, 2), (win, win), (-1, -1),
-                              (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-5))
+                              (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, tol.subpixel_eps_px))
         uv = uv.reshape(-1, 2).astype(np.float64)
     obj = np.asarray(board.getChessboardCorners(), np.float64).reshape(-1, 3)[ids]
     return BoardDetection(ids, uv, obj)

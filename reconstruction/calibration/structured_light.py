@@ -1,6 +1,6 @@
 """Structured-light calibration (paper IV-A, last paragraph): the projector lights a
 white target plane placed at two or more known depths; at each depth the square
-centres (intensity-weighted centroids, ``reconstruction.squares``) are found in both
+centres (intensity-weighted centroids, ``reconstruction.paper.squares``) are found in both
 images, matched to their projector features, triangulated, and each feature's ray is
 the least-squares 3D line (SVD) through its centres at the different depths.
 

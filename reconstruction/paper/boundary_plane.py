@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.tolerances import tol as TOL
+
 __all__ = [
     "BoundaryPlane",
     "fit_boundary_plane",
@@ -152,7 +154,7 @@ def least_squares_plane(boundary, toward=None) -> BoundaryPlane:
     a, b, lengths = _segments(pts)
     centroid, scatter = _arc_centroid_and_scatter(a, b, lengths)
     evals, evecs = np.linalg.eigh(scatter)
-    if not evals[1] > 1e-12 * evals[2]:
+    if not evals[1] > TOL.relative * evals[2]:
         raise ValueError("boundary points are collinear; a plane through them is not unique")
     normal = evecs[:, 0]
     return _make_plane(normal, normal @ centroid, centroid, max(evals[0], 0.0), 0, "least_squares", toward)
@@ -186,7 +188,8 @@ def _arc_length_median(ha, hb, lengths, atom_tol):
     return float(pos[k])
 
 
-def fit_boundary_plane(boundary, toward=None, tol: float = 1e-13, max_iterations: int = 500) -> BoundaryPlane:
+def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converged,
+                       max_iterations: int = 500) -> BoundaryPlane:
     """The paper's boundary plane: minimises ∮|D(s)| ds along the closed polyline.
 
     Iteratively reweighted least squares, started from :func:`least_squares_plane`.
@@ -222,8 +225,8 @@ def fit_boundary_plane(boundary, toward=None, tol: float = 1e-13, max_iterations
     a, b, lengths = _segments(pts)
     centroid, _ = _arc_centroid_and_scatter(a, b, lengths)
     scale = float(np.max(np.abs(pts - centroid)))  # the boundary's size (m)
-    eps = 1e-12 * scale
-    atom_tol = 1e-12 * scale
+    eps = TOL.relative * scale
+    atom_tol = TOL.relative * scale
 
     def objective(n, d):
         return float(_segment_abs_integrals(a @ n - d, b @ n - d, lengths).sum())
@@ -271,7 +274,7 @@ def plane_frame(plane: BoundaryPlane) -> tuple[np.ndarray, np.ndarray]:
         local = R @ (world - origin),   world = origin + R.T @ local
 
     (row-vector arrays: ``local = (world - origin) @ R.T``, ``world = local @ R + origin``).
-    This is a pose in the DESIGN.md convention x_local = R x_world + t with
+    This is a pose in the bench's convention (docs/architecture.md) x_local = R x_world + t with
     t = -R @ origin.
     """
     ez = np.asarray(plane.normal, dtype=np.float64)

@@ -35,6 +35,7 @@ from platebench.reconstruction.paper.boundary_types import BoundaryStereo
 from platebench.reconstruction.paper.plate_region import PlateMask, ReconstructionError
 from platebench.scenes.camera import triangulate_rectified
 from platebench.scenes.rig import StereoRig
+from platebench.tolerances import tol
 
 TANGENT_HALF_PX = 4  # border pixels on either side used for the outline's local direction
 REFINE_STEEP_SIN = np.sin(np.radians(30.0))  # refine along the row when |dv/ds| >= this
@@ -108,7 +109,7 @@ def image_contour(image: np.ndarray, region: PlateMask) -> ImageContour:
         raise ReconstructionError(f"plate outline: only {n} border pixels")
     k = TANGENT_HALF_PX
     t = (np.roll(B, -k, axis=0) - np.roll(B, k, axis=0)).astype(float)
-    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), tol.zero_length)
     pts, rows, tang, line, inner, side = [], [], [], [], [], []
     seen = set()
     for i, (u, v) in enumerate(B):

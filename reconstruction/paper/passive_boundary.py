@@ -33,6 +33,7 @@ from platebench.reconstruction.paper.plate_region import (
 from platebench.reconstruction.paper.subpixel_edges import column_edges, row_edges
 from platebench.scenes.camera import triangulate_rectified
 from platebench.scenes.rig import StereoRig
+from platebench.tolerances import tol
 
 SMOOTH_PX = 21  # Savitzky-Golay window (quadratic) along each edge: the outline of a smooth plate is smooth
 CORNER_MARGIN_PX = 6  # edge samples this close to a corner are dropped (the area method needs a clean edge)
@@ -134,11 +135,11 @@ def _corner(side, tb, near_start_side: bool, near_start_tb: bool) -> np.ndarray:
             u = float(np.polyval(ps, v))
             v_new = float(np.polyval(pt, u))
             step = abs(v_new - v)
-            if step < 1e-9:
+            if step < tol.fit_converged:
                 break
             v = v_new
         corner = np.array([float(np.polyval(ps, v)), v])
-    if not np.all(np.isfinite(corner)) or not step < 1e-2:  # diverged, or still moving (a cycle)
+    if not np.all(np.isfinite(corner)) or not step < tol.fit_moving_px:  # diverged, or still moving (a cycle)
         raise ReconstructionError("plate outline: the edge fits near a corner do not meet (corner not found)")
     return corner
 
@@ -188,7 +189,7 @@ def _max_chord_deviation_px(edge, c0, c1) -> float:
     """Largest distance (px) of a top/bottom edge's samples from the line through its corners."""
     u, v = edge
     d = np.asarray(c1, float) - np.asarray(c0, float)
-    n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-12)
+    n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), tol.zero_length)
     return float(np.max(np.abs((np.column_stack([u, v]) - c0) @ n))) if len(u) else 0.0
 
 

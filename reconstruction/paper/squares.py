@@ -65,7 +65,7 @@ def _diagonal_intersection(c: np.ndarray) -> np.ndarray:
     p, r = c[0], c[2] - c[0]
     q, s = c[1], c[3] - c[1]
     den = r[0] * s[1] - r[1] * s[0]
-    if abs(den) < tol.zero_length_m:  # parallel diagonals (pixel units; any tiny floor works)
+    if abs(den) < tol.zero_length:  # parallel diagonals (pixel units; any tiny floor works)
         return np.full(2, np.nan)
     t = ((q - p)[0] * s[1] - (q - p)[1] * s[0]) / den
     return p + t * r

@@ -20,7 +20,7 @@ smoothness energy is minimised subject to B z = h (the limit of an infinite data
 weight), solved as one sparse KKT system.
 
 Frames: points, domain polygon and heights are in one planar frame, metres; usually
-the boundary-plane frame of ``reconstruction.boundary_plane.plane_frame`` (x, y in
+the boundary-plane frame of ``reconstruction.paper.boundary_plane.plane_frame`` (x, y in
 the plane, z along its normal) or world x, y with z up for a near-horizontal plate.
 """
 
@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from platebench.tolerances import ceil_count, is_rotation
+from platebench.tolerances import ceil_count, is_rotation, tol
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -63,17 +63,17 @@ class SurfaceGrid:
     tau: float
 
 
-def points_in_polygon(points_xy, polygon, tol: float = 0.0) -> np.ndarray:
-    """(M,) bool: points inside the closed polygon (K, 2), or within ``tol`` of its edges."""
+def points_in_polygon(points_xy, polygon, margin: float = 0.0) -> np.ndarray:
+    """(M,) bool: points inside the closed polygon (K, 2), or within ``margin`` of its edges."""
     from matplotlib.path import Path  # noqa: PLC0415
 
     points_xy = np.asarray(points_xy, dtype=np.float64)
     polygon = np.asarray(polygon, dtype=np.float64)
     inside = Path(polygon).contains_points(points_xy)
-    if tol > 0:
+    if margin > 0:
         a, b = polygon, np.roll(polygon, -1, axis=0)
         ab = b - a
-        ab2 = np.maximum((ab * ab).sum(-1), 1e-300)
+        ab2 = np.maximum((ab * ab).sum(-1), tol.tiny)
         outside = np.flatnonzero(~inside)
         chunk = max(1, 2_000_000 // len(polygon))  # bound the (points x edges) temporaries
         for start in range(0, outside.size, chunk):
@@ -81,7 +81,7 @@ def points_in_polygon(points_xy, polygon, tol: float = 0.0) -> np.ndarray:
             rel = points_xy[idx, None, :] - a
             t = np.clip((rel * ab).sum(-1) / ab2, 0, 1)
             dist = np.linalg.norm(rel - t[..., None] * ab, axis=-1).min(axis=1)
-            inside[idx] |= dist <= tol
+            inside[idx] |= dist <= margin
     return inside
 
 
@@ -191,7 +191,7 @@ def interpolate_surface(points_xy, heights, domain_polygon, grid_step: float, sm
     tau = _tau(smoothness)
     centred = pts - pts.mean(axis=0)
     sv = np.linalg.svd(centred, compute_uv=False)
-    if tau == 1.0 and not sv[1] > 1e-9 * max(sv[0], grid_step):
+    if tau == 1.0 and not sv[1] > tol.unit_norm * max(sv[0], grid_step):
         raise ValueError("sample points are collinear; a thin-plate surface through them is not unique")
 
     both = np.vstack([pts, poly])
@@ -223,7 +223,7 @@ def interpolate_surface(points_xy, heights, domain_polygon, grid_step: float, sm
         )
     z = solution.reshape(ny, nx)
     gx, gy = np.meshgrid(x, y)
-    mask = points_in_polygon(np.c_[gx.ravel(), gy.ravel()], poly, tol=1e-6 * grid_step).reshape(ny, nx)
+    mask = points_in_polygon(np.c_[gx.ravel(), gy.ravel()], poly, margin=tol.inside_outline * grid_step).reshape(ny, nx)
     return SurfaceGrid(x=x, y=y, z=np.where(mask, z, np.nan), mask=mask, step=float(grid_step), tau=tau)
 
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.strategy.poses import unit as _unit
+from platebench.tolerances import tol
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ def tangent_intersection_distance(curve: BendingCurve) -> float:
     if abs(a) >= np.pi / 2 or abs(b) >= np.pi / 2:
         return float("inf")
     ta, tb = np.tan(a), np.tan(b)
-    if abs(ta + tb) < 1e-12:
+    if abs(ta + tb) < tol.relative:
         return float("inf") if ta * tb > 0 else 0.0
     return float(curve.chord_m * ta * tb / (ta + tb))
 

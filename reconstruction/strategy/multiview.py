@@ -26,12 +26,12 @@ curl 105 -> 5; the true boundary within 2 mm of a confirmed point 97.0 -> 95.6 %
 Both points are compared as averages along their own outlines (``smoothed_points``:
 the row-matched points within ``SMOOTH_HALF_M`` of measured arc either side; the depth noise is
 independent from point to point, an occluding contour's slide is not). Measured on the study's
-renders (dev harness): with the averages, cured 14/23 and false alarms 1/31, perturbed (axes -1
+renders: with the averages, cured 14/23 and false alarms 1/31, perturbed (axes -1
 degree, distances -5 mm) 11/26 and 0/32; comparing single points, 15/23 and 1/31, perturbed 10/25
 and 2/32. Averaging the pieces' points as well (links and gaps on the averaged outline) gave 11/24
 and 0/31: the arc-length thresholds below were set on the measured, unaveraged arcs. The study itself
 (``platebench study false-boundary``, fresh machine, with the averages): cured 15/23, false alarms
-0/31, perturbed 14/25 and 0/32; the dev harness (renders cached across commits) differed from it
+0/31, perturbed 14/25 and 0/32; a run on renders cached from an earlier commit differed from it
 by 1-3 outcomes, a difference not traced. Only points whose disparity was measured on the row
 (not interpolated, ``ViewOutline.matched``) confirm or are confirmed: an interpolated stretch
 agrees with anything its ends agree with. And the two poses must see the edge from the same side
@@ -74,7 +74,7 @@ the same way (the two outlines' orientations, ``outline_sense``). Walked both wa
 islands inside an uncovered stretch each linked back to the piece behind them and closed the loop
 over the stretch (``tests/test_verdict_links.py``; in a study run with other gap directions,
 cylinder 300 down axis 60 closed over a 32 mm stretch that way: a silent verdict). Measured on the
-study's renders (dev harness, outcome for outcome equal to the study): cured 15/23, false alarms
+study's renders (outcome for outcome equal to the study): cured 15/23, false alarms
 1/31, silent 0, against 12/23, 1/31, 0 with both ways walked. Dropping pieces under ``LINK_M``
 instead cured 10/23 with 3/31 false alarms, and walking only the piece's own outline 10/23 with
 3/31: short pieces carry true links, mostly through other poses' outlines.
@@ -90,6 +90,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from platebench.scenes.camera import Camera
+from platebench.tolerances import tol
 
 MATCHED_SOURCES = ("row", "side")  # BoundaryStereo sources whose disparity was measured on the row
 CONFIRM_TOL_M = 1.0e-3  # two poses' points of a true edge agree within this (row-matched: ~0.3 mm each)
@@ -285,7 +286,7 @@ def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_ra
         for j, vj in enumerate(views):
             if j == k or trees[j] is None or trees[k] is None:
                 continue
-            dist, nn = trees[j].query(P, distance_upper_bound=tol_m * (1 + 1e-9))
+            dist, nn = trees[j].query(P, distance_upper_bound=tol_m * (1 + tol.relative))
             idx = np.nonzero(usable[k] & (dist <= tol_m))[0]
             if not len(idx):
                 continue
@@ -454,7 +455,7 @@ def _outward(points: np.ndarray, end: np.ndarray) -> np.ndarray:
     near = points[np.linalg.norm(points - end, axis=1) <= END_SPAN_M]
     d = end - near.mean(axis=0) if len(near) else np.zeros(3)
     n = np.linalg.norm(d)
-    return d / n if n > 1e-9 else np.zeros(3)
+    return d / n if n > tol.unit_norm else np.zeros(3)
 
 
 def _leads_on(i: int, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], near_to: np.ndarray) -> bool:
@@ -527,7 +528,7 @@ def _merge_points(ps: list[Piece]) -> np.ndarray:
         if len(P):
             # thin along the piece itself
             step = max(1, int(round(MERGE_SPACING_M / max(np.median(np.linalg.norm(np.diff(p.points, axis=0),
-                                                                                      axis=1)), 1e-6))))
+                                                                                      axis=1)), tol.zero_length))))
             kept.append(P[::step])
             tree = cKDTree(np.vstack(kept))
     return np.vstack(kept) if kept else np.zeros((0, 3))

@@ -42,10 +42,10 @@ The candidate predicted to confirm most stretches wins, then the one reaching mo
 the earlier one (aimed views, then the paper's cures). Where no candidate is predicted to confirm
 anything, those that would see the stretch from only ``GRAZING_FRONT_MARGIN_RAD`` (5 degrees) above
 the measured surface are asked next (a *grazing view*, so named in its reason), before any view
-that only sees past a gap (dev harness, the study's renders: the concave 120-degree fold went
+that only sees past a gap (on the study's renders: the concave 120-degree fold went
 from "unconfirmed" to "cured", no other outcome moved, false alarms 0, silent 0). Taking grazing
 views on a par with the others (a margin of 5 degrees everywhere) cured the convex fold too, but
-on the first 39 plates, where I stopped that run, it lost 2 cures and made 2 plates "honest"; 5
+on the first 39 plates (a run not taken further) it lost 2 cures and made 2 plates "honest"; 5
 degrees for the confirmations alone lost both folds: grazing views see less of the plate, so they
 come last. (On the convex fold, the pairs ground truth finds for the middle of the flap's tip
 include a dome pose 4 degrees above the flap, measured against the true normals: under even this
@@ -53,13 +53,13 @@ margin.) A turn that is to confirm takes the baseline
 the prediction chose; one that only sees past takes a baseline across the gaps' directions; the
 paper's cures keep theirs. No candidate confirming or seeing past any gap: stop, naming the gaps.
 
-Measured (dev harness with cached renders, outcome for outcome as the study): before the
+Measured on the study's renders (outcome for outcome as the study): before the
 silhouette and row checks, 1 in 3 of the points a chosen cure was predicted to confirm were
 confirmed (the rest mostly lay on no outline of the new pose: inner edges and other poses'
 contours). With them, on the study's first 26 plates (to 240 degrees), 107 of 274 (4 in 10): the
 prediction ranks views usefully but is no promise, and the chosen views confirm about as many
 points again that were not predicted. With the dome poses and ``MAX_CURE_VIEWS`` 12 (8 before),
-the study's figures are in README. 18 (dev harness, the study's 300-degree curls and folds): the
+the study's figures are in README. 18 (on the study's 300-degree curls and folds): the
 concave 300-degree curls about axes 0 and 60 went from part of the boundary seen by no pose (76
 and 99 %) to all of it seen, using 15 and 17 cures; no other outcome moved (the study runs two
 plates at a time since, which pays for it).
@@ -70,7 +70,7 @@ in its image: chords across a curl's opening lay where no plate is and blocked, 
 rays to gap ends the poses had measured (on the convex 300-degree curl about axis 0, moved +1
 degree and +5 mm, every end of every gap from every pose, those that saw them included), so that
 nothing was predicted to see past them and the loop stopped with 15 cures to spare. Measured with
-the chord-free model (dev harness, the study's renders, outcome for outcome as the study): verified
+the chord-free model (on the study's renders, outcome for outcome as the study): verified
 cures 20 -> 21 of 28 (of the 22 that pairs of reachable poses can verify, 19 -> 21), moved plates
 (axes -1 degree, distances -5 mm) 18 -> 21 of 27 (of the 21 verifiable, 18 -> 21); the study with
 axes +1 degree and distances +5 mm: verified 15 -> 19 of 27, the final poses seeing it all 24 -> 25;
@@ -121,6 +121,7 @@ from platebench.reconstruction.strategy.poses import (
 from platebench.reconstruction.strategy.sides import FrontSide
 from platebench.reconstruction.strategy.surface_model import SurfaceModel
 from platebench.scenes.camera import Camera
+from platebench.tolerances import tol
 
 VERIFY_TURNS_DEG = (("g", -30.0), ("g", 30.0), ("g", -60.0), ("g", 60.0), ("e", -30.0), ("e", 30.0), ("e", -60.0),
                     ("e", 60.0), ("g+e", -45.0), ("g+e", 45.0), ("g-e", -45.0), ("g-e", 45.0))
@@ -295,7 +296,7 @@ def beyond_gap(gap: Gap, done: list[ViewOutline], confirmed=()) -> Beyond:
             t = outline_directions(v.points)[m]
             t = t - n * np.einsum("ij,ij->i", t, n)[:, None]
             P.append(v.points[m])
-            T.append(t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12))
+            T.append(t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), tol.zero_length))
             C.append(np.repeat(v.camera_center[None], int(m.sum()), 0))
             V.append(np.full(int(m.sum()), k))
             N.append(n)
@@ -352,7 +353,7 @@ def _turned_enough(beyond: Beyond, center: np.ndarray) -> np.ndarray:
     P = beyond.points
     slide = CONFIRM_SLIDE_ANGLE_RAD + PREDICT_MARGIN_RAD
     theirs = np.cross(center - P, beyond.tangents)
-    theirs /= np.maximum(np.linalg.norm(theirs, axis=1, keepdims=True), 1e-12)
+    theirs /= np.maximum(np.linalg.norm(theirs, axis=1, keepdims=True), tol.zero_length)
     return (ray_angles(P, beyond.centers, center) >= CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD) & \
         (slide_angles(beyond.normals, P, center) >= slide) & (slide_angles(theirs, P, beyond.eyes) >= slide)
 
@@ -594,7 +595,7 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
         else:  # it only sees past the gaps: their edges across the image rows
             v = pose.view_dir
             across = np.cross(v, _principal_direction(np.array([gaps[i].direction for i in best_seen])))
-            if np.linalg.norm(across) > 1e-6:
+            if np.linalg.norm(across) > tol.unit_norm:
                 pose = replace(pose, baseline_dir=perpendicular(across, v))
     view = replace(best, pose=pose, purpose="cure",
                    reason=best.reason + f"; predicted to see past or confirm the edge beyond {len(best_seen)} of "

@@ -17,6 +17,7 @@ import numpy as np
 from platebench.errors import UserValueError
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane, plane_frame
 from platebench.scenes.camera import Camera
+from platebench.tolerances import tol
 
 
 class PoseError(UserValueError):
@@ -71,7 +72,7 @@ def perpendicular(baseline, view) -> np.ndarray:
 
 def _perp(baseline, view) -> np.ndarray:
     b = np.asarray(baseline, float) - view * (np.asarray(baseline, float) @ view)
-    if np.linalg.norm(b) < 1e-9:  # baseline along the view: pick any perpendicular
+    if np.linalg.norm(b) < tol.unit_norm:  # baseline along the view: pick any perpendicular
         b = np.cross(view, [1.0, 0.0, 0.0]) if abs(view[0]) < 0.9 else np.cross(view, [0.0, 1.0, 0.0])
     return _unit(b)
 
@@ -123,7 +124,7 @@ def most_bent_direction(boundary: np.ndarray, plane: BoundaryPlane, extra_points
     H = np.array([[2 * coef[3], coef[4]], [coef[4], 2 * coef[5]]])
     w, v = np.linalg.eigh(H)
     extent = np.ptp(loc[:, :2], axis=0).max()
-    if np.abs(w).max() * extent ** 2 < 1e-5:  # flat within ~10 um over the plate: no bend
+    if np.abs(w).max() * extent ** 2 < tol.flat_height_m:  # flat over the plate: no bend
         outline = (boundary - origin) @ R.T
         _, _, vt = np.linalg.svd(outline[:, :2] - outline[:, :2].mean(axis=0))
         d2 = vt[0]
@@ -198,7 +199,7 @@ class Reach:
     def why_not(self, pose: SensorPose, measured: np.ndarray, baseline_m: float) -> str | None:
         """None if ``pose`` is reachable above the ``measured`` points (N,3), else the reason."""
         tilt = float(np.arccos(np.clip(-pose.view_dir[2], -1.0, 1.0)))
-        if tilt > self.max_tilt_rad + 1e-9:
+        if tilt > self.max_tilt_rad + tol.angle_rad:
             return (f"view {np.degrees(tilt):.0f} deg from vertical (the robot reaches "
                     f"{np.degrees(self.max_tilt_rad):.0f} deg)")
         low = float(np.min(np.asarray(measured)[:, 2])) if len(measured) else pose.target[2]
@@ -233,4 +234,4 @@ def diagonal_baseline(view_dir, a, b) -> np.ndarray:
     a2, b2 = _perp(a, v), _perp(b, v)
     if a2 @ b2 < 0:
         b2 = -b2
-    return _perp(a2 + b2, v) if np.linalg.norm(a2 + b2) > 1e-9 else a2
+    return _perp(a2 + b2, v) if np.linalg.norm(a2 + b2) > tol.unit_norm else a2

@@ -28,6 +28,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 from scipy.spatial import cKDTree
 
+from platebench.tolerances import tol
+
 NEIGHBOURS = 10  # points in each normal's plane fit
 JOIN_M = 12e-3  # points this close are neighbours in the spanning tree (the layers of a curl stay apart)
 SIDE_CANDIDATES = 8  # nearest surface points tried for a point's side ...
@@ -134,7 +136,7 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, r
                        np.abs(np.einsum("ij,ij->i", normals[cols], off)))
     keep = along <= np.sin(TANGENTIAL_RAD)  # one sheet: neighbours lie along it, not across
     rows, cols = rows[keep], cols[keep]
-    w = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + 1e-6
+    w = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + tol.unit_norm
     sym = minimum_spanning_tree(coo_matrix((w, (rows, cols)), shape=(S, S)))
     sym = sym + sym.T
     u = np.asarray(up, float)

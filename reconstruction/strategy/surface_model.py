@@ -23,6 +23,7 @@ from scipy.spatial import Delaunay, cKDTree
 
 from platebench.reconstruction.paper.surface_interpolation import points_in_polygon
 from platebench.reconstruction.strategy.multiview import ViewOutline
+from platebench.tolerances import tol
 
 MEMBRANE_SPACING_M = 1.5e-3  # outline points kept for the triangulation (one per this arc length)
 SAMPLE_SPACING_M = 1.0e-3  # surface samples for normals and coverage
@@ -150,8 +151,8 @@ class SurfaceModel:
                 area2 = np.linalg.norm(fn, axis=1)
                 edges2 = sum(np.sum((T[:, i] - T[:, (i + 1) % 3]) ** 2, axis=1) for i in range(3))
                 # Near-degenerate triangles (three points along one edge) have no reliable normal.
-                quality = 2.0 * np.sqrt(3.0) * area2 / np.maximum(edges2, 1e-30)
-                fn = np.where((quality >= MIN_TRIANGLE_QUALITY)[:, None], fn / np.maximum(area2, 1e-15)[:, None], 0.0)
+                quality = 2.0 * np.sqrt(3.0) * area2 / np.maximum(edges2, tol.tiny)
+                fn = np.where((quality >= MIN_TRIANGLE_QUALITY)[:, None], fn / np.maximum(area2, tol.tiny)[:, None], 0.0)
                 nrm.append(fn[f])
             pts.append(p)
             idx.append(np.full(len(p), k))
@@ -188,7 +189,7 @@ class SurfaceModel:
         n = n * (np.where(sgn == 0, 1.0, sgn) * ok)[..., None]
         m = n.sum(axis=1)
         norm = np.linalg.norm(m, axis=1)
-        good = enough & (norm > 1e-12)
+        good = enough & (norm > tol.zero_length)
         out[good] = m[good] / norm[good, None]
         return out
 

@@ -15,7 +15,7 @@ corner, x along the board image's columns, y along its rows, z = x cross y, poin
 *into* the board (away from a camera that sees the board image upright); chessboard
 corner k is ``board.getChessboardCorners()[k]``. A pose is (R_wb, p_wb):
 ``x_world = R_wb @ x_board + p_wb``. Units: metres, radians; camera frames as in
-``scenes.camera``; sensor transforms from ``scenes.mitsuba_convert`` only.
+``scenes.camera``; sensor transforms from ``scenes.render.mitsuba_convert`` only.
 """
 from __future__ import annotations
 

@@ -22,8 +22,7 @@ import numpy as np
 
 from platebench.scenes.camera import Camera
 from platebench.scenes.render.device_arrays import to_device
-
-_OCCLUSION_SLACK_M = 1e-5  # a boundary point counts as occluded only by surface > 10 um before it
+from platebench.tolerances import tol
 
 
 @dataclass(frozen=True)
@@ -105,7 +104,7 @@ class GroundTruthCaster:
             origin, dirs = cam.rays(np.column_stack([uu.ravel(), vv.ravel()]).astype(float))
             prim = self._mesh_intersector().intersects_first(np.repeat(origin[None], len(dirs), 0), dirs)
             return prim.reshape(H, W), None
-        import drjit as dr  # noqa: PLC0415  (scenes.runtime has set up libLLVM already)
+        import drjit as dr  # noqa: PLC0415  (scenes.render.runtime has set up libLLVM already)
         W, H = cam.width, cam.height
         idx = dr.arange(mi.UInt32, W * H)
         x = mi.Float(idx % W)
@@ -143,7 +142,7 @@ class GroundTruthCaster:
             if self._device is None:
                 from platebench.scenes.render.ground_truth_device import DeviceGroundTruth  # noqa: PLC0415
                 self._device = DeviceGroundTruth(self.r)
-            depth64, points, normals, mask, puv, feat = self._device.camera(camera_name, _OCCLUSION_SLACK_M)
+            depth64, points, normals, mask, puv, feat = self._device.camera(camera_name, tol.occlusion_slack_m)
             return CameraGroundTruth(depth64.astype(np.float32), points, normals, mask, puv, feat, depth64)
         spec = self.r.spec
         plate = self.r.plate
@@ -194,7 +193,7 @@ class GroundTruthCaster:
             reach &= ang < proj.cutoff_rad
         if reach.any():
             idx = np.nonzero(reach)[0]
-            occl = self._occluded(np.repeat(pc.center[None], idx.size, 0), p[idx], _OCCLUSION_SLACK_M)
+            occl = self._occluded(np.repeat(pc.center[None], idx.size, 0), p[idx], tol.occlusion_slack_m)
             reach[idx[occl]] = False
         uv = uv.astype(np.float32)
         uv[~reach] = np.nan
@@ -214,7 +213,7 @@ class GroundTruthCaster:
         in_view = np.isfinite(uv[:, 0]) & (cam.in_image(uv) if require_in_view else True)
         n = np.asarray(plate.surface_normal(np.asarray(plate.boundary_uv, np.float64)))
         facing = np.einsum("ij,ij->i", n, cam.center - P) > 0
-        occluded = self._occluded(np.repeat(cam.center[None], len(P), 0), P, _OCCLUSION_SLACK_M)
+        occluded = self._occluded(np.repeat(cam.center[None], len(P), 0), P, tol.occlusion_slack_m)
         visible = in_view & facing & ~occluded
         return summarise_visibility(P, visible)
 

@@ -12,7 +12,7 @@ rebuilds the scene.
 Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels, taken on the
 render's device and copied to the host once (``scenes.render.film``). The ``box`` reconstruction filter keeps
 renders bit-identical for a given seed across processes.
-Units: metres; frames as in ``scenes.camera``; conversions in ``scenes.mitsuba_convert``.
+Units: metres; frames as in ``scenes.camera``; conversions in ``scenes.render.mitsuba_convert``.
 """
 from __future__ import annotations
 

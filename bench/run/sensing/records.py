@@ -23,8 +23,8 @@ OUTCOME_TEXT = {
     "silent": "part of the boundary is still hidden and the loop says it is verified (the defect)",
     "clean": "nothing was hidden and nothing was raised",
     "false_alarm": "nothing was hidden, but the loop applied a cure or did not verify the boundary",
-    "unconfirmed": "the stage-2 pose hid part of the boundary; the final poses see all of it (cured, as the "
-                   "issue counts it), but the loop could not confirm it and says so",
+    "unconfirmed": "the stage-2 pose hid part of the boundary; the final poses see all of it (the study's "
+                   "\"seen all\" target counts it as cured), but the loop could not confirm it and says so",
 }
 HIDDEN_BELOW = 0.995  # ground truth "hides part of the boundary": a camera sees less than this fraction
 

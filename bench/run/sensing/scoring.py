@@ -10,12 +10,13 @@ from trimesh.path.traversal import resample_path
 from platebench.bench.run.score import score_in_memory
 from platebench.evaluation.boundary_metrics import points_to_polyline_distance
 from platebench.evaluation.metrics_row import MetricsRow
-from platebench.evaluation.surface_metrics import score_surface
 from platebench.evaluation.point_metrics import closest_point_on_mesh
+from platebench.evaluation.surface_metrics import score_surface
 from platebench.reconstruction.strategy.active_views import MergedReconstruction
-from platebench.reconstruction.strategy.surface_model import sample_triangles
 from platebench.reconstruction.strategy.multiview import CONFIRM_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RAD
+from platebench.reconstruction.strategy.surface_model import sample_triangles
 from platebench.scenes.render.ground_truth import BoundaryVisibility, combined_visibility, summarise_visibility
+from platebench.tolerances import tol
 
 TRIANGULATED_PX = 3.0  # a true boundary point lies on a pose's measured outline within this (left image)
 TRUE_BOUNDARY_STEP_M = 0.5e-3  # the true boundary is sampled this finely (by arc length) for the merged scores
@@ -26,7 +27,7 @@ def stage3_accuracy(sample, rec) -> dict:
     """The stage-3 reconstruction (the paper's method) scored against ground truth (millimetres)."""
     score = score_in_memory(sample, rec)
     row = MetricsRow.from_score(score)
-    return {"depth_rms_mm": row.depth_rms_mm, "points_scored": score.points.count if score.points else 0,
+    return {"centres_depth_rms_mm": row.centres_depth_rms_mm, "points_scored": score.points.count if score.points else 0,
             "boundary_mean_mm": row.boundary_mean_mm, "surface_rms_mm": row.surface_rms_mm,
             "surface_coverage": row.coverage_frac, "paper_bound_met": row.paper_bound_met,
             "goals_met": score.goals.met if score.goals else None}
@@ -95,7 +96,7 @@ def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: 
     C = np.asarray(centers, float)
     E = np.asarray(eyes, float)
     t = np.roll(P, -1, axis=0) - np.roll(P, 1, axis=0)
-    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-15)
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), tol.zero_length)
     both = np.asarray(masks["left"], bool) & np.asarray(masks["right"], bool)  # (Pn, N)
 
     def rays(X):  # (Pn, N, 3) unit, point -> pose
@@ -103,7 +104,7 @@ def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: 
         return r / np.linalg.norm(r, axis=2, keepdims=True)
     rc, r = rays(C), rays(E)
     n = np.cross(r, t[None])  # each pose's plane through the true tangent
-    n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-15)
+    n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), tol.zero_length)
     ok = np.zeros(len(P), bool)
     sin_slide, cos_angle = np.sin(CONFIRM_SLIDE_ANGLE_RAD), np.cos(CONFIRM_ANGLE_RAD)
     for a in range(len(C)):
