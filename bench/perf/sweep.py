@@ -29,6 +29,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from platebench.tolerances import tol
+
 
 def _spec(n: int, width: int, height: int, spp: int):
     from platebench.bench.sweep.spec import parse_spec  # noqa: PLC0415
@@ -109,7 +111,7 @@ def perf_sweep(n_samples: int = 20, width: int = 320, height: int = 240, spp: in
             out["runs"].append(_measure("pipeline 1+2", spec, PipelineExecutor(cluster.address), root, log))
         log(f"(dask cluster start-up, not counted above: {out['dask_cluster_start_s']:.1f} s)")
     out["cpu_capacity_cores"] = {"1_process": cpu_capacity(1), "2_processes": cpu_capacity(2)}
-    cap = out["cpu_capacity_cores"]["2_processes"] / max(out["cpu_capacity_cores"]["1_process"], 1e-9)
+    cap = out["cpu_capacity_cores"]["2_processes"] / max(out["cpu_capacity_cores"]["1_process"], tol.tiny)
     out["ratio_capacity_2_over_1"] = cap
     one, two = out["runs"][0], out["runs"][1]
     out["ratio_2_over_1_workers"] = two["samples_per_min"] / one["samples_per_min"]

@@ -32,11 +32,11 @@ import numpy as np
 
 from platebench.plates.deformations import surface_frame
 from platebench.scenes.render.device_arrays import to_device
+from platebench.tolerances import tol
 
 __all__ = ["DrjitOps", "DeviceGroundTruth"]
 
 _NEWTON_STEPS = 12  # float64 Newton on the lens inverse: quadratic, converged to rounding in 4-6 at the bench's lenses
-_NEWTON_RESIDUAL = 1e-12  # normalised units: a larger residual after the steps is an error, never a silent map
 
 
 class DrjitOps:
@@ -49,9 +49,9 @@ class DrjitOps:
         self.maximum, self.clip = dr.maximum, dr.clip
 
     def sinc(self, x):
-        """sin(pi x) / (pi x), as numpy's ``sinc`` computes it."""
-        y = math.pi * self.dr.select(x == 0, 1e-20, x)
-        return self.dr.sin(y) / y
+        """sin(pi x) / (pi x), 1 at x = 0 (numpy's ``sinc``)."""
+        y = math.pi * x
+        return self.dr.select(x == 0, 1.0, self.dr.sin(y) / y)
 
     def zeros_like(self, x):
         return self.dr.zeros(self.F, self.dr.width(x))
@@ -63,21 +63,18 @@ class DrjitOps:
         return self.dr.opaque(self.F, float(value))
 
 
-WINDOW_MARGIN_PX = 4  # beyond the plate's projected vertices: a lens bends a triangle's edges by far less
-
-
 def plate_window(cam, vertices) -> tuple[int, int, int, int]:
     """(u0, v0, width, height) of the pixels that can see the plate: the bounding box of its
     vertices' projections (a pinhole maps each triangle into the hull of its corners' images),
-    widened by ``WINDOW_MARGIN_PX`` and clipped to the image; the whole image when a vertex lies
+    widened by ``tol.plate_window_px`` and clipped to the image; the whole image when a vertex lies
     behind the camera. At least one pixel."""
     W, H = cam.width, cam.height
     V = np.asarray(vertices, np.float64)
     if not len(V) or np.any(cam.to_camera(V)[:, 2] <= 0):
         return 0, 0, W, H
     uv = cam.project(V)
-    lo = np.floor(uv.min(axis=0)) - WINDOW_MARGIN_PX
-    hi = np.ceil(uv.max(axis=0)) + WINDOW_MARGIN_PX
+    lo = np.floor(uv.min(axis=0)) - tol.plate_window_px
+    hi = np.ceil(uv.max(axis=0)) + tol.plate_window_px
     u0, v0 = int(np.clip(lo[0], 0, W - 1)), int(np.clip(lo[1], 0, H - 1))
     u1, v1 = int(np.clip(hi[0], u0, W - 1)), int(np.clip(hi[1], v0, H - 1))
     return u0, v0, u1 - u0 + 1, v1 - v0 + 1
@@ -158,7 +155,7 @@ class DeviceGroundTruth:
             px, py = px - (j11 * rx - j01 * ry) / det, py - (-j01 * rx + j00 * ry) / det
         xd, yd = self._distort(cam, px, py)[:2]
         worst = float(dr.max(dr.maximum(dr.abs(xd - x), dr.abs(yd - y)))[0]) if dr.width(x) else 0.0
-        if not worst <= _NEWTON_RESIDUAL:
+        if not worst <= tol.lens_inverse_residual:
             raise ValueError(f"the lens inverse left a residual of {worst:.1e} (normalised) after {_NEWTON_STEPS} "
                              "Newton steps: the distortion does not map these pixels one-to-one")
         return px, py
