@@ -83,7 +83,9 @@ def plate_mask(image: np.ndarray, name: str = "image") -> PlateMask:
     """The bright plate region on the dark background: Tsai threshold, largest region, hysteresis
     growth down to ``HYSTERESIS`` of the contrast, holes filled. Refuses a region touching the border."""
     f = check_image(image, name)
-    t = tsai_moment_threshold(f)
+    raw = np.asarray(image)
+    # an integer image's histogram gives the same grey levels and counts as its float copy, without a sort
+    t = tsai_moment_threshold(raw if raw.dtype.kind in "ui" else f)
     binary = (f > t.threshold).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
     if n < 2:
