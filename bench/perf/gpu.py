@@ -4,13 +4,13 @@ On a machine with a CUDA device (``cuda_ad_rgb``) the run measures, at the refer
 (1280 x 960, spp 16 unless told otherwise), with the machine's CPU (``llvm_ad_rgb``) as the
 baseline where the figure has one:
 
-1. **Host pixels** (``subnormal``): one render of each variant copied to the host the way the
-   bench read renders before (the RGB tensor, then numpy's channel mean): its subnormal floats
-   counted per channel, and numpy's ``mean(axis=2)`` timed on it, on a copy with the subnormals
-   flushed to zero and on random values of the same shape; the sensor's digitisation timed on
-   its channel mean with and without them; the bench's device-side mean (``scenes.render.film``)
+1. **Host pixels** (``subnormal``): one render of each variant copied to the host the plain way
+   (the RGB tensor, then numpy's channel mean): its subnormal floats counted per channel, and
+   numpy's ``mean(axis=2)`` timed on it, on a copy with the subnormals flushed to zero and on
+   random values of the same shape; the sensor's digitisation and an EXR write timed on its
+   channel mean with and without them; the bench's device-side mean (``scenes.render.film``)
    timed beside them. This verifies (or refutes) subnormal floats as the cause of a slow host
-   channel mean, and shows what the bench's images cost on the host now.
+   channel mean, and shows what the bench's images cost on the host.
 2. **Whole sample** (``sample``): raw ``mitsuba.render`` of the 4 images with their pixels read on
    the host (the baseline) against a whole sample (the 4 images and all ground truth,
    ``render_sample``), best of ``repeat``, wall-clock and CPU seconds; kernel compiles of a second
@@ -89,13 +89,15 @@ def subnormal_check(cfg: SampleConfig, repeat: int = 3, log=print) -> dict:
     from platebench.bench.run.render import render_sample  # noqa: PLC0415
     from platebench.scenes.naming import image_seed  # noqa: PLC0415
     from platebench.scenes.render.film import FLOAT32_TINY, count_subnormal, grey_to_host  # noqa: PLC0415
+    from platebench.bench.io.images import write_exr  # noqa: PLC0415
     _, r = render_sample(cfg)
     mi = r.mi
     out = {"variant": r.variant}
+    exr = Path(tempfile.mkdtemp(prefix="platebench-perf-exr-")) / "grey.exr"
     for light in ("passive", "active"):
         r.set_lighting(light)
         img = mi.render(r.scene, sensor=0, spp=cfg.render.spp, seed=image_seed(cfg.render.seed, "left", light))
-        a = np.array(img, dtype=np.float32)  # the RGB tensor on the host, as the bench read it before
+        a = np.array(img, dtype=np.float32)  # the RGB tensor on the host, the plain way
         flushed = a.copy()
         flushed[np.abs(flushed) < FLOAT32_TINY] = 0.0
         rand = np.random.default_rng(0).random(a.shape, dtype=np.float32)
@@ -106,6 +108,8 @@ def subnormal_check(cfg: SampleConfig, repeat: int = 3, log=print) -> dict:
              "slice_sum_render_s": _best(lambda: a[..., 0] + a[..., 1] + a[..., 2], repeat)[0],  # noqa: B023
              "digitize_render_s": _best(lambda: cfg.sensor.digitize(grey, seed=1), repeat)[0],  # noqa: B023
              "digitize_flushed_s": _best(lambda: cfg.sensor.digitize(grey_flushed, seed=1), repeat)[0],  # noqa: B023
+             "write_exr_render_s": _best(lambda: write_exr(exr, grey), repeat)[0],  # noqa: B023
+             "write_exr_flushed_s": _best(lambda: write_exr(exr, grey_flushed), repeat)[0],  # noqa: B023
              "device_mean_to_host_s": _best(lambda: grey_to_host(mi, img), repeat)[0]}  # noqa: B023
         sub = [count_subnormal(a[..., c]) for c in range(3)]
         out[light] = {"subnormal_per_channel": sub, "subnormal_in_channel_mean": count_subnormal(grey),
@@ -114,8 +118,11 @@ def subnormal_check(cfg: SampleConfig, repeat: int = 3, log=print) -> dict:
         log(f"{r.variant:12s} {light:7s}: subnormal floats per channel {sub} of {a.shape[0] * a.shape[1]} px; "
             f"host mean(axis=2) {t['mean_axis2_render_s'] * 1e3:.1f} ms (flushed copy "
             f"{t['mean_axis2_flushed_s'] * 1e3:.1f}, random {t['mean_axis2_random_s'] * 1e3:.1f}); digitize "
-            f"{t['digitize_render_s'] * 1e3:.1f} ms (flushed {t['digitize_flushed_s'] * 1e3:.1f}); the bench's "
+            f"{t['digitize_render_s'] * 1e3:.1f} ms (flushed {t['digitize_flushed_s'] * 1e3:.1f}); EXR write "
+            f"{t['write_exr_render_s'] * 1e3:.1f} ms (flushed {t['write_exr_flushed_s'] * 1e3:.1f}); the bench's "
             f"device mean + copy {t['device_mean_to_host_s'] * 1e3:.1f} ms")
+    import shutil  # noqa: PLC0415
+    shutil.rmtree(exr.parent, ignore_errors=True)
     return out
 
 

@@ -11,7 +11,7 @@ of the process: the steadier figure on a shared machine):
   ``render_pattern_sequence`` (patterns three to a launch, inverses by linearity), decoded
   (``graycode.decode_subpixel``) and scored (``field_scores.score_disparity``);
 * the **sequence frame by frame**, the baseline of its rendering: the same 22 frames per camera,
-  one launch each, each with a seed of its own (how the bench rendered sequences before);
+  one launch each, each with a seed of its own (a sequence rendered frame by frame);
 * the **phase-shift sequence** (4 fringes + 7 Gray-code planes, no complements: 4 launches per
   camera) for its launch count and time.
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from platebench.scenes.naming import CAMERAS, LIGHTINGS, image_seed
 from platebench.scenes.render import runtime
-from platebench.scenes.render.device_arrays import to_device
+from platebench.scenes.render.device_arrays import aligned, to_device
 from platebench.scenes.render.film import channels_to_host, grey_to_host
 from platebench.scenes.render.lens_sensor import configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.render.mitsuba_convert import (
@@ -248,7 +248,7 @@ class PlateRenderer:
         """Load (Hp, Wp, C) float32 values in [0, 1], C = 1 or 3, into the projector's texture
         (a parameter update; the channel count is the kernel's only change, compiled once each)."""
         mi, p = self.mi, self.params
-        tex = mi.TensorXf(to_device(mi.Float, image, np.float32), shape=image.shape)
+        tex = mi.TensorXf(aligned(np.asarray(image, np.float32)))
         p["projector.texture.data" if self._spec.projector.kind == "spot" else "projector.irradiance.data"] = tex
         p.update()
 
