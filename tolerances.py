@@ -44,6 +44,10 @@ class Tolerances:
     tiny: float = 1e-30             # floor of a denominator that may be zero (a degenerate triangle, no noise)
     occlusion_slack_m: float = 1e-5  # a boundary point is occluded only by surface > 10 um before it
     flat_height_m: float = 1e-5     # a fitted height field this flat (over the plate) has no bend
+    lens_inverse_residual: float = 1e-12  # the ground truth's inverse distortion (normalised units): a larger
+                                          # residual after its Newton steps is an error, never a silent map
+    plate_window_px: float = 4.0    # ground truth casts the plate's projected vertex box widened by this (px):
+                                    # a lens bends a triangle's short edges by far less
 
 tol = Tolerances()
 

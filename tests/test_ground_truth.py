@@ -9,11 +9,12 @@ import trimesh
 
 from platebench.bench.io.images import read_exr, read_pfm, read_png
 from platebench.bench.io.sample_files import load_calibration
-from platebench.plates import CylindricalBend, PlateSpec, build_plate
+from platebench.plates import CylindricalBend, Dent, Dome, Fold, PlateSpec, Twist, build_plate
 from platebench.scenes.camera import Camera
 from platebench.scenes.render.ground_truth import GroundTruthCaster
 from platebench.scenes.render.renderer import PlateRenderer
-from platebench.scenes.scene_spec import reference_scene
+from platebench.scenes.lens import BrownConrady
+from platebench.scenes.scene_spec import reference_scene, scene_for_pose
 
 pytestmark = pytest.mark.render
 
@@ -100,3 +101,63 @@ def test_strong_bend_hides_boundary_behind_the_plate():
     first = np.full(len(P), np.inf)
     first[idx] = np.linalg.norm(locs - C, axis=1)
     assert np.all(first >= np.linalg.norm(P - C, axis=1) - 1e-4)
+
+
+DEVICE_CASES = {  # plate deformation, thickness, camera lens, projector kind, rig turned off the vertical
+    "bend 120 down about 30 deg, thick": (CylindricalBend(np.radians(120.0), "down", np.radians(30.0)), 0.002,
+                                         None, "pinhole", 0.15),
+    "dent, lens, spot": (Dent(0.003, 0.02, 0.01, -0.005), 0.0, BrownConrady(-0.2286, 0.1904, 0.001, -0.0005), "spot",
+                         0.0),
+    "fold 150, thick": (Fold(np.radians(150.0), 0.01, 0.02, "up", np.radians(60.0)), 0.001, None, "pinhole", 0.3),
+    "twist, lens": (Twist(np.radians(40.0)), 0.0, BrownConrady(0.12, -0.05), "pinhole", 0.1),
+    "bowl": (Dome(-0.004), 0.0, None, "spot", 0.0),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DEVICE_CASES))
+def test_maps_computed_on_the_device_equal_the_numpy_definitions(case):
+    """The drjit maps (``ground_truth_device``) against the numpy definitions of the same maps
+    evaluated from the same Mitsuba hits (``GroundTruthCaster(on_device=False)``): every plate
+    family's analytic normals, lenses, thickness (side walls: face normals), spot and pinhole
+    projectors, a tilted rig."""
+    deformation, thickness, lens, projector, tilt = DEVICE_CASES[case]
+    scene = reference_scene(width=96, height=72, f_px=150.0, fy_px=None if lens is None else 165.0,
+                            distortion=lens, projector_kind=projector)
+    c = 0.4 * np.array([np.sin(tilt), 0.3 * np.sin(tilt), np.cos(tilt)])
+    scene = scene_for_pose(c, np.zeros(3), np.array([1.0, 0.2, 0.0]), scene)
+    r = PlateRenderer(scene, build_plate(PlateSpec(0.1165, 0.0735, thickness_m=thickness, deformation=deformation)))
+    if r.variant.startswith("scalar"):
+        pytest.skip("scalar variant: the maps are computed in numpy only")
+    dev, ref = GroundTruthCaster(r), GroundTruthCaster(r, on_device=False)
+    for cam in ("left", "right"):
+        a, b = dev.camera(cam), ref.camera(cam)
+        assert b.mask.sum() > 500 and np.array_equal(a.mask, b.mask)
+        m = b.mask
+        assert np.all(np.isinf(a.depth64[~m])) and np.all(np.isnan(a.points[~m]))
+        assert np.abs(a.depth64[m] - b.depth64[m]).max() <= 1e-12
+        assert np.abs(a.points[m] - b.points[m]).max() <= 1e-9
+        assert np.abs(a.normals[m] - b.normals[m]).max() <= 1e-6
+        assert np.array_equal(np.isnan(a.proj_uv), np.isnan(b.proj_uv))
+        lit = ~np.isnan(b.proj_uv[..., 0])
+        assert lit.sum() > 100 and np.abs(a.proj_uv[lit] - b.proj_uv[lit]).max() <= 1e-3
+        assert np.mean(a.feature == b.feature) >= 0.9999 and (a.feature >= 0).sum() > 0
+
+
+@pytest.mark.parametrize("target_x_m, seen", [(0.09, True), (0.6, False)])
+def test_device_maps_of_a_plate_at_the_image_edge_or_out_of_view(target_x_m, seen):
+    """Only the pixels of the plate's projected window are cast on the device (``plate_window``); a
+    plate cut by the image border is mapped as the numpy definitions map it from every pixel, and
+    one out of view gives empty maps."""
+    scene = reference_scene(width=96, height=72, f_px=150.0)
+    scene = scene_for_pose(np.array([target_x_m, 0.0, 0.3]), np.array([target_x_m, 0.0, 0.0]),
+                           np.array([1.0, 0.0, 0.0]), scene)
+    r = PlateRenderer(scene, build_plate(PlateSpec(0.1165, 0.0735, deformation=CylindricalBend(np.radians(40.0)))))
+    if r.variant.startswith("scalar"):
+        pytest.skip("scalar variant: the maps are computed in numpy only")
+    for cam in ("left", "right"):
+        a, b = GroundTruthCaster(r).camera(cam), GroundTruthCaster(r, on_device=False).camera(cam)
+        assert np.array_equal(a.mask, b.mask) and bool(b.mask.any()) == seen
+        if seen:  # cut by the border: the plate reaches an image edge
+            assert b.mask[:, 0].any() or b.mask[:, -1].any() or b.mask[0].any() or b.mask[-1].any()
+            assert np.abs(a.depth64[b.mask] - b.depth64[b.mask]).max() <= 1e-12
+        assert np.array_equal(np.isinf(a.depth64), ~b.mask) and np.array_equal(a.feature, b.feature)

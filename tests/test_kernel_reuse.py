@@ -99,3 +99,56 @@ def test_another_lens_or_aperture_reuses_the_lens_sensors_kernel():
     assert r.scene_builds == 1
     for kernels in later:
         assert len(kernels) == 4 and not [c["ops"] for c in kernels if c["fresh"]], kernels
+
+
+def _ground_truth_kernels(dr, r) -> list[dict]:
+    """Every kernel launched while casting a sample's ground truth at the renderer's scene and plate,
+    marked ``fresh`` when this process had not run it (``_render_kernels``)."""
+    from platebench.scenes.render.ground_truth import GroundTruthCaster  # noqa: PLC0415
+    dr.kernel_history()
+    GroundTruthCaster(r).all()
+    return [{"ops": k.get("operation_count", 0), "fresh": (not k["cache_hit"]) or bool(k["cache_disk"])}
+            for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+
+
+@pytest.mark.parametrize("projector_kind,lens", [("spot", "perspective"), ("pinhole", "lens-sensor")])
+def test_another_plate_pose_and_lens_reuse_the_ground_truth_kernels(projector_kind, lens):
+    """The ground-truth maps are computed in drjit kernels on the renderer's device; the camera,
+    the projector, the lens and the plate's bend enter them as opaque values and the mesh as buffers,
+    so another plate of the same family, seen from another pose through another lens, is cast with
+    the kernels compiled for the first."""
+    mi = runtime.mitsuba()
+    if mi.variant().startswith("scalar"):
+        pytest.skip("scalar variant: no kernels")
+    import drjit as dr  # noqa: PLC0415
+
+    def scene(k: int):
+        extra = dict(LENSES[lens])
+        if extra:
+            extra = {"fy_px": 125.0 + 5 * k, "distortion": BrownConrady(-0.2 + 0.05 * k, 0.1, 0.001, -0.002)}
+        base = reference_scene(width=64, height=48, f_px=100.0 + 3 * k, projector_kind=projector_kind, **extra)
+        c = np.array([0.03 * k, -0.02 * k, 0.4 + 0.01 * k])
+        return scene_for_pose(c, np.zeros(3), np.array([np.cos(0.2 * k), np.sin(0.2 * k), 0.0]), base)
+
+    def plate(k: int):
+        return build_plate(PlateSpec(length_m=0.12 + 0.01 * k, width_m=0.07, thickness_m=0.001,
+                                     deformation=CylindricalBend(np.radians(20.0 + 40 * k), ("up", "down")[k % 2],
+                                                                 np.radians(15.0 * k))))
+
+    r = PlateRenderer(scene(0), plate(0))
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        first = _ground_truth_kernels(dr, r)
+        later = []
+        for k in (1, 2):
+            r.set_scene(scene(k))
+            r.set_plate(plate(k))
+            later.append(_ground_truth_kernels(dr, r))
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+        dr.kernel_history()
+    assert max(c["ops"] for c in first) > 200, f"the float64 map kernel is missing from the history: {first}"
+    for k, kernels in enumerate(later, start=1):
+        assert len(kernels) == len(first), (k, first, kernels)
+        fresh = [c["ops"] for c in kernels if c["fresh"]]
+        assert not fresh, f"plate {k}: the ground truth compiled kernels again ({fresh} operations): a literal"

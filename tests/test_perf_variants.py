@@ -29,3 +29,31 @@ def test_compare_images_counts_pixels_within_the_tolerance():
     c = compare_images(img, ref, noise)["x"]
     assert c["frac_pixels_equal"] == 0.75 and np.isclose(c["max_abs_diff"], 1e-3)
     assert np.isclose(c["mean_abs_seed_noise"], 0.1)
+
+
+def test_perf_gpu_runs_every_section_on_a_machine_without_a_gpu_and_says_so(tmp_path, capsys):
+    """``platebench perf gpu`` (what the GPU machine is measured with) runs on the CPU too: every
+    section (host pixels, whole sample, variants, the sweep pipeline) measured with its baseline,
+    written to JSON, and the missing GPU said; tiny images so that it stays a test."""
+    import json
+
+    from platebench.bench.cli.main import main
+    from platebench.scenes.render import runtime
+    out = tmp_path / "gpu.json"
+    assert main(["perf", "gpu", "--width", "160", "--height", "120", "--spp", "1", "--repeat", "1",
+                 "--sweep-samples", "2", "--workers", "1", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    fig = doc["figures"]
+    assert doc["target"] == "gpu" and not fig["errors"], fig["errors"]
+    gpu = runtime.has_cuda()
+    assert fig["gpu_present"] == gpu and fig["variants"][-1] == "llvm_ad_rgb"
+    sub = fig["subnormal"]["llvm_ad_rgb"]["passive"]
+    assert len(sub["subnormal_per_channel"]) == 3 and sub["mean_axis2_render_s"] > 0 and sub["pixels"] == 160 * 120
+    s = fig["sample"]["llvm_ad_rgb"]
+    assert s["raw_4_images_s"] > 0 and s["whole_sample_s"] > 0 and s["second_sample_kernel_compiles"] == 0
+    assert fig["variants_compared"]["variants"][0]["correct_match_count"] == 16
+    sw = fig["sweep"]
+    assert sw["pipeline"]["ok"] == 2 and sw["one_worker"]["ok"] == 2 and sw["pipeline"]["samples_per_s"] > 0
+    printed = capsys.readouterr().out
+    if not gpu:
+        assert "no GPU present" in printed and "study false-boundary: not run" in printed

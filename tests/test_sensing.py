@@ -397,3 +397,21 @@ def test_with_the_papers_grid_a_fold_seen_from_behind_is_never_called_verified(d
     # the loop's own verdict closed the loop over a hidden flap; the front check is what says it is not verified
     assert f.hidden_final and f.outcome == "honest"
     assert r.verdict.verified and not f.boundary_verified and "front" in f.verdict_reason, f.verdict_reason
+
+
+@pytest.mark.render
+def test_a_batch_rendered_while_earlier_views_are_measured_gives_the_same_run():
+    """The verification views render as one batch (``SimulatedSensor.passive_views``); with the
+    renders of later views overlapping the measurement of earlier ones (a rendering thread, as on a
+    GPU) every step, verdict and score is the run's without overlap."""
+    from platebench.bench.config import with_overrides
+    from platebench.bench.run.sensing.sensor import SimulatedSensor
+    cfg = with_overrides(SampleConfig(scene=SENSE.scene, render=RenderSettings(spp=2, seed=3)), bend_deg=60.0,
+                         bend_axis_deg=30.0)
+    runs = [run_sensing(cfg, None, SensingOptions(), sensor=SimulatedSensor(cfg, overlap=overlap))
+            for overlap in (False, True)]
+    docs = [r.to_dict() for r in runs]
+    for d in docs:
+        d.pop("time_s", None)
+    assert len(runs[0].verification_views) >= 8
+    assert json.dumps(docs[0], sort_keys=True, default=str) == json.dumps(docs[1], sort_keys=True, default=str)

@@ -11,8 +11,8 @@ from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
 HELP = "benchmarks: render and reconstruct timings against same-run baselines"
-TARGETS = ("render", "reconstruct", "sweep", "score")
-EXTRA = ("chaos", "bad-input", "variants")  # run only when named
+TARGETS = ("render", "reconstruct", "sweep", "score", "sequences")
+EXTRA = ("chaos", "bad-input", "variants", "gpu")  # run only when named
 
 
 def add_parser(sub) -> None:
@@ -22,14 +22,19 @@ def add_parser(sub) -> None:
                                    "pipeline vs OpenCV StereoSGBM on the same passive pair. sweep: samples per "
                                    "minute with 1 and 2 local workers and a 2-worker Dask cluster, peak memory per "
                                    "worker. score: exact point-to-mesh distance on a dent plate's mesh (triangles 0.15 to "
-                                   "14 mm) by radius classes vs one class and vs trimesh. Reference experiment at "
+                                   "14 mm) by radius classes vs one class and vs trimesh. sequences: a Gray-code sample "
+                                   "(the sample + its 22-frame sequence, decoded and scored) vs a paper sample, and "
+                                   "the sequence three patterns to a launch vs one frame a launch. Reference experiment at "
                                    "1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
                    help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
                         "sweep whose scheduler, workers and sweep process are killed and resumed, 10 rounds) and "
-                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), and "
+                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), "
                         "variants (the same scene rendered by each of --variants, pixels compared with the first, "
-                        "samples per second)")
+                        "samples per second), and gpu (every throughput figure of a GPU machine beside its "
+                        "baseline: host pixels and subnormal floats, whole sample vs raw renders, cuda vs llvm, "
+                        "the sweep pipeline, with --full the 61-plate study; on a machine without a GPU the llvm "
+                        "figures, saying so)")
     p.add_argument("--width", type=int, default=1280, help="image width in px of the rendered samples (default 1280; "
                    "f scales with it)")
     p.add_argument("--height", type=int, default=960, help="image height in px (default 960)")
@@ -42,6 +47,12 @@ def add_parser(sub) -> None:
     p.add_argument("--variants", default="cuda_ad_rgb,llvm_ad_rgb",
                    help="perf variants: comma-separated Mitsuba variants, the first is the baseline "
                         "(default cuda_ad_rgb,llvm_ad_rgb: a GPU machine)")
+    p.add_argument("--full", action="store_true", help="perf gpu: also the 61-plate false-boundary study, and a "
+                   "90-sample sweep (the run a GPU machine is measured with: bench/perf/gpu_check.sh)")
+    p.add_argument("--workers", type=int, default=None, help="perf gpu: CPU workers of the sweep pipeline (the study "
+                   "uses one more; default: the CPUs less one)")
+    p.add_argument("--sweep-samples", type=int, default=None, help="perf gpu: samples of the pipeline sweep "
+                   "(default 18; 90 with --full)")
     p.add_argument("--save", type=Path, help="perf variants: save the first variant's images (a new .npz file, or "
                    "with --overwrite one --save wrote)")
     p.add_argument("--against", type=Path, help="perf variants: compare the first variant's images with these "
@@ -72,6 +83,8 @@ def run(args) -> int:
             raise UserValueError(f"perf {args.targets[0]} runs alone: got {' '.join(args.targets)}")
         if args.targets[0] == "variants":
             return _variants(args)
+        if args.targets[0] == "gpu":
+            return _gpu(args)
         if args.targets[0] == "chaos":
             from platebench.bench.perf.chaos import main as chaos  # noqa: PLC0415
             return chaos(["--json", str(args.json)] if args.json else [])
@@ -89,6 +102,9 @@ def run(args) -> int:
         if target == "sweep":
             from platebench.bench.perf.sweep import perf_sweep  # noqa: PLC0415
             out[target] = perf_sweep()
+        elif target == "sequences":
+            from platebench.bench.perf.sequences import perf_sequences  # noqa: PLC0415
+            out[target] = perf_sequences(cfg, repeat=args.repeat)
         elif target == "score":
             from platebench.bench.perf.benchmarks import perf_score  # noqa: PLC0415
             out[target] = perf_score(repeat=args.repeat)
@@ -96,6 +112,22 @@ def run(args) -> int:
             out[target] = (perf_render if target == "render" else perf_reconstruct)(cfg, repeat=args.repeat)
     if args.json:
         write_json(args.json, perf_document(",".join(args.targets or TARGETS), out))
+    return 0
+
+
+def _gpu(args) -> int:
+    from platebench.bench.perf.gpu import perf_gpu  # noqa: PLC0415
+    if args.repeat < 1:
+        raise UserValueError(f"--repeat = {args.repeat} is out of range: allowed >= 1")
+    for flag, v in (("--workers", args.workers), ("--sweep-samples", args.sweep_samples)):
+        if v is not None and not 1 <= v <= 10000:
+            raise UserValueError(f"{flag} = {v} is out of range: allowed 1 to 10000")
+    print(f"== perf gpu ({args.width}x{args.height}, spp {args.spp})" + (", full" if args.full else ""))
+    def save(figures):
+        if args.json:
+            write_json(args.json, perf_document("gpu", figures))
+    perf_gpu(args.width, args.height, args.spp, args.repeat, args.full, args.workers, args.sweep_samples,
+             on_section=save)
     return 0
 
 

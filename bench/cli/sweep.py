@@ -5,6 +5,7 @@ The spec format is documented in ``bench/sweep/spec.py``, the dataset layout in
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from pathlib import Path
@@ -31,6 +32,11 @@ def add_parser(sub) -> None:
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run on this Dask distributed scheduler instead (workers need this package and see "
                         "DATASET at the same path)")
+    p.add_argument("--pipeline", action="store_true",
+                   help="render and finish each sample in two stages that overlap: one worker owns the renderer "
+                        "(the GPU where there is one) and renders, --workers CPU workers write, reconstruct and "
+                        "score (a local Dask cluster); with --scheduler, the cluster's workers started with "
+                        "--resources GPU=1 render and those with --resources CPU=1 finish")
     p.add_argument("--connect-timeout-s", type=float, default=10.0,
                    help="with --scheduler: seconds to reach the scheduler before giving up (default 10)")
     p.add_argument("--worker-timeout-s", type=float, default=60.0,
@@ -58,13 +64,38 @@ def _methods(text: str | None):
     return tuple(m.strip() for m in text.split(",") if m.strip())
 
 
+def _executor(args, stack):
+    """The executor the flags ask for, connected (a cluster started for --pipeline without --scheduler
+    is closed by ``stack``)."""
+    from platebench.bench.sweep.executors import (  # noqa: PLC0415
+        DaskExecutor,
+        LocalExecutor,
+        LoopbackCluster,
+        PipelineExecutor,
+    )
+    if not args.scheduler and not args.pipeline:
+        return LocalExecutor(1 if args.workers is None else args.workers)
+    address = args.scheduler
+    if address is None:  # --pipeline on this machine: one render worker and --workers CPU workers
+        n = 1 if args.workers is None else args.workers
+        if not 1 <= n <= 256:
+            raise UserValueError(f"--workers = {n} is out of range with --pipeline: allowed 1 to 256 CPU workers")
+        cluster = stack.enter_context(LoopbackCluster(n_workers=n + 1, render_workers=1))
+        address = cluster.address
+    kind = PipelineExecutor if args.pipeline else DaskExecutor
+    executor = kind(address, connect_timeout_s=args.connect_timeout_s, worker_timeout_s=args.worker_timeout_s)
+    executor.connect()  # fail fast, before the dataset is created
+    stack.callback(executor.close)
+    return executor
+
+
 def run(args) -> int:
     from platebench.bench.io.outputs import guard_output  # noqa: PLC0415
-    from platebench.bench.sweep.executors import DaskExecutor, LocalExecutor, run_sweep  # noqa: PLC0415
+    from platebench.bench.sweep.executors import run_sweep  # noqa: PLC0415
     from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
 
     if args.scheduler and args.workers is not None:
-        raise UserValueError("--workers applies to the local pool; with --scheduler the cluster's workers run the sweep")
+        raise UserValueError("--workers applies to this machine; with --scheduler the cluster's workers run the sweep")
     if args.retry_failed and not args.resume:
         raise UserValueError("--retry-failed goes with --resume")
     if args.resume and args.overwrite:
@@ -87,17 +118,17 @@ def run(args) -> int:
     for flag, v in (("--connect-timeout-s", args.connect_timeout_s), ("--worker-timeout-s", args.worker_timeout_s)):
         if not math.isfinite(v) or not 1.0 <= v <= 86400.0:
             raise UserValueError(f"{flag} = {v} is out of range: allowed 1 to 86400 s")
-    executor = DaskExecutor(args.scheduler, connect_timeout_s=args.connect_timeout_s,
-                            worker_timeout_s=args.worker_timeout_s) if args.scheduler else LocalExecutor(
-        1 if args.workers is None else args.workers)
-    if args.scheduler:
-        executor.connect()  # fail fast, before the dataset is created
-    summary = run_sweep(spec, args.out, executor, resume=args.resume, overwrite=args.overwrite,
-                        retry_failed=args.retry_failed, progress=args.progress,
-                        log=lambda m: print(m, file=sys.stderr), method_time_limit_s=args.method_time_limit_s)
+    with contextlib.ExitStack() as stack:
+        executor = _executor(args, stack)
+        summary = run_sweep(spec, args.out, executor, resume=args.resume, overwrite=args.overwrite,
+                            retry_failed=args.retry_failed, progress=args.progress,
+                            log=lambda m: print(m, file=sys.stderr), method_time_limit_s=args.method_time_limit_s)
     ex = summary.executor
     where = f"dask {ex.get('scheduler')} ({ex.get('workers')} workers)" if ex.get("kind") == "dask" else \
         (f"local, {ex.get('workers')} worker(s)" if ex.get("workers") else "in-process")
+    if ex.get("kind") == "dask-pipeline":
+        where = (f"pipeline on dask {ex.get('scheduler')}: {ex.get('render_workers')} render worker(s), "
+                 f"{ex.get('finish_workers')} CPU worker(s), at most {ex.get('max_in_flight')} samples in flight")
     print(f"sweep       {spec.name}: {summary.total} samples x {len(spec.methods)} method(s), {where}")
     print(f"done        {summary.ok} ok, {summary.failed} failed"
           + (f" ({summary.skipped} already done before)" if summary.skipped else ""))

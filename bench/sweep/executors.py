@@ -20,8 +20,13 @@ Executors yield ``(task, result, exception)`` as samples finish:
   mid-task has its task rescheduled by the scheduler. Workers must import this
   package (same code, same environment) and see DATASET at the same path (shared
   filesystem). Run workers with ``--nthreads 1`` (one renderer per process).
+* ``PipelineExecutor(address)``: a sample in two Dask tasks placed by worker resources: the
+  render stage on the worker that owns the renderer (``--resources GPU=1``), the writing, the
+  methods and the scoring on CPU workers (``--resources CPU=1``), overlapped, with a bounded
+  number of samples in flight.
 * ``LoopbackCluster(n)``: starts a real ``dask scheduler`` and ``n`` ``dask worker``
-  processes on 127.0.0.1 (free ports), for tests and benchmarks; always torn down.
+  processes on 127.0.0.1 (free ports), for tests and benchmarks; always torn down
+  (``render_workers=1``: the first declares GPU=1, the others CPU=1, for the pipeline).
 """
 from __future__ import annotations
 
@@ -51,6 +56,8 @@ from platebench.bench.sweep import dataset as ds
 from platebench.bench.sweep.tasks import (
     SampleTask,
     failed_result,
+    finish_stage,
+    render_stage,
     run_sample,
     tasks_from_spec,
     worker_init,
@@ -304,7 +311,8 @@ class DaskExecutor:
     fails that sample only."""
 
     def __init__(self, address: str, retries: int = 2, connect_timeout_s: float = 10.0,
-                 worker_timeout_s: float = 60.0, poll_s: float = 0.2):
+                 worker_timeout_s: float = 60.0, poll_s: float = 0.2, max_in_flight: int | None = None):
+        self.max_in_flight = max_in_flight  # samples submitted at a time (None: all)
         self.address = check_scheduler_address(address)
         self.retries = retries
         self.connect_timeout_s = connect_timeout_s
@@ -335,6 +343,10 @@ class DaskExecutor:
             self._workers = self._n_workers()
         return self._client
 
+    def _submit(self, client, task: SampleTask, key: str):
+        """The future of one sample's result (one task: ``run_sample``)."""
+        return client.submit(run_sample, task, key=key, pure=False, retries=self.retries)
+
     def _n_workers(self) -> int:
         c = self._client
         return len(c.sync(c.scheduler.ncores, callback_timeout=max(self.connect_timeout_s, 5.0)))
@@ -353,12 +365,18 @@ class DaskExecutor:
         def submit(t: SampleTask, attempt: int = 0) -> None:
             key = f"platebench-sample-{tag}-{t.sample_id}-{t.config_sha256[:12]}-{run_id}" + (
                 f"-r{attempt}" if attempt else "")
-            fut = client.submit(run_sample, t, key=key, pure=False, retries=self.retries)
+            fut = self._submit(client, t, key)
             pending[fut.key] = (fut, t)
             self._futures.append(fut)
 
-        for t in tasks:
-            submit(t)
+        waiting = list(tasks)
+        limit = self.max_in_flight or len(tasks)
+
+        def top_up() -> None:  # at most ``limit`` samples in the cluster at a time (memory stays flat)
+            while waiting and len(pending) < limit:
+                submit(waiting.pop(0))
+
+        top_up()
         total, done = len(tasks), 0
         next_check = time.monotonic() + 2.0
         no_workers_since = None
@@ -397,6 +415,7 @@ class DaskExecutor:
                 progressed = True
                 with contextlib.suppress(Exception):
                     fut.release()
+                top_up()
                 yield t, res, exc
             if not pending:
                 break
@@ -432,6 +451,57 @@ class DaskExecutor:
                 client.close(timeout=5)
 
 
+# ----------------------------------------------------------------------------- two-stage pipeline on Dask
+RENDER_RESOURCE = "GPU"  # the worker that owns the renderer: dask worker --resources GPU=1 (the GPU where one is)
+FINISH_RESOURCE = "CPU"  # a worker that writes, reconstructs and scores: dask worker --resources CPU=1
+
+
+class PipelineExecutor(DaskExecutor):
+    """A sample in two Dask tasks, placed by worker resources (``resources={"GPU": 1}``): the render
+    stage (``tasks.render_stage``: the sample rendered in memory) on a worker that declares GPU=1
+    and owns the renderer, then the finish stage (``tasks.finish_stage``: written into its attempt
+    directory, every method run and scored) on a worker that declares CPU=1, which fetches the
+    rendered sample from the render worker. The render worker renders the next samples while the
+    CPU workers finish earlier ones; at most ``max_in_flight`` samples are in the cluster at a time
+    (default two per CPU worker, plus two), so the rendered samples waiting for a CPU worker (about
+    150 MB each at 1280 x 960) are bounded and memory stays flat.
+
+    The same spec runs on one machine (``LoopbackCluster(render_workers=1)``, ``platebench sweep
+    --pipeline``) and on a cluster of GPU and CPU workers (``--pipeline --scheduler``). Everything
+    else is the sweep's: one writer (this process commits), checksums, ``--resume``, a failure
+    recorded for its sample only. A sample with a method that renders (the peers' pattern
+    sequences) is made whole on the render worker."""
+
+    def describe(self) -> dict:
+        return {**super().describe(), "kind": "dask-pipeline", "render_workers": self._counts[0],
+                "finish_workers": self._counts[1], "max_in_flight": self.max_in_flight}
+
+    _counts = (None, None)
+
+    def connect(self):
+        fresh = self._client is None
+        client = super().connect()
+        if fresh:
+            workers = client.scheduler_info()["workers"].values()
+            n_render = sum(1 for w in workers if (w.get("resources") or {}).get(RENDER_RESOURCE, 0) >= 1)
+            n_finish = sum(1 for w in workers if (w.get("resources") or {}).get(FINISH_RESOURCE, 0) >= 1)
+            if not n_render or not n_finish:
+                self.close()
+                raise ExecutorError(f"the pipeline needs workers started with --resources {RENDER_RESOURCE}=1 (the "
+                                    f"renderer) and with --resources {FINISH_RESOURCE}=1 (writing, methods, scoring): "
+                                    f"{self.address} has {n_render} and {n_finish}")
+            self._counts = (n_render, n_finish)
+            if self.max_in_flight is None:
+                self.max_in_flight = 2 * n_finish + 2
+        return client
+
+    def _submit(self, client, task: SampleTask, key: str):
+        rendered = client.submit(render_stage, task, key=f"{key}-render", pure=False, retries=self.retries,
+                                 resources={RENDER_RESOURCE: 1})
+        return client.submit(finish_stage, task, rendered, key=key, pure=False, retries=self.retries,
+                             resources={FINISH_RESOURCE: 1})
+
+
 # ----------------------------------------------------------------------------- loopback cluster
 def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
@@ -462,8 +532,10 @@ class LoopbackCluster:
     """
 
     def __init__(self, n_workers: int = 2, nthreads: int = 1, startup_timeout_s: float = 90.0,
-                 log_dir: Path | None = None, env: dict | None = None, dashboard: bool = False):
+                 log_dir: Path | None = None, env: dict | None = None, dashboard: bool = False,
+                 render_workers: int = 0):
         self.n_workers = n_workers
+        self.render_workers = render_workers  # > 0: the first ones declare GPU=1, the others CPU=1 (PipelineExecutor)
         self.dashboard = dashboard
         self.nthreads = nthreads
         self.startup_timeout_s = startup_timeout_s
@@ -511,9 +583,12 @@ class LoopbackCluster:
         i = len(self.workers) if i is None else i
         wdir = Path(self._tmp) / f"worker-{i}-{len(self.workers)}"
         wdir.mkdir(parents=True, exist_ok=True)
+        resources = []
+        if self.render_workers:
+            resources = ["--resources", f"{RENDER_RESOURCE if i < self.render_workers else FINISH_RESOURCE}=1"]
         p = self._spawn(["worker", self.address, "--nthreads", str(self.nthreads), "--nworkers", "1",
                          *self._http_flags(), "--host", "127.0.0.1", "--name", f"w{i}-{len(self.workers)}",
-                         "--local-directory", str(wdir)], f"worker-{len(self.workers)}")
+                         "--local-directory", str(wdir), *resources], f"worker-{len(self.workers)}")
         self.workers.append(p)
         return p
 

@@ -133,16 +133,11 @@ def _run_sample(task: SampleTask) -> dict:
         raise
 
 
-def _make_sample(task: SampleTask, stage: Path) -> dict:
-    t0 = time.perf_counter()
-    res = failed_result(task, None, None)
-    res.update(status="ok", error=None, phase=None, rows=[], stage=str(stage))
-    timings = res["timings_s"]
-    written = False
-    sample = None
+def _render(task: SampleTask) -> tuple:
+    """(the sample in memory or None, its error text or None, seconds) with this process's renderer."""
+    t = time.perf_counter()
     try:
         cfg = SampleConfig.from_dict(task.config)
-        t = time.perf_counter()
         kwargs = {}
         if task.pose:
             kwargs["scene"] = posed_scene(cfg.scene.build(), cfg.scene.distance_m, task.pose)
@@ -155,7 +150,30 @@ def _make_sample(task: SampleTask, stage: Path) -> dict:
             _STATE["renderer"] = None  # its state is unknown now: start afresh next time
             raise
         _STATE["renderer"] = renderer
-        timings["render_s"] = time.perf_counter() - t
+        return sample, None, time.perf_counter() - t
+    except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
+        if environmental(e, Path(task.dataset)):
+            raise  # the output's fault, not the sample's: the run stops (bench.io.fs_errors)
+        return None, _error_text(e), time.perf_counter() - t
+
+
+def _make_sample(task: SampleTask, stage: Path) -> dict:
+    t0 = time.perf_counter()
+    sample, error, render_s = _render(task)
+    return _complete(task, stage, sample, error, render_s, t0)
+
+
+def _complete(task: SampleTask, stage: Path, sample, error: str | None, render_s: float, t0: float) -> dict:
+    """Write the rendered ``sample`` (or record ``error``) into ``stage``, run the methods on it, and
+    return the result dict."""
+    res = failed_result(task, None, None)
+    res.update(status="ok", error=None, phase=None, rows=[], stage=str(stage))
+    timings = res["timings_s"]
+    timings["render_s"] = render_s
+    written = False
+    try:
+        if error is not None:
+            raise _RenderFailed(error)
         t = time.perf_counter()
         write_sample(stage / SAMPLE, sample, overwrite=False)
         timings["write_s"] = time.perf_counter() - t
@@ -166,7 +184,7 @@ def _make_sample(task: SampleTask, stage: Path) -> dict:
     except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
         if environmental(e, Path(task.dataset)):
             raise  # the output's fault, not the sample's: the run stops (bench.io.fs_errors)
-        err = _error_text(e)
+        err = str(e) if isinstance(e, _RenderFailed) else _error_text(e)
         res.update(status="failed", error=err, phase="render",
                    rows=[{"method": m, "status": "failed", "error": err, "metrics": {}} for m in task.methods])
     del sample
@@ -194,3 +212,53 @@ def _make_sample(task: SampleTask, stage: Path) -> dict:
     res["worker"] = worker_info()
     res["finished_utc"] = now_utc()
     return res  # the sweep process verifies the files and commits the sample (dataset.commit_sample)
+
+
+class _RenderFailed(Exception):
+    """A sample whose rendering failed (its error text, recorded as the sample's)."""
+
+
+# ----------------------------------------------------------------------------- two stages
+@dataclass(frozen=True)
+class RenderedTask:
+    """What the render stage hands the finish stage: the sample in memory (or the error that stopped
+    its rendering), or, when one of the sample's methods renders too (its pattern sequences need
+    the renderer), the whole sample's result, made where the renderer is."""
+
+    sample: object  # bench.run.render.RenderedSample, or None
+    error: str | None
+    render_s: float
+    result: dict | None = None
+    render_worker: dict | None = None
+
+
+def needs_renderer(task: SampleTask) -> bool:
+    """True when a method of ``task`` renders (the structured-light peers' sequences)."""
+    return any(get_method(m).rerenders_from_config for m in task.methods)
+
+
+def render_stage(task: SampleTask) -> RenderedTask:
+    """The first of a sample's two stages, on the worker that owns the renderer (the GPU): the sample
+    rendered in memory, nothing written. A sample with a method that renders is made whole here."""
+    with _LOCK:
+        if needs_renderer(task):
+            return RenderedTask(None, None, 0.0, _run_sample(task), worker_info())
+        sample, error, render_s = _render(task)
+        return RenderedTask(sample, error, render_s, None, worker_info())
+
+
+def finish_stage(task: SampleTask, rendered: RenderedTask) -> dict:
+    """The second stage, on any CPU worker: write the rendered sample into a private attempt directory,
+    run the methods, return the result dict (as ``run_sample`` does)."""
+    if rendered.result is not None:
+        return rendered.result
+    with _LOCK:
+        t0 = time.perf_counter() - rendered.render_s
+        stage = make_attempt_dir(Path(task.dataset), task.sample_id)
+        try:
+            res = _complete(task, stage, rendered.sample, rendered.error, rendered.render_s, t0)
+        except BaseException:
+            shutil.rmtree(stage, ignore_errors=True)
+            raise
+        res["render_worker"] = rendered.render_worker
+        return res

@@ -41,17 +41,23 @@ class PlateRegion:
 
 def check_image(image: np.ndarray, name: str) -> np.ndarray:
     """Validate a camera image: 2-D, not blank, not saturated. Returns float64."""
+    return validated_image(image, name).astype(np.float64)
+
+
+def validated_image(image: np.ndarray, name: str) -> np.ndarray:
+    """``check_image``'s checks, returning the image as it is (no float copy)."""
     img = np.asarray(image)
     if img.ndim != 2:
         raise ReconstructionError(f"{name}: expected a grey image, got shape {img.shape}")
-    f = img.astype(np.float64)
     if np.issubdtype(img.dtype, np.integer):
         full = np.iinfo(img.dtype).max
-        if np.mean(f >= full) > 0.5:
-            raise ReconstructionError(f"{name}: image is saturated ({np.mean(f >= full) * 100:.0f} % of pixels at {full})")
-    if f.max() - f.min() <= 0:
-        raise ReconstructionError(f"{name}: image is blank (every pixel = {f.max():g})")
-    return f
+        saturated = np.count_nonzero(img >= full) / img.size
+        if saturated > 0.5:
+            raise ReconstructionError(f"{name}: image is saturated ({saturated * 100:.0f} % of pixels at {full})")
+    lo, hi = float(img.min()), float(img.max())
+    if hi - lo <= 0:
+        raise ReconstructionError(f"{name}: image is blank (every pixel = {hi:g})")
+    return img
 
 
 def order_corners(pts: np.ndarray) -> np.ndarray:
@@ -82,7 +88,9 @@ class PlateMask:
 def plate_mask(image: np.ndarray, name: str = "image") -> PlateMask:
     """The bright plate region on the dark background: Tsai threshold, largest region, hysteresis
     growth down to ``HYSTERESIS`` of the contrast, holes filled. Refuses a region touching the border."""
-    f = check_image(image, name)
+    f = validated_image(image, name)
+    if f.dtype.kind not in "ui":
+        f = f.astype(np.float64)
     t = tsai_moment_threshold(f)
     binary = (f > t.threshold).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
@@ -94,8 +102,10 @@ def plate_mask(image: np.ndarray, name: str = "image") -> PlateMask:
                                   f"{stats[biggest, cv2.CC_STAT_AREA]} px)")
     low = t.z0 + HYSTERESIS * (t.z1 - t.z0)
     _, low_labels = cv2.connectedComponents((f > low).astype(np.uint8), connectivity=8)
-    seed = np.unique(low_labels[labels == biggest])
-    region = np.isin(low_labels, seed[seed > 0]).astype(np.uint8)
+    seed = np.zeros(int(low_labels.max()) + 1, np.uint8)  # the low-threshold regions the plate's region touches
+    seed[low_labels[labels == biggest]] = 1
+    seed[0] = 0
+    region = seed[low_labels]
     contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     outer = max(contours, key=cv2.contourArea)
     filled = np.zeros_like(region)

@@ -73,9 +73,15 @@ def _grey_levels(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lo = int(values.min())
         span = int(values.max()) - lo
         if span < 1 << 24:  # histogram (fast path for 8/16-bit images)
-            counts = np.bincount((values.astype(np.int64) - lo).ravel(), minlength=span + 1)
+            flat = values.ravel()
+            counts = (np.bincount(flat)[lo:] if values.dtype.kind == "u" and values.itemsize <= 2
+                      else np.bincount((flat.astype(np.int64) - lo), minlength=span + 1))
             occupied = np.flatnonzero(counts)
             return (occupied + lo).astype(np.float64), counts[occupied].astype(np.float64)
+    if values.dtype.kind == "f" and values.size:  # a float copy of an 8/16-bit image: its histogram, no sort
+        lo, hi = float(values.min()), float(values.max())
+        if 0.0 <= lo and hi < 1 << 16 and np.array_equal(values, np.floor(values)):
+            return _grey_levels(values.astype(np.uint16))
     levels, counts = np.unique(values.astype(np.float64), return_counts=True)
     return levels, counts.astype(np.float64)
 

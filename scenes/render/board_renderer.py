@@ -26,6 +26,7 @@ import numpy as np
 
 from platebench.scenes.naming import CAMERAS
 from platebench.scenes.render import runtime
+from platebench.scenes.render.film import grey_to_host
 from platebench.scenes.render.lens_sensor import PLUGIN, configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.rig import StereoRig
 from platebench.scenes.scene_spec import RenderSettings
@@ -268,7 +269,7 @@ class BoardRenderer:
             raise ValueError("BoardRenderer.render: call set_pose first")
         img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
                              seed=board_seed(settings.seed, pose_index, camera))
-        return np.asarray(img, dtype=np.float32).mean(axis=2)
+        return grey_to_host(self.mi, img)
 
     def render_poses(self, poses, settings: RenderSettings = RenderSettings(), progress=None) -> list[dict]:
         """Camera images (the sensor model's digital numbers: uint8 by default) per pose per

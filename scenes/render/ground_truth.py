@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from platebench.scenes.camera import Camera
+from platebench.scenes.render.device_arrays import to_device
 from platebench.tolerances import tol
 
 
@@ -74,13 +75,19 @@ def _triangle_hits(origin, dirs, tri):
 
 
 class GroundTruthCaster:
-    """Casts ground-truth rays through a ``PlateRenderer``'s plate-only Mitsuba scene."""
+    """Casts ground-truth rays through a ``PlateRenderer``'s plate-only Mitsuba scene.
 
-    def __init__(self, renderer):
+    In the JIT variants the dense maps are computed on the renderer's device
+    (``scenes.render.ground_truth_device``); ``on_device=False`` computes them here in numpy from
+    the same Mitsuba hits (the definitions below, which a scalar variant always uses)."""
+
+    def __init__(self, renderer, on_device: bool = True):
         self.r = renderer
         self.mi = renderer.mi
         # Scalar variants trace one ray per Python call: use trimesh/embree instead.
         self._vectorised = not renderer.variant.startswith("scalar")
+        self._on_device = self._vectorised and on_device
+        self._device = None  # the plate's device buffers, made at the first dense map
 
     def _mesh_intersector(self):
         import trimesh  # noqa: PLC0415
@@ -124,13 +131,19 @@ class GroundTruthCaster:
             blocked = np.zeros(len(o), bool)
             blocked[ray_idx[hit_t < (dist - slack - slack * 0.1)[ray_idx]]] = True
             return blocked
-        ray = mi.Ray3f(mi.Point3f(*(o[:, k].astype(np.float32) for k in range(3))),
-                       mi.Vector3f(*(d[:, k].astype(np.float32) for k in range(3))))
-        ray.maxt = mi.Float((dist - slack).astype(np.float32))
+        ray = mi.Ray3f(mi.Point3f(*(to_device(mi.Float, o[:, k], np.float32) for k in range(3))),
+                       mi.Vector3f(*(to_device(mi.Float, d[:, k], np.float32) for k in range(3))))
+        ray.maxt = to_device(mi.Float, dist - slack, np.float32)
         return np.asarray(self.r.gt_scene.ray_test(ray), bool)
 
     # -- per camera -----------------------------------------------------------
     def camera(self, camera_name: str) -> CameraGroundTruth:
+        if self._on_device:
+            if self._device is None:
+                from platebench.scenes.render.ground_truth_device import DeviceGroundTruth  # noqa: PLC0415
+                self._device = DeviceGroundTruth(self.r)
+            depth64, points, normals, mask, puv, feat = self._device.camera(camera_name, tol.occlusion_slack_m)
+            return CameraGroundTruth(depth64.astype(np.float32), points, normals, mask, puv, feat, depth64)
         spec = self.r.spec
         plate = self.r.plate
         cam = spec.rig.cameras[camera_name]

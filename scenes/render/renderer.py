@@ -9,8 +9,8 @@ emitters, which keep theirs opaque); only a change of *structure*
 (image size, projector kind or pattern size, material kind, integrator depth)
 rebuilds the scene.
 
-Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels
-(every material and light here is grey). The ``box`` reconstruction filter keeps
+Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels, taken on the
+render's device and copied to the host once (``scenes.render.film``). The ``box`` reconstruction filter keeps
 renders bit-identical for a given seed across processes.
 Units: metres; frames as in ``scenes.camera``; conversions in ``scenes.render.mitsuba_convert``.
 """
@@ -20,6 +20,8 @@ import numpy as np
 
 from platebench.scenes.naming import CAMERAS, LIGHTINGS, image_seed
 from platebench.scenes.render import runtime
+from platebench.scenes.render.device_arrays import aligned, to_device
+from platebench.scenes.render.film import channels_to_host, grey_to_host
 from platebench.scenes.render.lens_sensor import configure_sensor, sensor_dict, sensor_kind
 from platebench.scenes.render.mitsuba_convert import (
     perspective_fov_deg,
@@ -222,14 +224,13 @@ class PlateRenderer:
             return
         for params in (self.params, self.gt_params):
             # Construct with the buffer's own type (dynamic in every variant, scalar too).
-            params["plate.vertex_positions"] = type(params["plate.vertex_positions"])(v)
-            params["plate.faces"] = type(params["plate.faces"])(f)
+            params["plate.vertex_positions"] = to_device(type(params["plate.vertex_positions"]), v)
+            params["plate.faces"] = to_device(type(params["plate.faces"]), f)
             params.update()
 
     def set_lighting(self, lighting: str) -> None:
         """Switch the lights for ``lighting`` (passive: area light; active: projector + ambient)."""
         p = self.params
-        mi = self.mi
         amb = self._spec.lighting.ambient
         area = self._area_radiance * (1.0 if lighting == "passive" else amb)
         p["light.emitter.radiance.value"] = [float(area)] * 3
@@ -237,15 +238,56 @@ class PlateRenderer:
         # light that is off, or half the samples are wasted (binomial noise).
         p["light.emitter.sampling_weight"] = 1.0 if area > 0 else 0.0
         p["projector.sampling_weight"] = 1.0 if lighting == "active" else 0.0
-        pattern = self._spec.projector.pattern.image
         level = self._proj_scale if lighting == "active" else 0.0
-        if self._spec.projector.kind == "spot":
-            p["projector.texture.data"] = mi.TensorXf(pattern[..., None])
-            p["projector.intensity.value"] = float(level)
-        else:
-            p["projector.irradiance.data"] = mi.TensorXf(pattern[..., None])
-            p["projector.scale"] = float(level)
+        spot = self._spec.projector.kind == "spot"
+        p["projector.intensity.value" if spot else "projector.scale"] = float(level)
+        self._set_projector_image(self._spec.projector.pattern.image[..., None])
+
+    def _set_projector_image(self, image: np.ndarray) -> None:
+        """Load (Hp, Wp, C) float32 values in [0, 1], C = 1 or 3, into the projector's texture
+        (a parameter update; the channel count is the kernel's only change, compiled once each)."""
+        mi, p = self.mi, self.params
+        tex = mi.TensorXf(aligned(np.asarray(image, np.float32)))
+        p["projector.texture.data" if self._spec.projector.kind == "spot" else "projector.irradiance.data"] = tex
         p.update()
+
+    @property
+    def patterns_per_launch(self) -> int:
+        """Projector patterns one launch can render (``render_patterns``): 3 when the plate is grey
+        (diffuse; every light is white), so that the RGB channels are independent renders of three
+        patterns; 1 for a conductor, whose channels reflect differently."""
+        return 3 if self._spec.material.kind == "diffuse" else 1
+
+    def render_patterns(self, camera: str, patterns: np.ndarray, settings: RenderSettings = RenderSettings()) -> np.ndarray:
+        """(k, H, W) float32 active images of ``camera`` under each of ``k <= patterns_per_launch``
+        projector patterns ((k, Hp, Wp) values in [0, 1]) in one launch, along the same camera paths.
+
+        With a grey plate, pattern c goes into the projector's colour channel c and image c is
+        channel c of the render: the path tracer treats the channels alike (the BSDFs and the other
+        lights are grey, Russian roulette reads the path's grey throughput, the projector is not
+        importance-sampled by its texture), so image c is, to the last bit, channel c of a render
+        of pattern c alone with the same seed; its channel mean, ``render``'s image, agrees to
+        float32 rounding. With a conductor, one pattern per launch and its channel mean. The scene's
+        own pattern is back in place at the next ``set_lighting``."""
+        pats = np.asarray(patterns, np.float32)
+        k = len(pats)
+        if pats.ndim != 3 or not 1 <= k <= self.patterns_per_launch:
+            raise ValueError(f"render_patterns: got patterns of shape {pats.shape}; allowed (k, Hp, Wp) with k from "
+                             f"1 to {self.patterns_per_launch}")
+        if camera not in CAMERAS:
+            raise ValueError(f"camera = {camera!r} is not allowed: choose one of {CAMERAS}")
+        self.set_lighting("active")
+        if self.patterns_per_launch == 3:
+            image = np.zeros((*pats.shape[1:], 3), np.float32)
+            image[..., :k] = np.moveaxis(pats, 0, -1)
+        else:
+            image = pats[0][..., None]
+        self._set_projector_image(image)
+        img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
+                             seed=image_seed(settings.seed, camera, "active"))
+        if self.patterns_per_launch == 3:
+            return np.ascontiguousarray(np.moveaxis(channels_to_host(self.mi, img)[..., :k], -1, 0))
+        return grey_to_host(self.mi, img)[None]
 
     # -- rendering ------------------------------------------------------------
     def render(self, camera: str, lighting: str, settings: RenderSettings = RenderSettings()) -> np.ndarray:
@@ -257,7 +299,7 @@ class PlateRenderer:
         self.set_lighting(lighting)
         img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
                              seed=image_seed(settings.seed, camera, lighting))
-        return np.asarray(img, dtype=np.float32).mean(axis=2)
+        return grey_to_host(self.mi, img)
 
     def render_all(self, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
         """The four images of a sample, keyed ``left_passive`` ... ``right_active``."""

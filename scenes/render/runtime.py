@@ -112,6 +112,13 @@ def default_variant() -> str:
     return "scalar_rgb"
 
 
+def has_cuda() -> bool:
+    """True when drjit finds a CUDA device (``cuda_*`` variants can render here)."""
+    _prepare_llvm()
+    import drjit as dr  # noqa: PLC0415  (import after DRJIT_LIBLLVM_PATH is set)
+    return bool(dr.has_backend(dr.JitBackend.CUDA))
+
+
 def mitsuba(variant: str | None = None):
     """Import Mitsuba with the chosen variant set and return the module.
 

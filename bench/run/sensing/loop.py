@@ -421,7 +421,10 @@ def _membrane(view: PassiveView):
 
 
 def _measure(sensor: SimulatedSensor, view: PlannedView, into: Measurements, steps: list) -> None:
-    pv = sensor.passive_view(view.name, view.pose, into.rays_for)
+    _record(view, sensor.passive_view(view.name, view.pose, into.rays_for), into, steps)
+
+
+def _record(view: PlannedView, pv: PassiveView, into: Measurements, steps: list) -> None:
     o = pv.outline
     steps.append(ViewRecord(view, 0 if o is None else len(o.points), "" if o is None else o.method,
                             gt_visibility_dict(pv.gt_visibility), pv.error,
@@ -439,8 +442,9 @@ def verification_stage(sensor: SimulatedSensor, first: FirstStages, m: Measureme
         verif, skipped = verification_views(first.pose2, g, e, options.reach, first.view2.outline.points,
                                             sensor.camera, sensor.baseline_m)
         notes.extend(f"verification view left out: {s}" for s in skipped)
-        for v in verif:
-            _measure(sensor, v, m, steps)
+        # every verification view is known now: one batch of renders (SimulatedSensor.passive_views)
+        for v, pv in zip(verif, sensor.passive_views([(v.name, v.pose) for v in verif], m.rays_for)):
+            _record(v, pv, m, steps)
     m.update()
     return tuple(verif)
 

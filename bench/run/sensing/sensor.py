@@ -79,8 +79,10 @@ class SimulatedSensor:
     ``verify_grid`` ('ROWSxCOLS@SQUARE_PX', ``parse_grid``; "auto": ``records.auto_verify_grid`` of
     the image width; None: ``cfg``'s pattern too), from the same projector."""
 
-    def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None):
+    def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None,
+                 overlap: bool | None = None):
         self.cfg = cfg
+        self.overlap = overlap  # passive_views' overlap of renders and measurements (None: on a GPU)
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
         proj = self.base.projector
@@ -128,8 +130,43 @@ class SimulatedSensor:
         ``FeatureRays``, the projector's calibration) also the active pair, with the projector
         beside the rig (``active_views.projector_pose``) projecting the verification pattern, and its square centres
         (``active_views.active_points``)."""
-        shot = self.shoot(pose, PASSIVE + (ACTIVE if rays_for is not None else ()),
-                          projector=projector_pose(pose) if rays_for is not None else None, label=name, verify=True)
+        return self._measure_view(name, pose, self._shoot_view(name, pose, rays_for is not None), rays_for)
+
+    def passive_views(self, views, rays_for=None, overlap: bool | None = None) -> list[PassiveView]:
+        """``passive_view`` of each ``(name, pose)`` of ``views``, in order, rendered as one batch: the
+        images of every view back to back, then their measurements. With ``overlap`` (default: when
+        the renderer runs on a GPU) one thread renders the batch while this one measures the views
+        already rendered, so the device renders the next views during the measurements. Every view's
+        images and measurement are ``passive_view``'s, whatever the order of the work."""
+        active = rays_for is not None
+        if overlap is None:
+            overlap = self.renders_on_gpu if self.overlap is None else self.overlap
+        if not overlap or len(views) < 2:
+            shots = [self._shoot_view(name, pose, active) for name, pose in views]
+            return [self._measure_view(name, pose, shot, rays_for) for (name, pose), shot in zip(views, shots)]
+        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="platebench-render") as pool:  # renders in order
+            shots = [pool.submit(self._shoot_view, name, pose, active) for name, pose in views]
+            try:
+                return [self._measure_view(name, pose, shot.result(), rays_for)
+                        for (name, pose), shot in zip(views, shots)]
+            except BaseException:
+                for shot in shots:
+                    shot.cancel()
+                raise
+
+    @property
+    def renders_on_gpu(self) -> bool:
+        """True when this sensor's renderer runs on a GPU (a ``cuda_*`` variant)."""
+        from platebench.scenes.render.runtime import default_variant  # noqa: PLC0415
+        return (self.cfg.variant or default_variant()).startswith("cuda")
+
+    def _shoot_view(self, name: str, pose: SensorPose, active: bool) -> Shot:
+        return self.shoot(pose, PASSIVE + (ACTIVE if active else ()), projector=projector_pose(pose) if active else None,
+                          label=name, verify=True)
+
+    def _measure_view(self, name: str, pose: SensorPose, shot: Shot, rays_for) -> PassiveView:
+        """The outline (and, with ``rays_for``, the checked square centres) measured from ``shot``."""
         # a distorted camera's images are measured undistorted, with its pinhole (reconstruction.calibration.undistort)
         digital, rig = undistort_views(shot.digital, shot.scene.rig)
         scene = replace(shot.scene, rig=rig)
