@@ -138,17 +138,17 @@ def test_merged_reconstruction_of_a_240_degree_curl_is_measured_from_every_pose(
                                                                             math.radians(axis_deg))))
     s = run_sensing(cfg, tmp_path, SensingOptions(working_distance_m=distance_m, verify_grid=None))  # 5x10@18 everywhere
     m = s.final.merged
-    assert m["points"] > s.final.accuracy["points_scored"] if s.final.accuracy else m["points"] > 0
-    assert m["points_rms_mm"] < 0.5
+    assert m.points > s.final.accuracy.points_scored if s.final.accuracy else m.points > 0
+    assert m.points_rms_mm < 0.5
     # no mismatched array (tens of mm deep); a square cut by an occluding contour may be biased by
     # a few mm (the study: worst 0.4-5.5 mm per plate), but nearly all lie on the plate
-    assert m["points_max_mm"] < 6.0
-    assert m["surface_coverage"] > 0.9 > s.final.accuracy["surface_coverage"]
+    assert m.points_max_mm < 6.0
+    assert m.coverage_frac > 0.9 > s.final.accuracy.coverage_frac
     npz = np.load(tmp_path / "multiview.npz")
     from platebench.evaluation.point_metrics import closest_point_on_mesh
     from platebench.plates import build_plate
     d = closest_point_on_mesh(npz["active_points"], build_plate(cfg.plate).mesh)[1]
-    assert len(d) == m["points"] and np.mean(d < 2e-3) > 0.95, np.sort(d)[-20:]
+    assert len(d) == m.points and np.mean(d < 2e-3) > 0.95, np.sort(d)[-20:]
     assert len(set(npz["active_view"].tolist())) >= 5
     assert (tmp_path / "merged_points.ply").is_file() and (tmp_path / "merged_surface.ply").is_file()
 

@@ -287,9 +287,9 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     assert f.outcome == "clean" and s.cures == 0 and f.boundary_verified and not f.unverified_parts
     assert len(s.verification_views) >= 4 and not f.hidden_first
     st3 = s.steps[2]  # at 320 x 240 an outer square's edge can touch the plate's outline: set apart, never lost
-    assert st3.matched + st3.cut == 16 and f.accuracy["points_scored"] == st3.matched >= 12
-    assert f.accuracy["centres_depth_rms_mm"] < 2.0  # 320 x 240: the paper's 2 mm
-    assert f.merged["boundary_mean_mm"] < 1.5
+    assert st3.matched + st3.cut == 16 and f.accuracy.points_scored == st3.matched >= 12
+    assert f.accuracy.centres_depth_rms_mm < 2.0  # 320 x 240: the paper's 2 mm
+    assert f.merged.boundary_mean_mm < 1.5
     stages = [st.stage for st in s.steps if hasattr(st, "stage")]
     assert stages[:3] == [1, 2, 3] and s.steps[0].pose.distance_m > s.steps[1].pose.distance_m
     doc = json.loads((tmp_path / "sensing.json").read_text())
@@ -323,7 +323,7 @@ def test_the_papers_loop_alone_does_not_claim_a_verified_boundary():
     assert s.verification_views == () and s.cures == 0 and len(s.views) == 1
     assert not s.final.boundary_verified and s.final.unverified_parts
     assert s.steps[-1].kind == "stop" and s.steps[-1].reason.startswith("verification views off")
-    assert s.final.accuracy["points_scored"] + s.steps[2].cut == 16
+    assert s.final.accuracy.points_scored + s.steps[2].cut == 16
 
 
 @pytest.mark.render
@@ -370,8 +370,8 @@ def test_merged_boundary_coverage_is_a_fraction_of_the_true_boundarys_length():
     m = merged_accuracy(plate, SimpleNamespace(boundary=half, points=np.zeros((0, 3)),
                                                surface_vertices=np.zeros((0, 3)), surface_faces=np.zeros((0, 3), int)))
     perimeter = float(np.linalg.norm(np.roll(B, -1, axis=0) - B, axis=1).sum())
-    assert m["boundary_covered_frac"] == pytest.approx(0.5 + 2 * 2e-3 / perimeter, abs=2e-3)
-    assert m["boundary_est_to_gt_mean_mm"] < 1e-3  # the merged points lie on the true boundary
+    assert m.boundary_covered_frac == pytest.approx(0.5 + 2 * 2e-3 / perimeter, abs=2e-3)
+    assert m.boundary_est_to_gt_mean_mm < 1e-3  # the merged points lie on the true boundary
 
 
 @pytest.mark.render

@@ -122,19 +122,20 @@ def summary_lines(s: SensingResult) -> list[str]:
     lines.append("detectors at stage 2: " + ", ".join(
         f"{d.name} {'-' if d.fired is None else ('FIRED' if d.fired else 'quiet')}" for d in s.detectors))
     m = f.merged
-    merged = ", ".join(f"{k} {m[k]:.3f}" for k in ("boundary_mean_mm", "boundary_covered_frac", "points_rms_mm",
-                                                    "surface_rms_mm", "surface_coverage") if k in m)
-    if "points" in m:
-        merged += f", {m['points']} square centres"
+    merged = ", ".join(f"{k} {v:.3f}" for k, v in (
+        ("boundary_mean_mm", m.boundary_mean_mm), ("boundary_covered_frac", m.boundary_covered_frac),
+        ("points_rms_mm", m.points_rms_mm), ("surface_rms_mm", m.surface_rms_mm), ("coverage_frac", m.coverage_frac))
+        if v is not None)
+    merged += f", {m.points} square centres"
     lines.append(f"poses: {len(f.poses)} (stage 2, {len(s.verification_views)} verification views, {s.cures} cures); "
                  f"merged: {merged}")
-    a = f.accuracy or {}
+    a = f.accuracy
 
     def mm(v):
         return "-" if v is None else f"{v:.3f} mm"
     lines.append(f"ground truth: boundary visible L/R at stage 2 {_pct(f.gt_visibility_first)}, from the final poses "
                  f"{_pct(f.gt_visibility)}; stage 3 depth RMS at the square centres "
-                 f"{mm(a.get('centres_depth_rms_mm'))}")
+                 f"{mm(None if a is None else a.centres_depth_rms_mm)}")
     lines.append(f"outcome: {f.outcome} ({OUTCOME_TEXT[f.outcome]})")
     lines.append(f"time: {s.time_s:.1f} s")
     return lines

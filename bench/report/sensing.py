@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.io.records import final_figures
 from platebench.bench.report import interim
 from platebench.bench.report import plots as P
 from platebench.bench.report.inputs import ReportInputError, load_sensing, load_study
@@ -153,8 +154,7 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
     if "boundary_verified" not in final:  # a record from before the verdict: the interim section
         return interim.sensing_section(sensing_dir, out_dir)
     outcome = final.get("outcome")
-    merged = final.get("merged") or {}
-    acc = final.get("accuracy") or {}
+    acc, merged = final_figures(final)
     figures = [{"label": "boundary verified", "value": bool(final.get("boundary_verified"))},
                {"label": "outcome", "value": outcome,
                 "status": "bad" if outcome in ("silent", "false_alarm") else "good" if outcome in ("clean", "cured")
@@ -162,16 +162,16 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
                {"label": "cures", "value": doc.get("cures")},
                {"label": "verification views", "value": len(doc.get("verification_views") or [])},
                {"label": "poses", "value": len(final.get("poses") or [])}]
-    for k, label, unit in (("boundary_mean_mm", "merged boundary mean distance", "mm"),
-                           ("points", "merged square centres (all poses)", ""),
-                           ("points_rms_mm", "merged square centres' RMS distance to the plate", "mm"),
-                           ("surface_coverage", "merged surface coverage", "fraction"),
-                           ("surface_rms_mm", "merged surface RMS", "mm")):
-        if finite(merged.get(k)) is not None:
-            figures.append({"label": label, "value": round(merged[k], 3), "unit": unit})
-    if finite(acc.get("centres_depth_rms_mm")) is not None:
+    for v, label, unit in ((merged.boundary_mean_mm, "merged boundary mean distance", "mm"),
+                           (merged.points, "merged square centres (all poses)", ""),
+                           (merged.points_rms_mm, "merged square centres' RMS distance to the plate", "mm"),
+                           (merged.coverage_frac, "merged surface coverage", "fraction"),
+                           (merged.surface_rms_mm, "merged surface RMS", "mm")):
+        if finite(v) is not None:
+            figures.append({"label": label, "value": round(v, 3), "unit": unit})
+    if acc is not None and finite(acc.centres_depth_rms_mm) is not None:
         figures.append({"label": "stage-3 depth RMS at the square centres",
-                        "value": round(acc["centres_depth_rms_mm"], 4), "unit": "mm"})
+                        "value": round(acc.centres_depth_rms_mm, 4), "unit": "mm"})
     if finite(doc.get("time_s")) is not None:
         figures.append({"label": "time", "value": round(doc["time_s"], 1), "unit": "s"})
     summary = (f"Outcome: {outcome} ({final.get('outcome_text', '')}). Verdict (no ground truth): "

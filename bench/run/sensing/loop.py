@@ -524,8 +524,7 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
         reach_vis, verif_vis = gt_visibility_dict(reach), gt_visibility_dict(verif)
         unconfirmable = max([h["length_m"] for h in verif["left"].hidden_segments], default=0.0)
     accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None
-    merged = merged_accuracy(sensor.plate, m.merged())
-    merged["poses"] = len(m.views)
+    merged = merged_accuracy(sensor.plate, m.merged(), poses=len(m.views))
     return FinalRecord(first.pose2, "stage3", None if rec is None else rec.false_boundary,
                        0 if rec is None else len(rec.points), verified, reason, unverified,
                        tuple(v.name for v in m.views), gt_final, gt_first, accuracy, merged, outcome, reach_vis,

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.records import MergedFigures, Stage3Accuracy
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 from platebench.reconstruction.strategy.detectors import DetectorResult
@@ -172,8 +173,8 @@ class FinalRecord:
     poses: tuple
     gt_visibility: dict
     gt_visibility_first: dict
-    accuracy: dict | None
-    merged: dict
+    accuracy: Stage3Accuracy | None  # None: stage 3 reconstructed nothing
+    merged: MergedFigures
     outcome: str
     gt_reachable_visibility: dict | None = None  # union over every reachable candidate pose (scoring only)
     # the boundary points some pair of those poses could confirm (``scoring.verifiable_visibility``),
@@ -212,7 +213,8 @@ class FinalRecord:
                 "matched": self.matched, "boundary_verified": self.boundary_verified,
                 "verdict": self.verdict_reason, "unverified_parts": list(self.unverified_parts),
                 "poses": list(self.poses), "gt_visibility": self.gt_visibility,
-                "gt_visibility_first": self.gt_visibility_first, "accuracy": self.accuracy, "merged": self.merged,
+                "gt_visibility_first": self.gt_visibility_first,
+                "accuracy": None if self.accuracy is None else self.accuracy.to_dict(), "merged": self.merged.to_dict(),
                 "outcome": self.outcome, "outcome_text": OUTCOME_TEXT[self.outcome],
                 "gt_hidden_first": self.hidden_first, "gt_hidden_final": self.hidden_final,
                 "gt_reachable_visibility": self.gt_reachable_visibility, "gt_reachable": self.gt_reachable,

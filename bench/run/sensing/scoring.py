@@ -1,12 +1,13 @@
 """The sensing loop scored against ground truth (never read by the loop's decisions): the stage-3
 reconstruction's accuracy, the merged multi-view result's accuracy, and the final poses' visibility
-of the true boundary. Millimetres in the returned dicts, metres in arrays."""
+of the true boundary. Millimetres in the returned records (``bench.io.records``), metres in arrays."""
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
 from trimesh.path.traversal import resample_path
 
+from platebench.bench.io.records import MergedFigures, Stage3Accuracy
 from platebench.bench.run.score import score_in_memory
 from platebench.evaluation.boundary_metrics import points_to_polyline_distance
 from platebench.evaluation.metrics_row import MetricsRow
@@ -23,17 +24,18 @@ TRUE_BOUNDARY_STEP_M = 0.5e-3  # the true boundary is sampled this finely (by ar
 SURFACE_SAMPLE_M = 2e-3  # the merged surface is sampled this finely for its scores (under the 2 mm coverage radius)
 
 
-def stage3_accuracy(sample, rec) -> dict:
+def stage3_accuracy(sample, rec) -> Stage3Accuracy:
     """The stage-3 reconstruction (the paper's method) scored against ground truth (millimetres)."""
     score = score_in_memory(sample, rec)
     row = MetricsRow.from_score(score)
-    return {"centres_depth_rms_mm": row.centres_depth_rms_mm, "points_scored": score.points.count if score.points else 0,
-            "boundary_mean_mm": row.boundary_mean_mm, "surface_rms_mm": row.surface_rms_mm,
-            "surface_coverage": row.coverage_frac, "paper_bound_met": row.paper_bound_met,
-            "goals_met": score.goals.met if score.goals else None}
+    return Stage3Accuracy(centres_depth_rms_mm=row.centres_depth_rms_mm,
+                          points_scored=score.points.count if score.points else 0,
+                          boundary_mean_mm=row.boundary_mean_mm, surface_rms_mm=row.surface_rms_mm,
+                          coverage_frac=row.coverage_frac, paper_bound_met=row.paper_bound_met,
+                          goals_met=score.goals.met if score.goals else None)
 
 
-def merged_accuracy(plate, merged: MergedReconstruction) -> dict:
+def merged_accuracy(plate, merged: MergedReconstruction, poses: int = 0) -> MergedFigures:
     """The merged multi-view reconstruction (``active_views.MergedReconstruction``) against ground
     truth (millimetres):
 
@@ -43,8 +45,10 @@ def merged_accuracy(plate, merged: MergedReconstruction) -> dict:
       and up to 30 mm apart on flat stretches, so a mean over vertices would weigh the bends only);
     * its square centres (every pose's, checked): RMS and maximum distance to the true surface;
     * its surface (the poses' visible surfaces, sampled every ``SURFACE_SAMPLE_M``): RMS distance to the true
-      surface and coverage (the fraction of the true surface within 2 mm of it)."""
-    out = {"boundary_points": int(len(merged.boundary)), "points": int(len(merged.points))}
+      surface and coverage (the fraction of the true surface within 2 mm of it).
+
+    ``poses``: the measuring poses merged (recorded beside the figures)."""
+    out = {"poses": int(poses), "boundary_points": int(len(merged.boundary)), "points": int(len(merged.points))}
     B = np.asarray(plate.boundary, float)
     if len(merged.boundary):
         est_gt = points_to_polyline_distance(merged.boundary, B)
@@ -60,9 +64,9 @@ def merged_accuracy(plate, merged: MergedReconstruction) -> dict:
     if len(S):
         s = score_surface(S, plate.mesh, sample_spacing_m=SURFACE_SAMPLE_M, coverage_radius_m=2e-3,
                           max_distance_m=1e-3)
-        out.update(surface_rms_mm=float(s.dist.rms * 1e3), surface_coverage=float(s.coverage_frac),
+        out.update(surface_rms_mm=float(s.dist.rms * 1e3), coverage_frac=float(s.coverage_frac),
                    surface_points=int(len(S)))
-    return out
+    return MergedFigures(**out)
 
 
 def final_visibility(true_boundary: np.ndarray, measured_views) -> dict:
