@@ -96,6 +96,18 @@ class BoundaryScore:
         out[f"sample_spacing_{suf}"] = self.sample_spacing * scale
         return out
 
+    @classmethod
+    def from_dict(cls, d: dict, unit: str = "m") -> "BoundaryScore":
+        """The inverse of ``to_dict`` for a boundary in ``unit`` ("m": keys in mm, "px")."""
+        suf, scale = _UNITS[unit]
+
+        def value(name):
+            v = d.get(f"{name}_{suf}")
+            return math.nan if v is None else float(v) / scale
+        return cls(ErrorStats.from_dict(d, "est_to_gt", suf, scale), ErrorStats.from_dict(d, "gt_to_est", suf, scale),
+                   value("mean_sym"), value("rms_sym"), value("hausdorff"), value("length_est"), value("length_gt"),
+                   value("sample_spacing"), unit)
+
 
 # ----------------------------------------------------------------------- helpers
 

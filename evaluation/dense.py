@@ -9,11 +9,37 @@ Inputs: metres, pixels (OpenCV, centres at integers); outputs: keys carry their 
 """
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from platebench.evaluation.point_metrics import point_to_surface_distance
 
-__all__ = ["score_points_depth", "bilinear"]
+__all__ = ["SparseDepthScore", "score_points_depth", "bilinear"]
+
+
+@dataclass(frozen=True)
+class SparseDepthScore:
+    """Sparse world points against the truth (millimetres): their count, those whose left-image
+    projection lands on the plate, the |depth error| there (median, RMS, max; NaN when none lands),
+    and their distance to the true surface (RMS, max; None without a mesh)."""
+
+    points: int
+    points_on_plate: int
+    centres_depth_median_mm: float
+    centres_depth_rms_mm: float
+    centres_depth_max_mm: float
+    surface_rms_mm: float | None = None
+    surface_max_mm: float | None = None
+
+    def to_dict(self) -> dict:
+        out = {"points": self.points, "points_on_plate": self.points_on_plate,
+               "centres_depth_median_mm": self.centres_depth_median_mm,
+               "centres_depth_rms_mm": self.centres_depth_rms_mm, "centres_depth_max_mm": self.centres_depth_max_mm}
+        if self.surface_rms_mm is not None:
+            out.update(surface_rms_mm=self.surface_rms_mm, surface_max_mm=self.surface_max_mm)
+        return out
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -32,7 +58,7 @@ def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return out
 
 
-def score_points_depth(points, left_camera, gt_depth, mesh=None) -> dict:
+def score_points_depth(points, left_camera, gt_depth, mesh=None) -> SparseDepthScore:
     """Depth error of sparse world points at their left-image projection, and distance to the true surface."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
@@ -41,13 +67,12 @@ def score_points_depth(points, left_camera, gt_depth, mesh=None) -> dict:
     z = left_camera.depth(pts)
     ok = np.isfinite(z_gt)
     a = np.abs(z[ok] - z_gt[ok]) * 1e3
-    out = {"points": int(len(pts)), "points_on_plate": int(ok.sum())}
-    out["centres_depth_median_mm"] = float(np.median(a)) if a.size else float("nan")
-    out["centres_depth_rms_mm"] = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
-    out["centres_depth_max_mm"] = float(a.max()) if a.size else float("nan")
+    nan = math.nan
+    surface = (None, None)
     if mesh is not None and len(pts):
         d = point_to_surface_distance(pts, mesh) * 1e3
-        out["surface_rms_mm"] = float(np.sqrt(np.mean(d * d)))
-        out["surface_max_mm"] = float(d.max())
-    return out
+        surface = (float(np.sqrt(np.mean(d * d))), float(d.max()))
+    return SparseDepthScore(int(len(pts)), int(ok.sum()), float(np.median(a)) if a.size else nan,
+                            float(np.sqrt(np.mean(a * a))) if a.size else nan, float(a.max()) if a.size else nan,
+                            *surface)
 

@@ -207,7 +207,7 @@ class DepthScore:
 
     def to_dict(self) -> dict:
         out = {"plate_px": self.plate_px, "estimated_px": self.estimated_px, "off_plate_px": self.off_plate_px,
-               "coverage_frac": self.coverage_frac, "coverage_pct": 100.0 * self.coverage_frac}
+               "coverage_frac": self.coverage_frac}
         out.update(self.errors.to_dict("depth"))
         out.update({f"depth_bad_{_key(t)}_mm_pct": v for t, v in self.bad_pct})
         return out
@@ -215,8 +215,7 @@ class DepthScore:
     def metrics_row(self) -> MetricsRow:
         e = self.errors
         return _row({"depth_rms_mm": e.rms_m * MM, "depth_max_mm": e.max_m * MM, "depth_median_mm": e.median_m * MM,
-                     "coverage_frac": self.coverage_frac},
-                    {k: v for k, v in self.to_dict().items() if k != "coverage_pct"})
+                     "coverage_frac": self.coverage_frac}, self.to_dict())
 
 
 def _map(values, truth: FieldTruth, what: str) -> np.ndarray:
@@ -273,7 +272,7 @@ class DisparityScore:
 
     def metrics_row(self) -> MetricsRow:
         e = self.depth.errors
-        flat = {k: v for k, v in self.to_dict().items() if not isinstance(v, dict) and k != "coverage_pct"}
+        flat = {k: v for k, v in self.to_dict().items() if not isinstance(v, dict)}
         flat.update(self.middlebury.to_dict())
         flat.update(self.eth3d.to_dict())
         return _row({"depth_rms_mm": e.rms_m * MM, "depth_max_mm": e.max_m * MM, "depth_median_mm": e.median_m * MM,

@@ -78,6 +78,20 @@ class PointScore:
         out["count"] = self.count
         return out
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "PointScore":
+        """The inverse of ``to_dict`` (metres; the per-point errors are not in it: an empty (0, 3) array)."""
+        n = int(d.get("count") or 0)
+
+        def signed(name):
+            v = d.get(f"{name}_mean_signed_mm")
+            return math.nan if v is None else float(v) / M_TO_MM
+        stats = {name: ErrorStats.from_dict(d, name, "mm", M_TO_MM, n) for name in ("depth", "x", "y", "xy_radial", "err3d")}
+        errors = np.zeros((0, 3))
+        errors.setflags(write=False)
+        return cls(**stats, depth_bias_signed=signed("depth"), x_bias_signed=signed("x"), y_bias_signed=signed("y"),
+                   count=n, errors_cam=errors)
+
 
 def _check_rotation(R, name: str = "R_left") -> np.ndarray:
     R = check_array(R, name, shape=(3, 3))

@@ -94,6 +94,11 @@ def _mm(x: float | None) -> float | None:
     return None if x is None else float(x) * 1e3
 
 
+def _m(x_mm) -> float:
+    """Metres from a file's millimetres (None: NaN)."""
+    return math.nan if x_mm is None else float(x_mm) / 1e3
+
+
 @dataclass(frozen=True)
 class PointErrors:
     """Triangulated square centres against the true centres (``stats``, metres), and the distance
@@ -123,6 +128,10 @@ class PointErrors:
         d["to_surface_max_mm"] = _mm(self.to_surface_max_m)
         return d
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "PointErrors":
+        return cls(PointScore.from_dict(d), _m(d.get("to_surface_rms_mm")), _m(d.get("to_surface_max_mm")))
+
 
 @dataclass(frozen=True)
 class Matching:
@@ -149,6 +158,13 @@ class Matching:
                 "visible_in_both_count": self.visible_in_both_count, "expected_count_gt": self.expected_count_gt,
                 "expected_count_method": self.expected_count_method}
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "Matching":
+        return cls(int(d.get("matched_count") or 0), int(d.get("correct_match_count") or 0),
+                   float(d.get("label_correct_rate_frac") or 0.0), dict(d.get("detected_count") or {}),
+                   dict(d.get("visible_count") or {}), int(d.get("visible_in_both_count") or 0),
+                   int(d.get("expected_count_gt") or 0), int(d.get("expected_count_method", -1)))
+
 
 @dataclass(frozen=True)
 class FalseBoundaryVerdict:
@@ -168,6 +184,10 @@ class FalseBoundaryVerdict:
     def to_dict(self) -> dict:
         return {"ground_truth": dict(self.ground_truth), "ground_truth_any": self.ground_truth_any,
                 "detected": self.detected, "agrees": self.agrees}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "FalseBoundaryVerdict":
+        return cls({k: bool(v) for k, v in (d.get("ground_truth") or {}).items()}, bool(d.get("detected")))
 
 
 @dataclass(frozen=True)
@@ -189,6 +209,10 @@ class PaperBound:
     def to_dict(self) -> dict:
         return {"depth_max_mm": self.depth_max_mm, "xy_per_axis_max_mm": self.xy_per_axis_max_mm,
                 "all_points": self.all_points, "met": self.met}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PaperBound":
+        return cls(float(d["depth_max_mm"]), float(d["xy_per_axis_max_mm"]), bool(d["all_points"]))
 
 
 @dataclass(frozen=True)
@@ -213,6 +237,15 @@ class Goals:
                 "xy_per_axis_rms_goal_mm": self.xy_per_axis_rms_goal_mm,
                 "boundary_mean_mm": self.boundary_mean_mm, "boundary_mean_goal_mm": self.boundary_mean_goal_mm,
                 "met": self.met}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Goals":
+        def mm(key):
+            v = d.get(key)
+            return math.nan if v is None else float(v)
+        return cls(mm("depth_rms_mm"), mm("xy_per_axis_rms_mm"), mm("boundary_mean_mm"),
+                   d.get("depth_rms_goal_mm", GOAL_DEPTH_RMS_MM), d.get("xy_per_axis_rms_goal_mm", GOAL_XY_RMS_MM),
+                   d.get("boundary_mean_goal_mm", GOAL_BOUNDARY_MEAN_MM))
 
 
 @dataclass(frozen=True)
@@ -249,6 +282,23 @@ class Score:
         if self.cut_count:
             out["cut_points"] = {"count": self.cut_count, **(self.cut_points.to_dict() if self.cut_points else {})}
         return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Score":
+        """score.json's layout (``to_dict``) read back as a ``Score``: the parts it holds (a part it lacks
+        is None), values in metres again; each point's error vector is not in the file (empty arrays)."""
+        def part(name, reader):
+            body = d.get(name)
+            return reader(body) if isinstance(body, dict) else None
+        points = part("points", lambda b: PointErrors.from_dict(b) if b.get("count") else None)
+        cut = d.get("cut_points") if isinstance(d.get("cut_points"), dict) else {}
+        return cls(points, Matching.from_dict(d.get("matching") or {}),
+                   part("boundary_3d", BoundaryScore.from_dict),
+                   part("boundary_image", lambda b: BoundaryScore.from_dict(b, "px")),
+                   part("surface", SurfaceScore.from_dict),
+                   FalseBoundaryVerdict.from_dict(d.get("false_boundary") or {}),
+                   part("paper_bound", PaperBound.from_dict), part("goals", Goals.from_dict),
+                   PointErrors.from_dict(cut) if "depth_rms_mm" in cut else None, int(cut.get("count") or 0))
 
 
 def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:

@@ -148,6 +148,17 @@ class ErrorStats:
             self.mean * factor, self.rms * factor, self.max * factor, self.p95 * factor, self.count
         )
 
+    @classmethod
+    def from_dict(cls, d: dict, prefix: str = "", unit_suffix: str = "mm", scale: float = 1e3,
+                  count: int | None = None) -> "ErrorStats":
+        """The inverse of ``to_dict`` (values divided by ``scale``; missing or None: NaN); ``count``:
+        when the dict carries none of its own under ``{prefix}_count``."""
+        def value(name):
+            v = d.get(stat_key(prefix, name, unit_suffix))
+            return math.nan if v is None else float(v) / scale
+        n = d.get(stat_key(prefix, "count"), count)
+        return cls(value("mean"), value("rms"), value("max"), value("p95"), int(n or 0))
+
     def to_dict(self, prefix: str = "", unit_suffix: str = "mm", scale: float = 1e3) -> dict:
         """``{prefix}_mean_{unit}``, ``_rms_``, ``_max_``, ``_p95_`` (times ``scale``) and ``{prefix}_count``.
 

@@ -89,6 +89,18 @@ class SurfaceScore:
         )
         return out
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "SurfaceScore":
+        """The inverse of ``to_dict`` (metres and m^2)."""
+        def value(key, scale=M_TO_MM):
+            v = d.get(key)
+            return math.nan if v is None else float(v) / scale
+        limit = d.get("coverage_max_distance_mm")
+        return cls(ErrorStats.from_dict(d, "dist", "mm", M_TO_MM), value("coverage_frac", 1.0),
+                   value("covered_area_mm2", 1e6), value("plate_area_mm2", 1e6), int(d.get("gt_sample_count") or 0),
+                   int(d.get("coverage_point_count") or 0), value("sample_spacing_mm"), value("coverage_radius_mm"),
+                   None if limit is None else float(limit) / M_TO_MM)
+
 
 def _face_mask(mesh, faces) -> np.ndarray | None:
     if faces is None:

@@ -291,13 +291,13 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     assert any("paper row left out" in n for n in cmp.notes)
     assert cmp.scene_reproduced is True
     sub, sg = cmp.rows
-    assert sub.scores["depth_median_mm"] < 1.0 and sub.scores["coverage_pct"] > 80
-    assert sg.scores["middlebury"]["mb_all_bad_1_0_pct"] > sub.scores["middlebury"]["mb_all_bad_1_0_pct"]
+    assert sub.figures.depth_median_mm < 1.0 and sub.figures.coverage_frac > 0.8
+    assert sg.figures.mb_all_bad_1_0_pct > sub.figures.mb_all_bad_1_0_pct
     # typed scores, non-occluded region included (the 10-degree plate is seen whole by both cameras)
     assert sub.score.middlebury.nonocc.gt_count == sub.score.middlebury.all.gt_count > 1000
     row = sub.score.metrics_row().columns()  # what a sweep's results table gets
-    assert row["mb_nonocc_bad_1_0_pct"] == sub.scores["middlebury"]["mb_nonocc_bad_1_0_pct"]
-    assert row["coverage_frac"] == pytest.approx(sub.scores["coverage_pct"] / 100)
+    assert row["mb_nonocc_bad_1_0_pct"] == dict(sub.score.middlebury.nonocc.bad_pct)[1.0]
+    assert row["coverage_frac"] == sub.figures.coverage_frac and row["mb_all_bad_1_0_pct"] == sub.figures.mb_all_bad_1_0_pct
     # The paper row: points.csv from a reconstruction (here: true plate points), CLI without renders.
     recon = tmp_path / "recon"
     recon.mkdir()

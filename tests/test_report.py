@@ -136,12 +136,22 @@ def make_study(root: Path, with_extras: bool = True) -> Path:
 def make_compare(path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = {"sample": "s1", "scene_reproduced": True, "notes": ["a note"], "units": "depth errors in mm",
-           "methods": {"paper": {"description": "paper's squares", "n_images": 2, "time_s": 0.2, "render_s": 0.0,
-                                 "points": 16, "points_on_plate": 16, "depth_median_mm": 0.01, "depth_rms_mm": 0.013,
-                                 "depth_max_mm": 0.03, "surface_rms_mm": 0.02, "notes": []},
-                       "graycode": {"description": "Gray code", "n_images": 42, "time_s": 1.1, "render_s": 20.0,
-                                    "coverage_pct": 44.0, "depth_median_mm": 0.17, "depth_rms_mm": 0.22,
-                                    "depth_max_mm": 2.0, "middlebury": {"mb_all_bad_1_0_pct": 3.2}, "notes": []}}}
+           "methods": {"paper": {"description": "paper's squares", "kind": "paper", "n_images": 2, "time_s": 0.2,
+                                 "render_s": 0.0, "points": 16, "points_on_plate": 16,
+                                 "centres_depth_median_mm": 0.01, "centres_depth_rms_mm": 0.013,
+                                 "centres_depth_max_mm": 0.03, "surface_rms_mm": 0.02, "notes": [],
+                                 "figures": {"measure": "centres", "n_images": 2, "time_s": 0.2, "render_s": 0.0,
+                                             "points_on_plate": 16, "centres_depth_median_mm": 0.01,
+                                             "centres_depth_rms_mm": 0.013, "centres_depth_max_mm": 0.03,
+                                             "surface_rms_mm": 0.02}},
+                       "graycode": {"description": "Gray code", "kind": "disparity", "n_images": 42, "time_s": 1.1,
+                                    "render_s": 20.0, "coverage_frac": 0.44, "depth_median_mm": 0.17,
+                                    "depth_rms_mm": 0.22, "depth_max_mm": 2.0,
+                                    "middlebury": {"mb_all_bad_1_0_pct": 3.2}, "notes": [],
+                                    "figures": {"measure": "disparity", "n_images": 42, "time_s": 1.1,
+                                                "render_s": 20.0, "coverage_frac": 0.44, "depth_median_mm": 0.17,
+                                                "depth_rms_mm": 0.22, "depth_max_mm": 2.0,
+                                                "mb_all_bad_1_0_pct": 3.2}}}}
     path.write_text(json.dumps(doc))
     return path
 

@@ -173,13 +173,16 @@ def make_recon(root: Path, bound_met: bool = False, scored: bool = True) -> tupl
                            "counting_test": True, "arrays_disagree": False, "false_boundary_detected": True},
         "unmatched": [3, 7], "timings_s": {"total_s": 0.7}}))
     if scored:
+        n, depth_max = (16, 0.03) if bound_met else (14, 2.5)  # the bound: every point, depth within 2 mm
         (recon / "score.json").write_text(json.dumps({
-            "points": {"depth_rms_mm": 0.0102, "depth_max_mm": 2.5, "xy_radial_rms_mm": 0.0045, "count": 14},
-            "matching": {"matched_count": 14, "correct_match_count": 14, "expected_count_gt": 16},
-            "false_boundary": {"ground_truth_any": False, "detected": True, "agrees": False},
-            "paper_bound": {"depth_max_mm": 2.5, "xy_per_axis_max_mm": 0.007, "all_points": False,
+            "points": {"depth_rms_mm": 0.0102, "depth_max_mm": depth_max, "xy_radial_rms_mm": 0.0045, "count": n},
+            "matching": {"matched_count": n, "correct_match_count": n, "expected_count_gt": 16},
+            "false_boundary": {"ground_truth": {"left": False, "right": False}, "ground_truth_any": False,
+                               "detected": True, "agrees": False},
+            "paper_bound": {"depth_max_mm": depth_max, "xy_per_axis_max_mm": 0.007, "all_points": bound_met,
                             "met": bound_met},
-            "goals": {"depth_rms_mm": 0.0102, "depth_rms_goal_mm": 0.03, "met": True}}))
+            "goals": {"depth_rms_mm": 0.0102, "depth_rms_goal_mm": 0.03, "xy_per_axis_rms_mm": 0.004,
+                      "boundary_mean_mm": 0.1, "met": True}}))
     return sample, recon
 
 
@@ -299,7 +302,7 @@ def test_report_of_a_dataset_sample_with_peer_outputs(tmp_path):
     sgbm = tmp_path / "0003" / "recon" / "sgbm"
     sgbm.mkdir()
     (sgbm / "score.json").write_text(json.dumps({
-        "method": "sgbm", "scores": {"depth_rms_mm": 6.41, "depth_median_mm": 1.16, "coverage_pct": 15.5,
+        "method": "sgbm", "scores": {"depth_rms_mm": 6.41, "depth_median_mm": 1.16, "coverage_frac": 0.155,
                                      "middlebury": {"mb_all_bad_1_0_pct": 91.0}}}))
     inp = detect_inputs(tmp_path / "0003")
     assert inp.recons == [paper, sgbm] and inp.samples == []

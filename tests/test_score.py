@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from platebench.evaluation.metrics_row import MetricsRow, metric_label
-from platebench.evaluation.score import ReconstructionData, SampleTruth, score_reconstruction
+from platebench.evaluation.score import ReconstructionData, SampleTruth, Score, score_reconstruction
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
 
@@ -143,3 +143,20 @@ def test_metric_labels_carry_the_unit_once():
     assert metric_label("mb_all_bad_1_0_pct") == "Middlebury bad 1.0 px, all pixels with known truth (%)"
     assert metric_label("depth_bad_0_1_mm_pct") == "estimated plate pixels with depth error > 0.1 mm (%)"
     assert metric_label("method_lit_px") == "the method's own figure 'lit_px'"
+
+
+@pytest.mark.parametrize("offsets", [dict(depth_mm=0.1, ex_mm=0.03, ey_mm=0.04, boundary_up_mm=0.3, surface_up_mm=0.2),
+                                     dict(depth_mm=0.07, ex_mm=-0.02, boundary_up_mm=0.1, detected=True)])
+def test_score_json_reads_back_as_the_same_score(truth, offsets):
+    """score.json (``Score.to_dict``) read back with ``Score.from_dict`` writes the same file, and its
+    MetricsRow (what the report and the results table show) is the one of the score it came from."""
+    t, p = truth
+    s = score_reconstruction(t, _recon(t, p, **offsets))
+    d = s.to_dict()
+    back = Score.from_dict(d)
+    assert back.to_dict() == d
+    assert MetricsRow.from_score(back) == MetricsRow.from_score(s)
+    assert back.paper_bound.met == s.paper_bound.met and back.goals.met == s.goals.met
+    assert back.false_boundary.agrees == s.false_boundary.agrees
+    empty = Score.from_dict({"points": {"count": 0}, "matching": d["matching"], "false_boundary": d["false_boundary"]})
+    assert empty.points is None and empty.surface is None and empty.paper_bound is None

@@ -3,9 +3,11 @@ and the report."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 
+from platebench.bench.io.records import StudyRow
 from platebench.bench.run.study import (
     OTHER_ASPECT,
     OTHER_DISTANCE_M,
@@ -57,9 +59,9 @@ def test_axes_aspect_and_families_choose_plates_outside_the_default_set():
     assert plate.length_m / plate.width_m == pytest.approx(2.2) and len({c.name for c in cases}) == len(cases)
 
 
-def _row(family, bend, hidden, reachable, outcome, **det):
-    return {"family": family, "bend_deg": bend, "gt_hidden_first": hidden, "gt_reachable": reachable,
-            "outcome": outcome, **{f"det_{k}": v for k, v in det.items()}}
+def _row(family, bend, hidden, reachable, outcome, verifiable=None, **det):
+    return StudyRow(f"{family} {bend}", family, bend_deg=bend, gt_hidden_first=hidden, gt_reachable=reachable,
+                    gt_verifiable=verifiable, outcome=outcome, detectors=det)
 
 
 def test_targets_and_detector_scores_count_against_ground_truth():
@@ -68,26 +70,26 @@ def test_targets_and_detector_scores_count_against_ground_truth():
             _row("cylinder", 300.0, True, False, "honest", counting_test=True),
             _row("dome", None, False, True, "clean", counting_test=False),
             _row("dome", None, False, True, "false_alarm", counting_test=True),
-            {"family": "fold", "bend_deg": 170.0, "outcome": "error", "error": "x"}]
-    rows[0]["gt_verifiable"] = True  # a pair of reachable poses could verify the cured one
+            StudyRow("fold 170", "fold", bend_deg=170.0, outcome="error", error="x")]
+    rows[0] = replace(rows[0], gt_verifiable=True)  # a pair of reachable poses could verify the cured one
     t = targets(rows)
-    assert (t["silent"], t["errors"], t["curable"], t["cured_of_curable"]) == (0, 1, 2, 1)
-    assert t["cured_frac"] == 0.5 and t["false_alarm_frac"] == 0.5
-    assert (t["seen_all_of_curable"], t["seen_all_frac"]) == (2, 1.0)  # cured as the study's first target counts it
-    assert (t["verifiable"], t["cured_of_verifiable"]) == (1, 1)
-    assert t["met"] == {"silent = 0": True, "errors = 0": False, "cured >= 90 %": True,
+    assert (t.silent, t.errors, t.curable, t.cured_of_curable) == (0, 1, 2, 1)
+    assert t.cured_frac == 0.5 and t.false_alarm_frac == 0.5
+    assert (t.seen_all_of_curable, t.seen_all_frac) == (2, 1.0)  # cured as the study's first target counts it
+    assert (t.verifiable, t.cured_of_verifiable) == (1, 1)
+    assert t.met == {"silent = 0": True, "errors = 0": False, "cured >= 90 %": True,
                         "verified >= 90 % of the verifiable": True, "false alarms <= 2 %": False}
-    rows[0]["gt_verifiable"], rows[1]["gt_verifiable"] = False, True
-    rows[1]["outcome"] = "honest"  # still hidden at the end: cured by neither count
+    rows[0] = replace(rows[0], gt_verifiable=False)
+    rows[1] = replace(rows[1], gt_verifiable=True, outcome="honest")  # still hidden at the end: cured by neither count
     t = targets(rows)
-    assert (t["seen_all_of_curable"], t["verifiable"], t["cured_of_verifiable"]) == (1, 1, 0)
-    assert t["met"]["cured >= 90 %"] is False and t["met"]["verified >= 90 % of the verifiable"] is False
+    assert (t.seen_all_of_curable, t.verifiable, t.cured_of_verifiable) == (1, 1, 0)
+    assert t.met["cured >= 90 %"] is False and t.met["verified >= 90 % of the verifiable"] is False
     s = detector_scores(rows)
     ct = s["all"]["counting_test"]
-    assert (ct["true_positive"], ct["false_positive"], ct["false_negative"], ct["true_negative"]) == (2, 1, 1, 1)
-    assert ct["precision"] == pytest.approx(2 / 3) and ct["recall"] == pytest.approx(2 / 3)
-    assert s["by_bend"]["240"]["counting_test"]["recall"] == 0.5
-    assert s["by_family"]["dome"]["counting_test"]["precision"] == 0.0
+    assert (ct.true_positive, ct.false_positive, ct.false_negative, ct.true_negative) == (2, 1, 1, 1)
+    assert ct.precision == pytest.approx(2 / 3) and ct.recall == pytest.approx(2 / 3)
+    assert s["by_bend"]["240"]["counting_test"].recall == 0.5
+    assert s["by_family"]["dome"]["counting_test"].precision == 0.0
     assert outcome_counts(rows)["error"] == 1
 
 
@@ -136,9 +138,9 @@ def test_a_small_study_runs_and_reports(tmp_path):
     base = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2, seed=0))
     alone = run_study([c for c in study_cases() if c.family == "dome"][:1], base, workers=1).rows[0]
     pooled = doc["rows"][1]
-    for k in ("case", "outcome", "cures", "views", "boundary_verified", "gt_visible_final", "merged_boundary_mean_mm",
-              "merged_surface_rms_mm", "merged_points"):
-        assert pooled[k] == alone[k], (k, pooled[k], alone[k])
+    for k in ("case", "outcome", "cures", "views", "boundary_verified", "gt_visible_final_frac",
+              "merged_boundary_mean_mm", "merged_surface_rms_mm", "merged_points"):
+        assert pooled[k] == getattr(alone, k), (k, pooled[k], getattr(alone, k))
     from platebench.bench.report.sensing import study_section
     sec = study_section(out, tmp_path / "plots")
     assert sec["figures"][0] == {"label": "plates", "value": 2}

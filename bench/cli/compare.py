@@ -55,18 +55,16 @@ def __getattr__(name: str):
 
 
 # ----------------------------------------------------------------------------- reporting
-def _cells(r) -> tuple[str, float, float, str, str]:
-    """(kind, median mm, RMS mm, coverage, bad-1 %) of a row: depth error for maps and the paper's
-    points, distance to the surface for point clouds, accuracy for meshes."""
-    s = r.scores
-    if r.kind == "paper":
-        return "centres", s["centres_depth_median_mm"], s["centres_depth_rms_mm"], f"{s['points_on_plate']} pts", "-"
-    if r.kind in ("disparity", "depth"):
-        bad = f"{s['middlebury']['mb_all_bad_1_0_pct']:.1f}" if r.kind == "disparity" else "-"
-        return r.kind, s["depth_median_mm"], s["depth_rms_mm"], f"{s['coverage_pct']:.1f} %", bad
-    if r.kind == "points":
-        return "cloud", s["dist_median_mm"], s["dist_rms_mm"], f"{100 * s['coverage_frac']:.1f} %", "-"
-    return "mesh", s["accuracy_median_mm"], s["accuracy_rms_mm"], f"{s['recall_1_0_mm_pct']:.1f} %", "-"
+def _cells(r) -> tuple[str, float | None, float | None, str, str]:
+    """(measure, median mm, RMS mm, coverage, bad-1 %) of a row (``MethodFigures``): depth error for maps
+    and the paper's points, distance to the surface for point clouds, accuracy for meshes."""
+    f = r.figures
+    if f.measure == "centres":
+        cov = f"{f.points_on_plate} pts"
+    else:
+        cov = "-" if f.coverage_frac is None else f"{100 * f.coverage_frac:.1f} %"
+    bad = "-" if f.mb_all_bad_1_0_pct is None else f"{f.mb_all_bad_1_0_pct:.1f}"
+    return f.measure or "-", f.error_median_mm, f.error_rms_mm, cov, bad
 
 
 def format_table(cmp: Comparison) -> str:
@@ -175,9 +173,8 @@ def run(args) -> int:
             pbar.set_postfix_str(str(msg)[:60])
         cmp = compare_sample(args.sample, args.methods, args.recon, args.spp, depth_range, progress=say,
                              method_time_limit_s=args.method_time_limit_s)
-        doc = comparison_json(cmp)
-        doc["total_s"] = time.perf_counter() - t0
-        write_json(stage / "compare.json", doc)
+        total_s = time.perf_counter() - t0
+        write_json(stage / "compare.json", {**comparison_json(cmp), "total_s": total_s})
         write_bytes(stage / "compare.png", compare_error_figure(cmp))
     print(f"sample      {args.sample}")
     print(format_table(cmp))
@@ -186,5 +183,5 @@ def run(args) -> int:
     failed = [r.name for r in cmp.rows if r.status != "ok"]
     if failed:
         print(f"failed      {len(failed)} of {len(cmp.rows)} method(s): {', '.join(failed)} (recorded in compare.json)")
-    print(f"wrote       {out / 'compare.json'}, {out / 'compare.png'}  ({doc['total_s']:.1f} s)")
+    print(f"wrote       {out / 'compare.json'}, {out / 'compare.png'}  ({total_s:.1f} s)")
     return 0

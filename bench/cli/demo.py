@@ -119,9 +119,10 @@ def _run(args, out: Path, final: Path) -> int:
     base = SampleConfig(scene=SceneParams(width=480, height=360),
                         render=RenderSettings(spp=4))
     with bar(len(cases), "study", unit="plate") as pbar:
-        doc = write_study(out / "study", cases, base, overwrite=True, progress=lambda row: pbar.update(1),
-                          settings={"plates": len(cases), "width_px": 480, "spp": 4}, l_bends_deg=(150.0, 165.0, 172.0))
-    for line in table_lines(doc):
+        study = write_study(out / "study", cases, base, overwrite=True, progress=lambda row: pbar.update(1),
+                            settings={"plates": len(cases), "width_px": 480, "spp": 4},
+                            l_bends_deg=(150.0, 165.0, 172.0))
+    for line in table_lines(study):
         print(line)
 
     print("\n== 5. report")

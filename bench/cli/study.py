@@ -183,19 +183,19 @@ def run(args) -> int:
             nonlocal ran
             ran += 1
             pbar.update(1)
-            pbar.write(f"{row['case']:38s} {row['outcome']:12s} {row['time_s']:6.1f} s")
+            pbar.write(f"{row.case:38s} {row.outcome:12s} {row.time_s:6.1f} s")
             sys.stdout.flush()  # a plate's line as it finishes, also through a pipe (tee, a log, a test)
         try:
-            doc = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
-                              args.resume, options)
+            study = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
+                                args.resume, options)
         except (KeyboardInterrupt, Exception):
             if ran and journal_path(args.out).exists():
                 print(f"platebench: {ran} finished plates are kept in {journal_path(args.out)}; "
                       "the same command with --resume runs the rest", file=sys.stderr)
             raise
-    if doc.get("resumed_plates"):
-        print(f"resumed         {doc['resumed_plates']} plates from the journal of an interrupted run")
-    for line in table_lines(doc):
+    if study.resumed_plates:
+        print(f"resumed         {study.resumed_plates} plates from the journal of an interrupted run")
+    for line in table_lines(study):
         print(line)
     print(f"written         {args.out / 'study.json'}, {args.out / 'study.csv'}")
     return 0
@@ -378,46 +378,49 @@ def _yn(v):
     return "-" if v is None else ("Y" if v else ".")
 
 
-def table_lines(doc: dict) -> list[str]:
-    """The per-plate table, outcome counts, detector scores and targets as text lines."""
+def table_lines(study) -> list[str]:
+    """The per-plate table, outcome counts, detector scores and targets of a ``bench.run.study.StudyResult``
+    as text lines."""
+    from platebench.bench.run.study import detector_scores  # noqa: PLC0415
     from platebench.reconstruction.strategy.detectors import DETECTORS  # noqa: PLC0415
 
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
              "occluding_contour": "occ", "end_tangents": "end"}
     out = [f"{'plate':38s} {'outcome':12s} {'cur':>3s} {'vws':>3s} " + " ".join(f"{short[d]:>3s}" for d in DETECTORS)
            + f" {'GT vis 1st':>10s} {'final':>6s} {'reach':>5s} {'verif':>5s} {'bnd mm':>6s} {'cover':>5s} {'time s':>6s}"]
-    for r in doc["rows"]:
-        if r["outcome"] == "error":
-            out.append(f"{r['case']:38s} {'error':12s} {r['error']}")
+    rows = list(study.rows)
+    for r in rows:
+        if r.outcome == "error":
+            out.append(f"{r.case:38s} {'error':12s} {r.error}")
             continue
-        out.append(f"{r['case']:38s} {r['outcome']:12s} {r['cures']:3d} {r['views']:3d} "
-                   + " ".join(f"{_yn(r.get('det_' + d)):>3s}" for d in DETECTORS)
-                   + f" {_f(r['gt_visible_first'], '10.3f')} {_f(r['gt_visible_final'], '6.3f')} "
-                   f"{_yn(r.get('gt_reachable')):>5s} {_yn(r.get('gt_verifiable')):>5s} "
-                   f"{_f(r.get('merged_boundary_mean_mm'), '6.2f')} "
-                   f"{_f(r.get('merged_surface_coverage'), '5.2f')} {r['time_s']:6.1f}")
-    out.append("outcomes: " + ", ".join(f"{k} {v}" for k, v in doc["outcomes"].items()))
-    for fam, c in doc["outcomes_by_family"].items():
+        out.append(f"{r.case:38s} {r.outcome:12s} {r.cures:3d} {r.views:3d} "
+                   + " ".join(f"{_yn(r.fired(d)):>3s}" for d in DETECTORS)
+                   + f" {_f(r.gt_visible_first_frac, '10.3f')} {_f(r.gt_visible_final_frac, '6.3f')} "
+                   f"{_yn(r.gt_reachable):>5s} {_yn(r.gt_verifiable):>5s} "
+                   f"{_f(r.merged_boundary_mean_mm, '6.2f')} "
+                   f"{_f(r.merged_coverage_frac, '5.2f')} {r.time_s:6.1f}")
+    out.append("outcomes: " + ", ".join(f"{k} {v}" for k, v in study.outcomes().items()))
+    for fam, c in study.outcomes("family").items():
         out.append(f"  {fam:9s} " + ", ".join(f"{k} {v}" for k, v in c.items() if v))
-    for b, c in doc["outcomes_by_bend"].items():
+    for b, c in study.outcomes("bend").items():
         out.append(f"  bend {b:>4s} " + ", ".join(f"{k} {v}" for k, v in c.items() if v))
-    for d, s in doc["detectors"]["all"].items():
-        out.append(f"detector {d:22s} precision {_f(s['precision'])}, recall {_f(s['recall'])} (TP {s['true_positive']}, "
-                   f"FP {s['false_positive']}, FN {s['false_negative']}, TN {s['true_negative']})")
-    t = doc["targets"]
-    out.append(f"targets: silent {t['silent']}, errors {t['errors']}, cured {t['seen_all_of_curable']}/{t['curable']} "
-               f"({_pct(t['seen_all_frac'])} %: the final poses see it all), verified {t['cured_of_verifiable']} of the "
-               f"{t['verifiable']} verifiable ({_pct(t['cured_of_verifiable_frac'])} %), false alarms "
-               f"{t['false_alarms']}/{t['nothing_hidden']} ({_pct(t['false_alarm_frac'])} %); "
-               + ", ".join(f"{k}: {'n/a' if v is None else ('met' if v else 'NOT met')}" for k, v in t["met"].items()))
-    out.append(f"  the loop verified the boundary on {t['cured_of_curable']} of the {t['curable']} curable plates "
-               f"({_pct(t['cured_frac'])} %); the others it names as unverified (outcome unconfirmed or honest); "
-               f"{t['verifiable']} of the {t['curable']} are verifiable by pairs of reachable poses (GT)")
-    n = len(doc["rows"])
-    ran = doc.get("plates_run", n)  # the plates this run measured (the others came from a journal)
-    w = doc.get("settings", {}).get("workers", 1)
-    each = sum(r.get("time_s") or 0.0 for r in doc["rows"])
-    out.append(f"time: {doc['time_s']:.0f} s for {ran} plates ({doc['time_s'] / max(ran, 1):.1f} s per plate; {w} "
+    for d, s in detector_scores(rows)["all"].items():
+        out.append(f"detector {d:22s} precision {_f(s.precision)}, recall {_f(s.recall)} (TP {s.true_positive}, "
+                   f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
+    t = study.targets
+    out.append(f"targets: silent {t.silent}, errors {t.errors}, cured {t.seen_all_of_curable}/{t.curable} "
+               f"({_pct(t.seen_all_frac)} %: the final poses see it all), verified {t.cured_of_verifiable} of the "
+               f"{t.verifiable} verifiable ({_pct(t.cured_of_verifiable_frac)} %), false alarms "
+               f"{t.false_alarms}/{t.nothing_hidden} ({_pct(t.false_alarm_frac)} %); "
+               + ", ".join(f"{k}: {'n/a' if v is None else ('met' if v else 'NOT met')}" for k, v in t.met.items()))
+    out.append(f"  the loop verified the boundary on {t.cured_of_curable} of the {t.curable} curable plates "
+               f"({_pct(t.cured_frac)} %); the others it names as unverified (outcome unconfirmed or honest); "
+               f"{t.verifiable} of the {t.curable} are verifiable by pairs of reachable poses (GT)")
+    n = len(rows)
+    ran = study.plates_run
+    w = study.settings.get("workers", 1)
+    each = sum(r.time_s or 0.0 for r in rows)
+    out.append(f"time: {study.time_s:.0f} s for {ran} plates ({study.time_s / max(ran, 1):.1f} s per plate; {w} "
                f"worker{'s' if w != 1 else ''}, each plate's own run {each / max(n, 1):.1f} s on average)"
                + (f"; {n - ran} more from the journal of an interrupted run" if ran != n else ""))
     return out

@@ -13,10 +13,11 @@ Figures the run did not produce are None (never NaN in a file).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Mapping
 
-__all__ = ["Stage3Accuracy", "MergedFigures", "record_from_dict", "final_figures"]
+__all__ = ["Stage3Accuracy", "MergedFigures", "StudyRow", "StudyTargets", "record_from_dict", "final_figures",
+           "study_rows", "MethodFigures", "compare_methods", "score_record"]
 
 
 def _value(v):
@@ -28,22 +29,36 @@ def _value(v):
 
 def record_from_dict(cls, d: Mapping[str, Any] | None, renamed: Mapping[str, str] | None = None):
     """A ``cls`` record from its dict form: every field from the key of its name (missing keys: the
-    field's default); ``renamed``: old key -> field name, for files written before a figure was
-    renamed. Unknown keys are ignored (a newer writer's figures)."""
+    field's default; ValueError for a field without one); ``renamed``: old key -> field name, for
+    files written before a figure was renamed. Unknown keys are ignored (a newer writer's figures)."""
     d = dict(d or {})
     for old, new in (renamed or {}).items():
         if old in d and new not in d:
             d[new] = d.pop(old)
     names = {f.name for f in fields(cls) if f.init}
+    missing = [f.name for f in fields(cls) if f.init and f.default is MISSING and f.default_factory is MISSING
+               and f.name not in d]
+    if missing:
+        raise ValueError(f"a {cls.__name__} record without {missing[0]!r}")
     return cls(**{k: _value(v) for k, v in d.items() if k in names})
 
 
-def _dict(record) -> dict:
-    return {f.name: _value(getattr(record, f.name)) for f in fields(record)}
+class _Record:
+    """``to_dict`` (field name -> value) and ``from_dict`` (``record_from_dict``, with the class's
+    ``RENAMED``: old key -> field name) for a frozen dataclass of figures."""
+
+    RENAMED: Mapping[str, str] = {}
+
+    def to_dict(self) -> dict:
+        return {f.name: _value(getattr(self, f.name)) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any] | None):
+        return record_from_dict(cls, d, cls.RENAMED)
 
 
 @dataclass(frozen=True)
-class Stage3Accuracy:
+class Stage3Accuracy(_Record):
     """The stage-3 reconstruction (the paper's method) scored against ground truth: depth RMS at its
     square centres, the centres scored, boundary mean distance, surface RMS and coverage, the
     paper's bound and the bench's goals (``evaluation.score``)."""
@@ -56,16 +71,11 @@ class Stage3Accuracy:
     paper_bound_met: bool | None = None
     goals_met: bool | None = None
 
-    def to_dict(self) -> dict:
-        return _dict(self)
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "Stage3Accuracy":
-        return record_from_dict(cls, d, {"surface_coverage": "coverage_frac"})
+    RENAMED = {"surface_coverage": "coverage_frac"}  # sensing.json before one spelling of coverage
 
 
 @dataclass(frozen=True)
-class MergedFigures:
+class MergedFigures(_Record):
     """The merged multi-view reconstruction (``active_views.MergedReconstruction``) scored against
     ground truth (``bench.run.sensing.scoring.merged_accuracy``): its boundary (points, mean
     symmetric and one-way distance to the true boundary, the share of the true boundary's length
@@ -85,12 +95,7 @@ class MergedFigures:
     coverage_frac: float | None = None
     surface_points: int = 0
 
-    def to_dict(self) -> dict:
-        return _dict(self)
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "MergedFigures":
-        return record_from_dict(cls, d, {"surface_coverage": "coverage_frac"})
+    RENAMED = {"surface_coverage": "coverage_frac"}
 
 
 def final_figures(final: Mapping[str, Any]) -> tuple[Stage3Accuracy | None, MergedFigures]:
@@ -99,3 +104,178 @@ def final_figures(final: Mapping[str, Any]) -> tuple[Stage3Accuracy | None, Merg
     acc = final.get("accuracy")
     return (Stage3Accuracy.from_dict(acc) if isinstance(acc, Mapping) else None,
             MergedFigures.from_dict(final.get("merged") if isinstance(final.get("merged"), Mapping) else {}))
+
+
+@dataclass(frozen=True)
+class StudyRow(_Record):
+    """One plate of the false-boundary study (``bench.run.study.study_row``): the plate (its case's
+    parameters), the loop's outcome and verdict, ground truth's visibility (``gt_*``, for scoring
+    only), each detector's verdict at the stage-2 pose (``detectors``: name -> fired, None where it
+    could not be evaluated; ``det_<name>`` columns in the files), the merged reconstruction's
+    figures (``merged_*``) and stage 3's depth RMS at the square centres. A plate whose run raised
+    has outcome "error", its one-line ``error`` and its ``traceback`` (not written to the files)."""
+
+    case: str
+    family: str
+    bend_deg: float | None = None
+    direction: str | None = None
+    axis_deg: float | None = None
+    aspect: float | None = None
+    distance_m: float | None = None
+    outcome: str = "error"
+    error: str | None = None
+    boundary_verified: bool | None = None
+    cures: int | None = None
+    verification_views: int | None = None
+    views: int | None = None
+    gt_visible_first_frac: float | None = None  # the least share of the true boundary a camera sees at stage 2
+    gt_visible_final_frac: float | None = None  # ... from the final poses together
+    gt_hidden_first: bool | None = None
+    gt_hidden_final: bool | None = None
+    gt_reachable: bool | None = None
+    gt_verifiable: bool | None = None
+    gt_verifiable_frac: float | None = None
+    gt_unconfirmable_max_mm: float | None = None
+    false_boundary_gt: bool | None = None
+    front_oriented_frac: float | None = None
+    detectors: Mapping[str, bool | None] = field(default_factory=dict)
+    merged_boundary_mean_mm: float | None = None
+    merged_boundary_covered_frac: float | None = None
+    merged_surface_rms_mm: float | None = None
+    merged_coverage_frac: float | None = None
+    merged_points: int | None = None
+    merged_points_rms_mm: float | None = None
+    merged_points_max_mm: float | None = None
+    centres_depth_rms_mm: float | None = None
+    unverified_parts: int | None = None
+    verdict: str | None = None
+    time_s: float | None = None
+    traceback: str | None = field(default=None, compare=False)
+
+    # study.json and the journal before one spelling per figure
+    RENAMED = {"gt_visible_first": "gt_visible_first_frac", "gt_visible_final": "gt_visible_final_frac",
+               "gt_verifiable_fraction": "gt_verifiable_frac", "front_oriented": "front_oriented_frac",
+               "merged_boundary_covered": "merged_boundary_covered_frac",
+               "merged_surface_coverage": "merged_coverage_frac"}
+
+    def fired(self, detector: str) -> bool | None:
+        """Whether ``detector`` fired at the stage-2 pose (None: not evaluated, or no run)."""
+        return self.detectors.get(detector)
+
+    def to_dict(self) -> dict:
+        """The row's columns: the fields (detectors as ``det_<name>``; the traceback left out)."""
+        out = {}
+        for f in fields(self):
+            if f.name == "detectors":
+                out.update({f"det_{k}": v for k, v in self.detectors.items()})
+            elif f.name != "traceback":
+                out[f.name] = _value(getattr(self, f.name))
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "StudyRow":
+        dets = {k[len("det_"):]: v for k, v in d.items() if k.startswith("det_")}
+        return record_from_dict(cls, {**{k: v for k, v in d.items() if not k.startswith("det_")},
+                                      "detectors": dets}, cls.RENAMED)
+
+
+@dataclass(frozen=True)
+class StudyTargets(_Record):
+    """The study's targets (``bench.run.study.targets``): silent = 0, errors = 0, the final poses
+    see the whole boundary on >= 90 % of the curable plates, verified >= 90 % of the verifiable
+    ones, false alarms <= 2 % of the plates with nothing hidden; the counts they are computed from,
+    and ``met``: target -> met (None where no plate is of its kind)."""
+
+    silent: int = 0
+    errors: int = 0
+    curable: int = 0
+    cured_of_curable: int = 0
+    cured_frac: float | None = None
+    seen_all_of_curable: int = 0
+    seen_all_frac: float | None = None
+    verifiable: int = 0
+    cured_of_verifiable: int = 0
+    cured_of_verifiable_frac: float | None = None
+    nothing_hidden: int = 0
+    false_alarms: int = 0
+    false_alarm_frac: float | None = None
+    met: Mapping[str, bool | None] = field(default_factory=dict)
+
+
+def study_rows(doc: Mapping[str, Any]) -> list[StudyRow]:
+    """study.json's rows as ``StudyRow``s."""
+    return [StudyRow.from_dict(r) for r in doc.get("rows") or [] if isinstance(r, Mapping)]
+
+
+@dataclass(frozen=True)
+class MethodFigures(_Record):
+    """One method's key figures in ``compare`` (its table, compare.json, the report's comparison):
+    how it is measured (``measure``: "centres" for the paper's sparse square centres, "disparity"
+    or "depth" for a map over the plate's pixels, "cloud", "mesh"), its images per camera and times,
+    and the figures of its kind (None where they do not apply): |depth error| at the square centres
+    (sparse) or over the plate's pixels with an estimate (dense: never compared with the sparse
+    ones), distance of a cloud to the true surface, accuracy of a mesh, coverage of the plate
+    (``coverage_frac``: pixels with an estimate, a cloud's covered area, a mesh's recall at 1 mm),
+    Middlebury's bad 1.0 px on all pixels (disparities) and the centres on the plate (paper)."""
+
+    measure: str | None = None
+    n_images: int | None = None
+    time_s: float | None = None
+    render_s: float | None = None
+    centres_depth_median_mm: float | None = None
+    centres_depth_rms_mm: float | None = None
+    centres_depth_max_mm: float | None = None
+    points_on_plate: int | None = None
+    depth_median_mm: float | None = None
+    depth_rms_mm: float | None = None
+    depth_max_mm: float | None = None
+    dist_median_mm: float | None = None
+    dist_rms_mm: float | None = None
+    accuracy_median_mm: float | None = None
+    accuracy_rms_mm: float | None = None
+    surface_rms_mm: float | None = None
+    coverage_frac: float | None = None
+    mb_all_bad_1_0_pct: float | None = None
+
+    @property
+    def error_median_mm(self) -> float | None:
+        """The median error of the method's measure (centres, map, cloud or mesh)."""
+        return {"centres": self.centres_depth_median_mm, "cloud": self.dist_median_mm,
+                "mesh": self.accuracy_median_mm}.get(self.measure, self.depth_median_mm)
+
+    @property
+    def error_rms_mm(self) -> float | None:
+        """The RMS error of the method's measure (centres, map, cloud or mesh)."""
+        return {"centres": self.centres_depth_rms_mm, "cloud": self.dist_rms_mm,
+                "mesh": self.accuracy_rms_mm}.get(self.measure, self.depth_rms_mm)
+
+
+def score_record(d: Mapping[str, Any]):
+    """The paper pipeline's score.json as an ``evaluation.score.Score`` (``Score.from_dict``);
+    ValueError naming what is missing or malformed."""
+    from platebench.evaluation.score import Score  # noqa: PLC0415  (its geometry imports only for a score)
+
+    try:
+        return Score.from_dict(dict(d))
+    except (KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"not a score record: {type(e).__name__} {e}") from None
+
+
+def compare_methods(doc: Mapping[str, Any]) -> dict[str, MethodFigures]:
+    """compare.json's methods (name -> ``MethodFigures``); a method's figures sit in its own
+    section (``figures``); a file written before that section had them at the top (and coverage
+    in percent, ``coverage_pct``)."""
+    out = {}
+    for name, m in (doc.get("methods") or {}).items():
+        if not isinstance(m, Mapping):
+            continue
+        fig = m.get("figures")
+        if not isinstance(fig, Mapping):  # compare.json before its figures section: the figures at the top
+            fig = {k: v for part in [m, *(v for v in m.values() if isinstance(v, Mapping))] for k, v in part.items()
+                   if not isinstance(v, Mapping)}
+            pct = fig.pop("coverage_pct", None)
+            if isinstance(pct, (int, float)) and "coverage_frac" not in fig:
+                fig["coverage_frac"] = pct / 100.0
+            fig.setdefault("measure", m.get("kind"))
+        out[str(name)] = MethodFigures.from_dict(fig)
+    return out

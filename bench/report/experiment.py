@@ -15,6 +15,7 @@ from pathlib import Path
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.config.axes import PARAMETERS, parameter_columns
+from platebench.bench.io.records import compare_methods, score_record
 from platebench.bench.report import plots as P
 from platebench.bench.report.inputs import (
     load_compare,
@@ -27,19 +28,18 @@ from platebench.bench.report.inputs import (
 )
 from platebench.bench.report.page import Page
 from platebench.bench.report.values import finite, flag, fmt
-from platebench.evaluation.metrics_row import metric_label, metric_unit
+from platebench.evaluation.metrics_row import MetricsRow, metric_label, metric_unit
 
 __all__ = ["recon_section", "sample_section", "compare_section", "score_section", "is_reference", "score_figures"]
 
 _TITLES = {p.name: p.title for p in PARAMETERS}
-# key figures of a score: (key in score.json, dotted from the top; the results column whose label and unit
-# it takes: ``evaluation.metrics_row.metric_label``), in card order. The paper's score.json nests its
-# figures by part (points: the square centres), another method's score document under "score".
+# key figures of the paper's score.json (read back as a ``Score``): its results columns
+# (``MetricsRow.from_score``), labelled by ``evaluation.metrics_row.metric_label``, in card order
+_PAPER_FIGURES = ("centres_depth_rms_mm", "centres_depth_max_mm", "xy_radial_rms_mm", "err3d_rms_mm",
+                  "boundary_mean_mm", "surface_rms_mm", "coverage_frac")
+# key figures of another method's score document: (key in it, dotted from the top, under "score"; the
+# results column whose label and unit it takes), in card order
 _SCORE_FIGURES = (
-    ("points.depth_rms_mm", "centres_depth_rms_mm"), ("points.depth_max_mm", "centres_depth_max_mm"),
-    ("points.xy_radial_rms_mm", "xy_radial_rms_mm"), ("points.err3d_rms_mm", "err3d_rms_mm"),
-    ("boundary_3d.mean_sym_mm", "boundary_mean_mm"), ("surface.dist_rms_mm", "surface_rms_mm"),
-    ("surface.coverage_frac", "coverage_frac"),
     ("score.depth_rms_mm", "depth_rms_mm"), ("score.depth_median_mm", "depth_median_mm"),
     ("score.depth_max_mm", "depth_max_mm"), ("score.coverage_frac", "coverage_frac"),
     ("score.middlebury.mb_all_bad_1_0_pct", "mb_all_bad_1_0_pct"),
@@ -66,50 +66,59 @@ def is_reference(config: dict) -> bool:
     return all(config.get(k) == ref[k] for k in ("plate", "scene", "sensor"))
 
 
+def _card(column: str, value) -> dict:
+    unit = metric_unit(column)
+    label = metric_label(column)
+    return {"label": label[: -len(f" ({unit})")] if unit and label.endswith(f" ({unit})") else label,
+            "value": value, "unit": unit if unit != "count" else "", "status": ""}
+
+
+def _is_paper_score(score: dict) -> bool:
+    """The paper pipeline's score.json (``evaluation.score.Score.to_dict``), not another method's document."""
+    return isinstance(score.get("matching"), dict)
+
+
 def score_figures(score: dict) -> list[dict]:
-    """The key figures of a score.json or score document (cards): points matched of expected, then
-    each of ``_SCORE_FIGURES`` it holds, labelled as its results column."""
+    """The key figures of a score.json or score document (cards). The paper's score.json (read back
+    as a ``Score``): points matched of expected, then each of ``_PAPER_FIGURES`` it holds; another
+    method's document: each of ``_SCORE_FIGURES`` it holds; labelled as its results column."""
+    if _is_paper_score(score):
+        s = score_record(score)
+        m = s.matching
+        row = MetricsRow.from_score(s)
+        return [{"label": "points matched / expected", "value": f"{m.matched_count} / {m.expected_count_gt}",
+                 "unit": "", "status": "good" if m.matched_count == m.expected_count_gt else "bad"}] + \
+            [_card(c, v) for c in _PAPER_FIGURES if (v := finite(getattr(row, c))) is not None]
     flat = _flatten(score)
     flat.update({"score." + k[len("scores."):]: v for k, v in flat.items() if k.startswith("scores.")})  # a peer's
-    out = []
-    m = score.get("matching") or {}
-    if m.get("matched_count") is not None:
-        out.append({"label": "points matched / expected", "value": f"{m['matched_count']} / "
-                    f"{fmt(m.get('expected_count_gt'))}", "unit": "",
-                    "status": "good" if m.get("matched_count") == m.get("expected_count_gt") else "bad"})
-    for key, column in _SCORE_FIGURES:
-        v = finite(flat.get(key))
-        if v is not None:
-            unit = metric_unit(column)
-            label = metric_label(column)
-            out.append({"label": label[: -len(f" ({unit})")] if unit and label.endswith(f" ({unit})") else label,
-                        "value": v, "unit": unit if unit != "count" else "", "status": ""})
-    return out
+    return [_card(column, v) for key, column in _SCORE_FIGURES if (v := finite(flat.get(key))) is not None]
 
 
 def _verdicts(score: dict) -> list[dict]:
-    """The paper's bound, the goals and the false-boundary verdict: {"label", "met", "text"}."""
+    """The paper's bound, the goals and the false-boundary verdict of the paper's score.json (read
+    back as a ``Score``): {"label", "met", "text"}; [] for another method's document."""
+    if not _is_paper_score(score):
+        return []
+    s = score_record(score)
     out = []
-    pb = score.get("paper_bound")
-    if isinstance(pb, dict):
-        out.append({"label": "paper's bound (V-D)", "met": flag(pb.get("met")),
-                    "text": f"every expected point found: {fmt(pb.get('all_points'))}; depth max "
-                            f"{fmt(pb.get('depth_max_mm'), 3)} mm (bound 2 mm); x/y max per axis "
-                            f"{fmt(pb.get('xy_per_axis_max_mm'), 3)} mm (bound 1 mm)"})
-    g = score.get("goals")
-    if isinstance(g, dict):
-        out.append({"label": "bench goals", "met": flag(g.get("met")),
-                    "text": f"depth RMS {fmt(g.get('depth_rms_mm'), 3)} mm (goal {fmt(g.get('depth_rms_goal_mm'))}); "
-                            f"x/y RMS per axis {fmt(g.get('xy_per_axis_rms_mm'), 3)} mm (goal "
-                            f"{fmt(g.get('xy_per_axis_rms_goal_mm'))}); boundary mean "
-                            f"{fmt(g.get('boundary_mean_mm'), 3)} mm (goal {fmt(g.get('boundary_mean_goal_mm'))})"})
-    fb = score.get("false_boundary")
-    if isinstance(fb, dict):
-        out.append({"label": "false-boundary verdict", "met": flag(fb.get("agrees")),
-                    "text": "ground truth: " + ("part of the boundary hidden" if fb.get("ground_truth_any") else
-                                                "whole boundary visible")
-                            + "; the method: "
-                            + ("false boundary detected" if fb.get("detected") else "none detected")})
+    pb = s.paper_bound
+    if pb is not None:
+        out.append({"label": "paper's bound (V-D)", "met": pb.met,
+                    "text": f"every expected point found: {fmt(pb.all_points)}; depth max "
+                            f"{fmt(pb.depth_max_mm, 3)} mm (bound {fmt(pb.depth_limit_mm)} mm); x/y max per axis "
+                            f"{fmt(pb.xy_per_axis_max_mm, 3)} mm (bound {fmt(pb.xy_limit_mm)} mm)"})
+    g = s.goals
+    if g is not None:
+        out.append({"label": "bench goals", "met": g.met,
+                    "text": f"depth RMS {fmt(g.depth_rms_mm, 3)} mm (goal {fmt(g.depth_rms_goal_mm)}); "
+                            f"x/y RMS per axis {fmt(g.xy_per_axis_rms_mm, 3)} mm (goal "
+                            f"{fmt(g.xy_per_axis_rms_goal_mm)}); boundary mean "
+                            f"{fmt(g.boundary_mean_mm, 3)} mm (goal {fmt(g.boundary_mean_goal_mm)})"})
+    fb = s.false_boundary
+    out.append({"label": "false-boundary verdict", "met": fb.agrees,
+                "text": "ground truth: " + ("part of the boundary hidden" if fb.ground_truth_any else
+                                            "whole boundary visible")
+                        + "; the method: " + ("false boundary detected" if fb.detected else "none detected")})
     return out
 
 
@@ -219,11 +228,11 @@ def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True
 _COMPARE_COLUMNS = (("n_images", "images / camera"),
                     *((k, metric_label(k)) for k in ("centres_depth_median_mm", "centres_depth_rms_mm",
                                                      "centres_depth_max_mm", "depth_median_mm", "depth_rms_mm",
-                                                     "depth_max_mm")),
-                    ("coverage_pct", "coverage (%)"), ("points_on_plate", "square centres on the plate"),
+                                                     "depth_max_mm", "coverage_frac")),
+                    ("points_on_plate", "square centres on the plate"),
                     ("surface_rms_mm", metric_label("surface_rms_mm")),
-                    ("middlebury.mb_all_bad_1_0_pct", metric_label("mb_all_bad_1_0_pct")), ("time_s", "time (s)"),
-                    ("render_s", "render (s)"))
+                    ("mb_all_bad_1_0_pct", metric_label("mb_all_bad_1_0_pct")), ("time_s", "time (s)"),
+                    ("render_s", "render (s)"))  # MethodFigures' fields
 _COMPARE_BARS = ("centres_depth_median_mm", "centres_depth_rms_mm", "centres_depth_max_mm", "depth_median_mm",
                  "depth_rms_mm", "depth_max_mm", "surface_rms_mm")
 
@@ -231,14 +240,14 @@ _COMPARE_BARS = ("centres_depth_median_mm", "centres_depth_rms_mm", "centres_dep
 def compare_section(page: Page, path: Path, prefix: str) -> dict:
     """A compare.json: one row per method, their descriptions and notes, and a bar chart."""
     doc = load_compare(path)
-    methods = {n: _flatten(m) for n, m in (doc.get("methods") or {}).items() if isinstance(m, dict)}
-    failed = {n: m.get("error") for n, m in methods.items() if m.get("status") == "failed"}
-    cols = [(k, t) for k, t in _COMPARE_COLUMNS if any(m.get(k) is not None for m in methods.values())]
+    entries = {n: m for n, m in (doc.get("methods") or {}).items() if isinstance(m, dict)}
+    methods = compare_methods(doc)
+    failed = {n: m.get("error") for n, m in entries.items() if m.get("status") == "failed"}
+    cols = [(k, t) for k, t in _COMPARE_COLUMNS if any(getattr(f, k) is not None for f in methods.values())]
     table = {"title": "", "caption": "", "cls": "", "groups": [], "columns": ["method"] + [t for _, t in cols],
-             "rows": [[n] + [m.get(k) for k, _ in cols] for n, m in methods.items()]}
-    bars = {n: {**{k: m.get(k) for k in _COMPARE_BARS},
-                "coverage_frac": None if finite(m.get("coverage_pct")) is None else m["coverage_pct"] / 100.0}
-            for n, m in methods.items() if n not in failed}
+             "rows": [[n] + [getattr(f, k) for k, _ in cols] for n, f in methods.items()]}
+    bars = {n: {k: getattr(f, k) for k in (*_COMPARE_BARS, "coverage_frac")}
+            for n, f in methods.items() if n not in failed}
     rel = page.rel(path)
     plots = [page.plot(f"{prefix}compare", P.plot_method_comparison, bars, metrics=list(_COMPARE_BARS),
                        title=f"compare: {rel}",
@@ -250,7 +259,7 @@ def compare_section(page: Page, path: Path, prefix: str) -> dict:
         if bars else []
     return {"kind": "compare", "title": f"Method comparison: {rel}", "sample": doc.get("sample", "?"),
             "units": doc.get("units") or "", "table": table, "plots": plots,
-            "descriptions": [(n, m.get("description")) for n, m in methods.items() if m.get("description")],
+            "descriptions": [(n, m.get("description")) for n, m in entries.items() if m.get("description")],
             "notes": [str(n) for n in doc.get("notes") or []] + [f"{n} failed: {e}" for n, e in failed.items()]}
 
 

@@ -956,9 +956,9 @@ def compare_error_figure(cmp) -> bytes:
         back = np.where(mask, 0.45, 0.05)[v0:v1, u0:u1]
         ax.imshow(back, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
         im = ax.imshow(err[v0:v1, u0:u1], cmap="coolwarm", vmin=-lim, vmax=lim, interpolation="nearest")
-        s = r.scores
-        ax.set_title(f"{r.name}\nmed {s['depth_median_mm']:.3f} / RMS {s['depth_rms_mm']:.3f} mm\n"
-                     f"cov {s['coverage_pct']:.1f} %, {r.n_images} img/cam", fontsize=8)
+        f = r.figures
+        ax.set_title(f"{r.name}\nmed {f.depth_median_mm:.3f} / RMS {f.depth_rms_mm:.3f} mm\n"
+                     f"cov {100 * f.coverage_frac:.1f} %, {r.n_images} img/cam", fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="Z_est - Z_gt (mm)")

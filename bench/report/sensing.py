@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from platebench.bench.io.records import final_figures
+from platebench.bench.io.records import StudyRow, StudyTargets, final_figures, study_rows
 from platebench.bench.report import interim
 from platebench.bench.report import plots as P
 from platebench.bench.report.inputs import ReportInputError, load_sensing, load_study
@@ -210,9 +210,18 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
 # ----------------------------------------------------------------------------- study
 _ROW_COLUMNS = ("case", "family", "bend_deg", "direction", "axis_deg", "aspect", "distance_m", "outcome",
                 "boundary_verified", "cures", "views", "det_counting_test", "det_arrays_disagree",
-                "det_viewpoint_consistency", "det_occluding_contour", "det_end_tangents", "gt_visible_first",
-                "gt_visible_final", "gt_reachable", "gt_verifiable", "merged_boundary_mean_mm", "merged_surface_coverage",
-                "time_s", "error")
+                "det_viewpoint_consistency", "det_occluding_contour", "det_end_tangents", "gt_visible_first_frac",
+                "gt_visible_final_frac", "gt_reachable", "gt_verifiable", "merged_boundary_mean_mm",
+                "merged_coverage_frac", "time_s", "error")
+
+
+def _cell(row: StudyRow, column: str):
+    """A study row's value in one of ``_ROW_COLUMNS`` (``det_<name>``: that detector's verdict)."""
+    return row.fired(column[len("det_"):]) if column.startswith("det_") else getattr(row, column)
+
+
+def _has(row: StudyRow, column: str) -> bool:
+    return column[len("det_"):] in row.detectors if column.startswith("det_") else _cell(row, column) is not None
 
 
 def study_section(study_dir: Path, out_dir: Path) -> dict:
@@ -220,8 +229,11 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
     doc = load_study(study_dir)
     if "outcomes" not in doc:  # the earlier cure study's rows
         return interim.study_section(study_dir, out_dir)
-    rows = doc["rows"]
-    t = doc.get("targets") or {}
+    try:
+        rows = study_rows(doc)
+    except ValueError as e:
+        raise ReportInputError(f"{Path(study_dir) / 'study.json'}: {e}") from None
+    t = StudyTargets.from_dict(doc["targets"]) if isinstance(doc.get("targets"), dict) else None
     oc = doc.get("outcomes") or {}
     if not isinstance(oc, dict):
         raise ReportInputError(f"{Path(study_dir) / 'study.json'}: 'outcomes' must be an object")
@@ -232,14 +244,14 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
         ran = doc.get("plates_run", len(rows))  # time_s covers the plates this run measured (not a journal's)
         if isinstance(ran, int) and ran > 0:
             figures.append({"label": "time per plate", "value": round(doc["time_s"] / ran, 1), "unit": "s"})
-    met = t.get("met") or {}
+    met = t.met if t is not None else {}
     summary = ("Targets: " + ", ".join(f"{k} {'n/a' if v is None else ('met' if v else 'NOT met')}"
                                        for k, v in met.items())
-               + (f". Cured {t.get('seen_all_of_curable')} of {t.get('curable')} plates whose stage-2 pose hides "
+               + (f". Cured {t.seen_all_of_curable} of {t.curable} plates whose stage-2 pose hides "
                   f"part of the boundary and whose reachable poses see it (the final poses see it all); the loop "
-                  f"verified {t.get('cured_of_curable')} of them, {t.get('cured_of_verifiable')} of the "
-                  f"{t.get('verifiable')} that pairs of reachable poses could confirm; false alarms "
-                  f"{t.get('false_alarms')} of {t.get('nothing_hidden')} plates with nothing hidden." if t else ""))
+                  f"verified {t.cured_of_curable} of them, {t.cured_of_verifiable} of the "
+                  f"{t.verifiable} that pairs of reachable poses could confirm; false alarms "
+                  f"{t.false_alarms} of {t.nothing_hidden} plates with nothing hidden." if t is not None else ""))
     det = doc.get("detectors") or {}
     keys = ("true_positive", "false_positive", "false_negative", "true_negative", "precision", "recall")
     tables = [{"title": "Outcomes per family", "columns": ["family", *OUTCOME_COLORS],
@@ -251,8 +263,9 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
                "rows": [{"detector": d, **{k: s.get(k) for k in keys}} for d, s in (det.get("all") or {}).items()],
                "caption": "Each detector against ground truth's 'the stage-2 pose hides part of the true boundary', "
                           "over the plates without error (evaluation.detection)."},
-              {"title": f"Plates ({len(rows)})", "columns": [c for c in _ROW_COLUMNS if any(c in r for r in rows)],
-               "rows": rows}]
+              {"title": f"Plates ({len(rows)})", "columns": (cols := [c for c in _ROW_COLUMNS
+                                                                      if any(_has(r, c) for r in rows)]),
+               "rows": [{c: _cell(r, c) for c in cols} for r in rows]}]
     plots = []
     if rows:
         plots.append({"file": plot_outcomes(doc.get("outcomes_by_bend") or {}, Path(out_dir) / "outcomes_bend.png",
@@ -269,4 +282,4 @@ def study_section(study_dir: Path, out_dir: Path) -> dict:
     return {"title": "False-boundary study (sensing loop)", "summary": summary, "outcome": None,
             "figures": figures, "tables": tables, "plots": plots,
             "links": [{"label": n, "path": n} for n in ("study.json", "study.csv")],
-            "notes": [f"{r['case']}: {r.get('error')}" for r in rows if r.get("outcome") == "error"]}
+            "notes": [f"{r.case}: {r.error}" for r in rows if r.outcome == "error"]}

@@ -37,12 +37,13 @@ from platebench.bench.config import SampleConfig
 from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.points import read_points_csv
+from platebench.bench.io.records import MethodFigures
 from platebench.bench.io.sample_files import load_ground_truth, load_inputs
 from platebench.bench.run.pattern_sequences import render_pattern_sequence
 from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
 from platebench.errors import UserValueError
-from platebench.evaluation.dense import score_points_depth
-from platebench.evaluation.field_scores import score_disparity
+from platebench.evaluation.dense import SparseDepthScore, score_points_depth
+from platebench.evaluation.field_scores import DepthScore, DisparityScore, MeshScore, PointCloudScore, score_disparity
 from platebench.plates import build_plate
 from platebench.reconstruction.peers import graycode, phase_shift, sgbm
 from platebench.scenes.naming import image_seed
@@ -87,23 +88,59 @@ def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
     return None
 
 
-@dataclass
+@dataclass(frozen=True)
 class MethodRow:
-    """One method on the sample: ``scores`` is the JSON form of ``score`` (the typed score of its kind,
-    ``evaluation.field_scores``; None for the paper row, scored from its points.csv)."""
+    """One method on the sample: ``score`` is the typed score of its kind (``evaluation.field_scores``;
+    ``evaluation.dense.SparseDepthScore`` for the paper row, scored from its points.csv; None for a
+    method that failed), ``figures`` its key figures (``MethodFigures``)."""
 
     name: str
     description: str
     n_images: int
     time_s: float
     render_s: float
-    scores: dict
-    notes: list = field(default_factory=list)
-    result: object = None  # a dense result (.depth, .valid, left view) for the error figure; None otherwise
     score: object = None
+    notes: tuple = ()
+    result: object = None  # a dense result (.depth, .valid, left view) for the error figure; None otherwise
     kind: str | None = "disparity"  # None for a method that failed
     status: str = "ok"  # "ok" or "failed"
     error: str | None = None  # a failed method's one-line error
+
+    @property
+    def figures(self) -> MethodFigures:
+        return method_figures(self)
+
+
+# a mesh's coverage of the plate: its recall at this distance (``field_scores.MESH_THRESHOLDS_M``)
+MESH_COVERAGE_AT_M = 1e-3
+
+
+def method_figures(row: MethodRow) -> MethodFigures:
+    """The key figures of a row's typed score, by its kind (``MethodFigures``)."""
+    mm = 1e3
+    times = {"n_images": row.n_images, "time_s": row.time_s, "render_s": row.render_s}
+    s = row.score
+    if s is None:
+        return MethodFigures(**times)
+    if isinstance(s, SparseDepthScore):
+        return MethodFigures("centres", **times, centres_depth_median_mm=s.centres_depth_median_mm,
+                             centres_depth_rms_mm=s.centres_depth_rms_mm, centres_depth_max_mm=s.centres_depth_max_mm,
+                             points_on_plate=s.points_on_plate, surface_rms_mm=s.surface_rms_mm)
+    if isinstance(s, (DisparityScore, DepthScore)):
+        d = s.depth if isinstance(s, DisparityScore) else s
+        bad = dict(s.middlebury.all.bad_pct).get(1.0) if isinstance(s, DisparityScore) else None
+        return MethodFigures(row.kind, **times, depth_median_mm=d.errors.median_m * mm, depth_rms_mm=d.errors.rms_m * mm,
+                             depth_max_mm=d.errors.max_m * mm, coverage_frac=d.coverage_frac, mb_all_bad_1_0_pct=bad)
+    if isinstance(s, PointCloudScore):
+        return MethodFigures("cloud", **times, dist_median_mm=s.distance.median_m * mm,
+                             dist_rms_mm=s.distance.rms_m * mm, surface_rms_mm=s.distance.rms_m * mm,
+                             coverage_frac=s.coverage.coverage_frac)
+    if isinstance(s, MeshScore):
+        recall = next((r for t, _, r, _ in s.thresholds if abs(t - MESH_COVERAGE_AT_M) <= tol.relative * MESH_COVERAGE_AT_M), None)
+        return MethodFigures("mesh", **times, accuracy_median_mm=s.accuracy.median_m * mm,
+                             accuracy_rms_mm=s.accuracy.rms_m * mm, surface_rms_mm=s.accuracy.rms_m * mm,
+                             coverage_frac=recall)
+    raise TypeError(f"{row.name}: no figures for a score of type {type(s).__name__}")
 
 
 @dataclass(frozen=True)
@@ -167,7 +204,7 @@ def _plugin_row(name: str, fn, sample_dir: Path, truth, time_limit_s: float | No
         run = run_plugin(fn, name, sample_dir, truth=truth, time_limit_s=time_limit_s)
     except Exception as e:  # noqa: BLE001  (recorded, as a sweep records it; interrupts go on up)
         msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        return MethodRow(name, describe(fn), 0, float("nan"), 0.0, {}, [], kind=None, status="failed",
+        return MethodRow(name, describe(fn), 0, float("nan"), 0.0, kind=None, status="failed",
                          error=f"{type(e).__name__}: {msg}"[:500])
     view = None
     if run.output.kind in ("disparity", "depth"):
@@ -175,8 +212,7 @@ def _plugin_row(name: str, fn, sample_dir: Path, truth, time_limit_s: float | No
         view = DenseView(z, np.isfinite(z))
     n_images = run.output.metrics.get("n_images", 2)
     n_images = int(n_images) if isinstance(n_images, (int, float)) and np.isfinite(n_images) else 2
-    return MethodRow(name, describe(fn), n_images, run.time_recon_s, 0.0, run.score.to_dict(), [], view, run.score,
-                     run.output.kind)
+    return MethodRow(name, describe(fn), n_images, run.time_recon_s, 0.0, run.score, (), view, run.output.kind)
 
 
 def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
@@ -193,7 +229,7 @@ def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow |
     t = meta.get("timings_s", meta.get("timings", {}))
     t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
     return MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
-                     [f"read from {d}"], kind="paper")
+                     (f"read from {d}",), kind="paper")
 
 
 def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "phase", "sgbm", "paper"),
@@ -248,7 +284,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
         res, render_s = _run_peer(name, gray_seq, gray_cap, sequence, inputs, rig, pw, ph, depth_range_m, say)
         score = score_disparity(np.where(res.valid, res.disparity, np.inf), truth, what=f"{name} disparity")
         rows.append(MethodRow(name, DESCRIPTIONS[name], res.n_images, res.timings.get("total_s", float("nan")),
-                              render_s, score.to_dict(), list(res.notes), res, score, "disparity"))
+                              render_s, score, tuple(res.notes), res, "disparity"))
     if "paper" in methods:
         row = _paper_row(sample_dir, recon_dir, rig, gt, notes)
         if row is not None:
@@ -296,6 +332,7 @@ def comparison_json(cmp: Comparison) -> dict:
         "sample": str(cmp.sample_dir), "scene_reproduced": cmp.scene_reproduced, "notes": cmp.notes,
         "units": "depth errors in mm, disparity metrics in px / %, times in s; n_images = exposures per camera",
         "methods": {r.name: {"status": r.status, "error": r.error, "kind": r.kind, "description": r.description,
-                             "n_images": r.n_images, "time_s": r.time_s, "render_s": r.render_s, **r.scores,
-                             "notes": r.notes} for r in cmp.rows}})
+                             "n_images": r.n_images, "time_s": r.time_s, "render_s": r.render_s,
+                             **(r.score.to_dict() if r.score is not None else {}),
+                             "figures": r.figures.to_dict(), "notes": list(r.notes)} for r in cmp.rows}})
 

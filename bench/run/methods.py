@@ -129,7 +129,7 @@ def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
         with staged_directory(ctx.recon_dir, overwrite=True) as d:
             doc = {"method": name, "kind": row.kind, "description": row.description, "n_images": row.n_images,
                    "time_s": row.time_s, "render_s": row.render_s, "notes": list(row.notes) + list(cmp.notes),
-                   "scores": row.scores}
+                   "scores": row.score.to_dict(), "figures": row.figures.to_dict()}
             write_json(d / "score.json", jsonable(doc))
             res = row.result
             if res is not None and getattr(res, "disparity", None) is not None:

@@ -22,6 +22,7 @@ import numpy as np
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.outputs import output_dir
+from platebench.bench.io.records import StudyRow, StudyTargets
 from platebench.bench.run.journal import StudyJournal, case_key, code_digest
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
@@ -237,9 +238,9 @@ def study_cases(bends_deg=DEFAULT_BENDS_DEG, families=None, axes_deg=STUDY_AXES_
     return [c for c in cases if c.family in families] + family_cases(added, aspect)
 
 
-def split_by_bend(row: dict) -> bool:
+def split_by_bend(row: StudyRow) -> bool:
     """A study row whose family the tables split by bend angle (``DeformationFamily.by_bend``)."""
-    return FAMILIES[row["family"]].by_bend and row.get("bend_deg") is not None
+    return FAMILIES[row.family].by_bend and row.bend_deg is not None
 
 
 # Deformations whose plate is the same with the bending coordinate reversed (e -> -e): a bend centred
@@ -285,70 +286,75 @@ def _min_visible(gv: dict) -> float:
     return float(min(v["visible_fraction"] for v in gv.values()))
 
 
-def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = SensingOptions()) -> dict:
-    """Run the sensing loop on one plate and flatten what the study needs into a row (see
-    ``StudyResult``). An exception becomes outcome "error" with its message (never dropped)."""
-    row = case.params()
+def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = SensingOptions()) -> StudyRow:
+    """Run the sensing loop on one plate and flatten what the study needs into a row (``StudyRow``;
+    see ``StudyResult``). An exception becomes outcome "error" with its message (never dropped)."""
+    params = case.params()
     t0 = time.perf_counter()
     try:
         r = run_sensing(case.config(base), None, replace(options, working_distance_m=case.distance_m,
                                                          write_stages=False, ground_truth_reach=True))
     except Exception as e:  # noqa: BLE001 (a study records every failure and goes on)
-        row.update(outcome="error", error=f"{type(e).__name__}: {e}".splitlines()[0],
-                   traceback=traceback.format_exc(limit=3), time_s=time.perf_counter() - t0)
-        return row
-    f = r.final
-    row.update(outcome=f.outcome, boundary_verified=f.boundary_verified, cures=r.cures,
-               verification_views=len(r.verification_views), views=len(f.poses),
-               gt_visible_first=_min_visible(f.gt_visibility_first), gt_visible_final=_min_visible(f.gt_visibility),
-               gt_hidden_first=f.hidden_first, gt_hidden_final=f.hidden_final,
-               gt_reachable=f.gt_reachable, gt_verifiable=f.gt_verifiable,
-               gt_verifiable_fraction=_min_visible(f.gt_verifiable_visibility) if f.gt_verifiable_visibility else None,
-               gt_unconfirmable_max_mm=None if f.gt_unconfirmable_max_m is None else f.gt_unconfirmable_max_m * 1e3,
-               false_boundary_gt=f.hidden_first, front_oriented=f.front_oriented)
-    row.update({f"det_{d.name}": d.fired for d in r.detectors})
-    m = f.merged
-    row.update(merged_boundary_mean_mm=m.get("boundary_mean_mm"), merged_boundary_covered=m.get("boundary_covered_frac"),
-               merged_surface_rms_mm=m.get("surface_rms_mm"), merged_surface_coverage=m.get("surface_coverage"),
-               merged_points=m.get("points"), merged_points_rms_mm=m.get("points_rms_mm"),
-               merged_points_max_mm=m.get("points_max_mm"),
-               centres_depth_rms_mm=(f.accuracy or {}).get("centres_depth_rms_mm"), unverified_parts=len(f.unverified_parts),
-               verdict=f.verdict_reason, time_s=time.perf_counter() - t0)
-    return row
+        return StudyRow(**params, outcome="error", error=f"{type(e).__name__}: {e}".splitlines()[0],
+                        traceback=traceback.format_exc(limit=3), time_s=time.perf_counter() - t0)
+    f, m = r.final, r.final.merged
+    return StudyRow(
+        **params, outcome=f.outcome, boundary_verified=f.boundary_verified, cures=r.cures,
+        verification_views=len(r.verification_views), views=len(f.poses),
+        gt_visible_first_frac=_min_visible(f.gt_visibility_first), gt_visible_final_frac=_min_visible(f.gt_visibility),
+        gt_hidden_first=f.hidden_first, gt_hidden_final=f.hidden_final,
+        gt_reachable=f.gt_reachable, gt_verifiable=f.gt_verifiable,
+        gt_verifiable_frac=_min_visible(f.gt_verifiable_visibility) if f.gt_verifiable_visibility else None,
+        gt_unconfirmable_max_mm=None if f.gt_unconfirmable_max_m is None else f.gt_unconfirmable_max_m * 1e3,
+        false_boundary_gt=f.hidden_first, front_oriented_frac=f.front_oriented,
+        detectors={d.name: d.fired for d in r.detectors},
+        merged_boundary_mean_mm=m.boundary_mean_mm, merged_boundary_covered_frac=m.boundary_covered_frac,
+        merged_surface_rms_mm=m.surface_rms_mm, merged_coverage_frac=m.coverage_frac, merged_points=m.points,
+        merged_points_rms_mm=m.points_rms_mm, merged_points_max_mm=m.points_max_mm,
+        centres_depth_rms_mm=None if f.accuracy is None else f.accuracy.centres_depth_rms_mm,
+        unverified_parts=len(f.unverified_parts), verdict=f.verdict_reason, time_s=time.perf_counter() - t0)
 
 
-def _groups(rows: list[dict], key) -> dict:
+def _groups(rows: list[StudyRow], key) -> dict:
     out: dict = {}
     for r in rows:
         out.setdefault(key(r), []).append(r)
     return out
 
 
-def detector_scores(rows: list[dict]) -> dict:
+def detector_scores(rows: list[StudyRow]) -> dict:
     """Each detector's precision and recall against ground truth's "hidden at the stage-2 pose":
-    over all plates, per family and per bend (cylinders and folds)."""
-    ok = [r for r in rows if r.get("outcome") != "error"]
+    over all plates, per family and per bend (cylinders and folds): {"all": detector ->
+    ``DetectionScore``, "by_family": family -> detector -> ``DetectionScore``, "by_bend": bend -> ...}
+    (``detector_scores_dict``: study.json's form)."""
+    ok = [r for r in rows if r.outcome != "error"]
 
     def score(rs):
-        return {d: detection_score([r.get("gt_hidden_first") for r in rs], [r.get(f"det_{d}") for r in rs]).to_dict()
-                for d in DETECTORS}
-    by_family = _groups(ok, lambda r: r["family"])
+        return {d: detection_score([r.gt_hidden_first for r in rs], [r.fired(d) for r in rs]) for d in DETECTORS}
+    by_family = _groups(ok, lambda r: r.family)
     bent = [r for r in ok if split_by_bend(r)]
-    by_bend = _groups(bent, lambda r: float(r["bend_deg"]))
+    by_bend = _groups(bent, lambda r: float(r.bend_deg))
     return {"all": score(ok), "by_family": {k: score(v) for k, v in sorted(by_family.items(),
                                                                           key=lambda kv: FAMILY_ORDER.index(kv[0]))},
             "by_bend": {f"{k:g}": score(v) for k, v in sorted(by_bend.items())}}
 
 
-def outcome_counts(rows: list[dict], key=None) -> dict:
+def detector_scores_dict(scores: dict) -> dict:
+    """``detector_scores`` as study.json holds it (each score's ``to_dict``)."""
+    return {"all": {d: s.to_dict() for d, s in scores["all"].items()},
+            **{part: {k: {d: s.to_dict() for d, s in v.items()} for k, v in scores[part].items()}
+               for part in ("by_family", "by_bend")}}
+
+
+def outcome_counts(rows: list[StudyRow], key=None) -> dict:
     """Outcome class counts (``OUTCOMES`` and "error"), overall or per ``key(row)``."""
     classes = (*OUTCOMES, "error")
     if key is None:
-        return {c: sum(r.get("outcome") == c for r in rows) for c in classes}
+        return {c: sum(r.outcome == c for r in rows) for c in classes}
     return {str(k): outcome_counts(v) for k, v in _groups(rows, key).items()}
 
 
-def targets(rows: list[dict]) -> dict:
+def targets(rows: list[StudyRow]) -> StudyTargets:
     """The study's targets: silent = 0, errors = 0, cured >= 90 % of the plates whose stage-2 pose
     hides part of the boundary and whose reachable poses see all of it ("curable"), false alarms
     <= 2 % of the plates where nothing is hidden.
@@ -362,13 +368,13 @@ def targets(rows: list[dict]) -> dict:
     so the second target asks for verified cures on >= 90 % of the curable plates that pairs of
     reachable poses could verify (``cured_of_verifiable``)."""
     c = outcome_counts(rows)
-    curable = [r for r in rows if r.get("gt_hidden_first") and r.get("gt_reachable")]
-    verifiable = [r for r in curable if r.get("gt_verifiable")]
-    clean = [r for r in rows if r.get("outcome") != "error" and not r.get("gt_hidden_first")]
-    cured = sum(r["outcome"] == "cured" for r in curable)
-    seen_all = sum(r["outcome"] in ("cured", "unconfirmed") for r in curable)
-    cured_v = sum(r["outcome"] == "cured" for r in verifiable)
-    fa = sum(r["outcome"] == "false_alarm" for r in clean)
+    curable = [r for r in rows if r.gt_hidden_first and r.gt_reachable]
+    verifiable = [r for r in curable if r.gt_verifiable]
+    clean = [r for r in rows if r.outcome != "error" and not r.gt_hidden_first]
+    cured = sum(r.outcome == "cured" for r in curable)
+    seen_all = sum(r.outcome in ("cured", "unconfirmed") for r in curable)
+    cured_v = sum(r.outcome == "cured" for r in verifiable)
+    fa = sum(r.outcome == "false_alarm" for r in clean)
 
     def frac(a, b):
         return a / len(b) if b else None
@@ -377,40 +383,61 @@ def targets(rows: list[dict]) -> dict:
         return None if f is None else f >= bound
     cured_frac, seen_frac, fa_frac = frac(cured, curable), frac(seen_all, curable), frac(fa, clean)
     cured_v_frac = frac(cured_v, verifiable)
-    return {"silent": c["silent"], "errors": c["error"], "curable": len(curable), "cured_of_curable": cured,
-            "cured_frac": cured_frac, "seen_all_of_curable": seen_all, "seen_all_frac": seen_frac,
-            "verifiable": len(verifiable), "cured_of_verifiable": cured_v, "cured_of_verifiable_frac": cured_v_frac,
-            "nothing_hidden": len(clean), "false_alarms": fa, "false_alarm_frac": fa_frac,
-            "met": {"silent = 0": c["silent"] == 0, "errors = 0": c["error"] == 0,
-                    "cured >= 90 %": at_least(seen_frac, 0.9),
-                    "verified >= 90 % of the verifiable": at_least(cured_v_frac, 0.9),
-                    "false alarms <= 2 %": None if fa_frac is None else fa_frac <= 0.02}}
+    return StudyTargets(silent=c["silent"], errors=c["error"], curable=len(curable), cured_of_curable=cured,
+                        cured_frac=cured_frac, seen_all_of_curable=seen_all, seen_all_frac=seen_frac,
+                        verifiable=len(verifiable), cured_of_verifiable=cured_v, cured_of_verifiable_frac=cured_v_frac,
+                        nothing_hidden=len(clean), false_alarms=fa, false_alarm_frac=fa_frac,
+                        met={"silent = 0": c["silent"] == 0, "errors = 0": c["error"] == 0,
+                             "cured >= 90 %": at_least(seen_frac, 0.9),
+                             "verified >= 90 % of the verifiable": at_least(cured_v_frac, 0.9),
+                             "false alarms <= 2 %": None if fa_frac is None else fa_frac <= 0.02})
 
 
 @dataclass(frozen=True)
 class StudyResult:
-    """Per-plate rows, the outcome counts, the detectors' scores and the targets; ``to_dict`` is
-    study.json."""
+    """Per-plate rows (``StudyRow``), the outcome counts, the detectors' scores and the targets;
+    ``to_dict`` is study.json."""
 
-    rows: tuple
+    rows: tuple[StudyRow, ...]
     settings: dict
     time_s: float
     extra: dict = field(default_factory=dict)  # smallest hiding bend, L formula (when computed)
 
+    @property
+    def plates_run(self) -> int:
+        """The plates this run measured (the others came from an interrupted run's journal)."""
+        return self.extra.get("plates_run", len(self.rows))
+
+    @property
+    def resumed_plates(self) -> int:
+        return self.extra.get("resumed_plates", 0)
+
+    @property
+    def targets(self) -> StudyTargets:
+        return targets(list(self.rows))
+
+    def outcomes(self, key=None) -> dict:
+        """Outcome counts (``outcome_counts``): overall, or per ``key`` "family" or "bend" (the
+        families split by bend, ``split_by_bend``; bends in increasing order)."""
+        rows = list(self.rows)
+        if key is None:
+            return outcome_counts(rows)
+        if key == "family":
+            return outcome_counts(rows, lambda r: r.family)
+        return dict(sorted(outcome_counts([r for r in rows if split_by_bend(r)], lambda r: f"{r.bend_deg:g}").items(),
+                           key=lambda kv: float(kv[0])))
+
     def to_dict(self) -> dict:
-        rows = [{k: v for k, v in r.items() if k != "traceback"} for r in self.rows]
-        return {"kind": "false-boundary sensing study", "rows": rows, "outcomes": outcome_counts(rows),
-                "outcomes_by_family": outcome_counts(rows, lambda r: r["family"]),
-                "outcomes_by_bend": dict(sorted(outcome_counts(
-                    [r for r in rows if split_by_bend(r)],
-                    lambda r: f"{r['bend_deg']:g}").items(), key=lambda kv: float(kv[0]))),
-                "detectors": detector_scores(rows), "targets": targets(rows), "settings": self.settings,
-                "time_s": self.time_s, **self.extra}
+        return {"kind": "false-boundary sensing study", "rows": [r.to_dict() for r in self.rows],
+                "outcomes": self.outcomes(), "outcomes_by_family": self.outcomes("family"),
+                "outcomes_by_bend": self.outcomes("bend"),
+                "detectors": detector_scores_dict(detector_scores(list(self.rows))),
+                "targets": self.targets.to_dict(), "settings": self.settings, "time_s": self.time_s, **self.extra}
 
 
 def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOptions = SensingOptions(),
               progress=None, settings: dict | None = None, l_bends_deg=(), workers: int = 1,
-              done: dict[int, dict] | None = None, record=None) -> StudyResult:
+              done: dict[int, StudyRow] | None = None, record=None) -> StudyResult:
     """The sensing loop on every case (``study_row``); ``progress(row)`` after each, in the order
     they finish. With ``l_bends_deg``: also the smallest hiding bend and the L formula at those
     convex bends. ``workers`` > 1: the plates run in that many spawned processes, the CPU cores
@@ -466,7 +493,7 @@ def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOpti
     from platebench.bench.run.workers import pool_worker_init  # noqa: PLC0415
 
     threads = max(1, (os.cpu_count() or 1) // workers)
-    rows: list[dict | None] = [None] * len(cases)
+    rows: list[StudyRow | None] = [None] * len(cases)
     pool = ProcessPoolExecutor(max_workers=min(workers, len(cases)), mp_context=multiprocessing.get_context("spawn"),
                                initializer=pool_worker_init, initargs=(os.getpid(), threads))
     try:
@@ -483,25 +510,26 @@ def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOpti
     yield from rows
 
 
-def study_csv(rows: list[dict]) -> str:
-    """The study's rows as CSV text (every key of any row a column)."""
-    keys = list(dict.fromkeys(k for r in rows for k in r if k != "traceback"))
+def study_csv(rows: list[StudyRow]) -> str:
+    """The study's rows as CSV text (every column of any row, ``StudyRow.to_dict``)."""
+    dicts = [r.to_dict() for r in rows]
+    keys = list(dict.fromkeys(k for r in dicts for k in r))
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
     w.writeheader()
-    w.writerows(rows)
+    w.writerows(dicts)
     return buf.getvalue()
 
 
 def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite: bool = False, progress=None,
                 settings: dict | None = None, l_bends_deg=(), workers: int = 1, resume: bool = False,
-                options: SensingOptions = SensingOptions()) -> dict:
+                options: SensingOptions = SensingOptions()) -> StudyResult:
     """Run the study (``run_study``) and write ``out/study.json`` and ``out/study.csv``; the folder
     appears complete or not at all (``bench.io.outputs.output_dir``: checked and locked before the first plate).
     Each finished plate's row goes to the journal beside it (``bench.run.journal``) at once, so an
     interrupted study keeps them; ``resume``: reuse the journal's rows of plates still to run.
     ``options``: the sensing loop's (each plate's working distance set from its case).
-    Returns study.json's dict."""
+    Returns the study (``StudyResult``; study.json is its ``to_dict``)."""
     settings = dict(settings or {})
     header = {"version": __version__, "code": code_digest(), "l_bends_deg": list(l_bends_deg),
               **{k: v for k, v in settings.items() if k != "workers"}}
@@ -510,12 +538,13 @@ def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite
     with output_dir(out, "study", overwrite=overwrite) as stage:
         kept = journal.start(resume, overwrite)
         try:
-            done = {i: kept[k] for i, k in enumerate(keys) if k in kept}
-            doc = run_study(cases, base, options, progress=progress, settings=settings, l_bends_deg=l_bends_deg,
-                            workers=workers, done=done, record=lambda i, row: journal.record(keys[i], row)).to_dict()
-            write_json(stage / "study.json", doc)
-            write_text(stage / "study.csv", study_csv(doc["rows"]))
+            done = {i: StudyRow.from_dict(kept[k]) for i, k in enumerate(keys) if k in kept}
+            result = run_study(cases, base, options, progress=progress, settings=settings, l_bends_deg=l_bends_deg,
+                               workers=workers, done=done,
+                               record=lambda i, row: journal.record(keys[i], row.to_dict()))
+            write_json(stage / "study.json", result.to_dict())
+            write_text(stage / "study.csv", study_csv(list(result.rows)))
         finally:
             journal.close(remove=False)
     journal.close(remove=True)  # the study is in place
-    return doc
+    return result

@@ -221,7 +221,7 @@ class FinalRecord:
                 "gt_verifiable_visibility": self.gt_verifiable_visibility, "gt_verifiable": self.gt_verifiable,
                 "gt_unconfirmable_max_mm": None if self.gt_unconfirmable_max_m is None
                 else round(self.gt_unconfirmable_max_m * 1e3, 1),
-                "front_oriented": None if self.front_oriented is None else round(self.front_oriented, 3)}
+                "front_oriented_frac": None if self.front_oriented is None else round(self.front_oriented, 3)}
 
 
 @dataclass(frozen=True)
