@@ -315,6 +315,18 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     assert doc["methods"]["paper"]["centres_depth_median_mm"] < 0.01  # the square centres: sparse
     assert "depth_median_mm" not in doc["methods"]["paper"]  # no figure over the plate's pixels for the paper
     assert doc["methods"]["sgbm"]["n_images"] == 1
+    from platebench.bench.report.experiment import _COMPARE_COLUMNS, compare_section
+    from platebench.bench.report.page import Page
+    from tests.test_records import table_cells_not_shown
+    (tmp_path / "report").mkdir()
+    page = Page(tmp_path / "report", tmp_path / "report", tmp_path)
+    sec = compare_section(page, out / "compare.json", "c_")  # the report shows what it holds
+    cols = dict((label, key) for key, label in _COMPARE_COLUMNS)
+    figs = [m["figures"] for m in doc["methods"].values()]
+    assert {"centres_depth_median_mm", "depth_rms_mm", "coverage_frac", "mb_all_bad_1_0_pct"} <= \
+        {cols[c] for c in sec["table"]["columns"][1:]}
+    assert not table_cells_not_shown(sec["table"]["columns"][1:], [r[1:] for r in sec["table"]["rows"]], figs,
+                                     [cols[c] for c in sec["table"]["columns"][1:]])
     assert (out / "compare.png").stat().st_size > 1000
     capsys.readouterr()
     assert main(["compare", str(sample_dir), "--methods", "nonsense"]) == 2

@@ -293,6 +293,10 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     stages = [st.stage for st in s.steps if hasattr(st, "stage")]
     assert stages[:3] == [1, 2, 3] and s.steps[0].pose.distance_m > s.steps[1].pose.distance_m
     doc = json.loads((tmp_path / "sensing.json").read_text())
+    from platebench.bench.report.sensing import sensing_section
+    from tests.test_records import sensing_figures_not_shown
+    assert doc["final"]["merged"]["coverage_frac"] is not None and doc["final"]["accuracy"]["centres_depth_rms_mm"]
+    assert not sensing_figures_not_shown(sensing_section(tmp_path, tmp_path / "plots"), doc)  # the report shows them
     fin = doc["final"]
     assert fin["boundary_verified"] is True and fin["unverified_parts"] == [] and fin["outcome"] == "clean"
     # stage 3 projects the paper's 16 squares, the later poses (and the stage-2 pose once more) the verification grid

@@ -23,7 +23,7 @@ from platebench.bench.io.atomic import write_bytes
 from platebench.bench.report.summary import FAILURE_KINDS, axis_stats, precision_recall
 from platebench.bench.report.values import finite as _num
 from platebench.bench.report.values import flag as _flag
-from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
+from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label, metric_unit
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
@@ -457,9 +457,12 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
     methods = list(table)
     if metrics is None:
         metrics = _BAR_METRICS
-    err_metrics = [k for k in metrics if k != "coverage_frac"
+    # the shared columns in fractions (coverage) go to the second panel, by their unit (``MetricsRow``)
+    fractions = [k for k in METRIC_FIELDS if metric_unit(k) == "fraction"]
+    err_metrics = [k for k in metrics if k not in fractions
                    and any(_num(t.get(k)) is not None for t in table.values())]
-    has_cov = any(_num(t.get("coverage_frac")) is not None for t in table.values())
+    cov = next(iter(fractions))  # one fraction column: the coverage of the plate
+    has_cov = any(_num(t.get(cov)) is not None for t in table.values())
     fig = _figure(9.5 if has_cov else 7.5, 4.2)
     if has_cov:
         gs = fig.add_gridspec(1, 2, width_ratios=[3, 1.2])
@@ -492,7 +495,7 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
         ax.grid(True, axis="y", alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     if axc is not None:
-        vals = [(m, _num(table[m].get("coverage_frac"))) for m in methods]
+        vals = [(m, _num(table[m].get(cov))) for m in methods]
         colors = _colors(len(methods))
         for j, (m, v) in enumerate(vals):
             if v is not None:

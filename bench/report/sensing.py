@@ -147,6 +147,15 @@ def _step_row(st: dict) -> dict:
             "what": what}
 
 
+# the figure cards of a sensing run: (field of ``MergedFigures`` / ``Stage3Accuracy``, label, unit)
+MERGED_CARDS = (("boundary_mean_mm", "merged boundary mean distance", "mm"),
+                ("points", "merged square centres (all poses)", ""),
+                ("points_rms_mm", "merged square centres' RMS distance to the plate", "mm"),
+                ("coverage_frac", "merged surface coverage", "fraction"),
+                ("surface_rms_mm", "merged surface RMS", "mm"))
+STAGE3_CARDS = (("centres_depth_rms_mm", "stage-3 depth RMS at the square centres", "mm"),)
+
+
 def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
     """The sensing run of ``sensing_dir`` as a generic section dict."""
     doc = load_sensing(sensing_dir)
@@ -162,16 +171,12 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
                {"label": "cures", "value": doc.get("cures")},
                {"label": "verification views", "value": len(doc.get("verification_views") or [])},
                {"label": "poses", "value": len(final.get("poses") or [])}]
-    for v, label, unit in ((merged.boundary_mean_mm, "merged boundary mean distance", "mm"),
-                           (merged.points, "merged square centres (all poses)", ""),
-                           (merged.points_rms_mm, "merged square centres' RMS distance to the plate", "mm"),
-                           (merged.coverage_frac, "merged surface coverage", "fraction"),
-                           (merged.surface_rms_mm, "merged surface RMS", "mm")):
-        if finite(v) is not None:
+    for name, label, unit in MERGED_CARDS:
+        if finite(v := getattr(merged, name)) is not None:
             figures.append({"label": label, "value": round(v, 3), "unit": unit})
-    if acc is not None and finite(acc.centres_depth_rms_mm) is not None:
-        figures.append({"label": "stage-3 depth RMS at the square centres",
-                        "value": round(acc.centres_depth_rms_mm, 4), "unit": "mm"})
+    for name, label, unit in STAGE3_CARDS:
+        if acc is not None and finite(v := getattr(acc, name)) is not None:
+            figures.append({"label": label, "value": round(v, 4), "unit": unit})
     if finite(doc.get("time_s")) is not None:
         figures.append({"label": "time", "value": round(doc["time_s"], 1), "unit": "s"})
     summary = (f"Outcome: {outcome} ({final.get('outcome_text', '')}). Verdict (no ground truth): "

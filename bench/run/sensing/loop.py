@@ -359,7 +359,7 @@ class Measurements:
                            "cannot be told from one seen from the front: not verified"), share, (
                 {"what": "the whole boundary: the plate's front could not be oriented from the square centres "
                          f"(normals turn by {np.degrees(front.max_turn_rad):.0f} deg between neighbouring centres)",
-                 "front_oriented": round(share, 3)},)
+                 "front_oriented_frac": round(share, 3)},)
         sides = [both_cameras_side(front, o) for o in self.outlines]
         confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
