@@ -85,6 +85,19 @@ def test_stale_temporary_names_of_dead_owners_are_swept_live_ones_kept(tmp_path)
     assert [p.name for p in tmp_path.iterdir()] == [f".tmp-x~{host}~{os.getpid()}~cd34"]
 
 
+def test_an_existing_empty_folder_takes_a_sweep_only_with_overwrite_or_resume(tmp_path):
+    from platebench.bench.sweep.dataset import DatasetLayoutError, check_dataset
+    from platebench.bench.sweep.spec import parse_spec
+    spec = parse_spec({"base": {"scene": {"width": 64, "height": 48}}, "grid": {"bend_deg": [0]}})
+    out = tmp_path / "ds"
+    assert check_dataset(out, spec, resume=False, overwrite=False) is None  # new: created by the sweep
+    out.mkdir()
+    with pytest.raises(DatasetLayoutError, match="already exists"):
+        check_dataset(out, spec, resume=False, overwrite=False)
+    assert check_dataset(out, spec, resume=False, overwrite=True) is None
+    assert check_dataset(out, spec, resume=True, overwrite=False) is None
+
+
 def test_a_sweep_killed_before_its_first_manifest_can_be_resumed(tmp_path):
     from platebench.bench.sweep.dataset import check_dataset
     from platebench.bench.sweep.spec import parse_spec
