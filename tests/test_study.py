@@ -131,7 +131,8 @@ def test_a_small_study_runs_and_reports(tmp_path):
                                             "occluding_contour", "end_tangents"}
     assert "time:" in p.stdout and "2 workers" in p.stdout and "targets:" in p.stdout and (out / "study.csv").is_file()
     assert doc["settings"]["workers"] == 2
-    assert doc["settings"]["verify_grid"] == "6x12@12" and "paper" in doc["settings"]["grid"]
+    from platebench.bench.run.sensing.records import auto_verify_grid
+    assert doc["settings"]["verify_grid"] == auto_verify_grid(320) == "6x12@24" and "paper" in doc["settings"]["grid"]
     from platebench.bench.config import SampleConfig, SceneParams
     from platebench.bench.run.study import run_study
     from platebench.scenes.scene_spec import RenderSettings
