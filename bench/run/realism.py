@@ -17,6 +17,12 @@ camera (``measure_corner_noise``). ``realise(setup, rig, seed)`` then draws one 
 4. the stereo pair: the loop asks for the commanded conventional rig; the robot moves the camera
    there through the estimated mount, once per view (or once for a rigid head), with its errors.
 
+``draw_rig`` does steps 1-3 once (a ``RigDraw``); its ``acquire`` does step 4 for any commanded rig, as
+often as asked: the sensing loop's successive poses are successive moves of the same drawn robot, with
+the same estimates (``realise`` is a draw's first pair). A pose the arm cannot reach from the cell is
+taken with the cell turned about the world's vertical axis (``RigDraw.reach_yaw``: a turntable under the
+plate, exact).
+
 Returns the rig the method is told (commanded poses, estimated intrinsics), the pair that was really
 taken (a ``PosedPair``: render it and cast ground truth from it) and the target pose estimate; and
 what each estimate missed by (``report``), against the truth. Seeds: ``numpy.random.default_rng([seed,

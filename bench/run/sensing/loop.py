@@ -25,7 +25,9 @@ say when it is not sure.
 Decisions are pure functions of measurements in ``reconstruction.strategy``; the simulated robot
 (``sensor``) renders, and holds the ground truth for scoring only: each step's ``gt_visibility``
 and, at the end, the visibility of the true boundary from the final poses, the accuracy and the
-outcome class (``records.OUTCOMES``).
+outcome class (``records.OUTCOMES``). Under a real rig (``cfg.realism``) the loop knows only the
+commanded poses and the estimated hand/eye and calibration (``sensor`` module doc); sensing.json's
+``acquisition`` records the draw and how far each move really landed (``acquisition_record``).
 """
 from __future__ import annotations
 

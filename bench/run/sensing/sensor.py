@@ -6,7 +6,11 @@ truth's boundary visibility beside it for scoring only. ``passive_view`` is one 
 the loop: the passive pair rendered and its outline measured by the general outline stereo, and,
 when asked, the active pair (projector beside the rig, ``active_views.projector_pose``, projecting
 the verification pattern) and its checked square centres (``reconstruction.strategy.active_views``).
-World frame, metres.
+
+Under a real rig (``cfg.realism`` not ideal) every shot is a move of one drawn robot
+(``bench.run.realism.RigDraw``): the images and ground truth come from the cameras really posed, and
+every measurement is made with the rig the loop is told (``Shot.measured``: the commanded poses, the
+estimated intrinsics and lens). World frame, metres.
 """
 from __future__ import annotations
 
