@@ -32,7 +32,9 @@ def test_one_draw_takes_successive_pairs_with_the_same_robot_and_estimates():
     d = draw_rig(setup, rig.left, 7)
     first, again = d.acquire(rig), d.acquire(rig)
     ref = realise(setup, rig, 7)
-    assert np.array_equal(first.taken.left.t, ref.taken.left.t) and np.array_equal(first.told.left.K, ref.told.left.K)
+    # the same draw again (OpenCV's calibration may differ in the last bits between calls)
+    assert np.allclose(first.taken.left.t, ref.taken.left.t, atol=1e-9)
+    assert np.allclose(first.told.left.K, ref.told.left.K)
     assert np.array_equal(again.told.left.K, first.told.left.K)  # the same estimates
     step, _ = pose_difference(camera_pose(first.taken.left), camera_pose(again.taken.left))
     assert 1e-6 < step < 1e-3  # a new move to the same command: the PUMA's repeatability (0.1 mm RP), not more
