@@ -29,7 +29,8 @@ def add_sample_flags(p: argparse.ArgumentParser) -> None:
                         "(default 4x4@40, the paper's 16 squares; 6x12@12 is fine enough for the "
                         "false-boundary counting test, see README)")
     p.add_argument("--distance-m", type=float, help="rig height above the plate in metres (default 0.40)")
-    p.add_argument("--width", type=int, help="image width in pixels (default 1280)")
+    p.add_argument("--width", type=int, help="image width in pixels (default 1280; under --realism the camera's own, "
+                   "its field of view kept at another width)")
     p.add_argument("--height", type=int, help="image height in pixels (default 960)")
     p.add_argument("--spp", type=int, help="Monte Carlo samples per pixel (default 16)")
     p.add_argument("--seed", type=int, help="random seed; same seed, same bytes (default 0)")
@@ -59,9 +60,21 @@ def config_from_args(args):
         if not 0 <= args.realism_seed < 2 ** 31:
             raise UserValueError(f"--realism-seed = {args.realism_seed} is out of range: allowed 0 to 2^31-1")
         cfg = replace(cfg, realism=cfg.realism.with_seed(args.realism_seed))
-    return with_overrides(cfg, bend_deg=args.bend_deg, width=args.width, height=args.height, spp=args.spp,
-                          seed=args.seed, variant=args.variant, distance_m=args.distance_m,
-                          bend_direction=args.bend_direction, bend_axis_deg=args.bend_axis_deg, grid=args.grid)
+    out = with_overrides(cfg, bend_deg=args.bend_deg, width=args.width, height=args.height, spp=args.spp,
+                         seed=args.seed, variant=args.variant, distance_m=args.distance_m,
+                         bend_direction=args.bend_direction, bend_axis_deg=args.bend_axis_deg, grid=args.grid)
+    return realism_camera_at_width(cfg, out, args.width)
+
+
+def realism_camera_at_width(cfg, out, width: int | None):
+    """``out`` (``cfg`` with its flags applied) with a realism camera's pixel focal lengths scaled by
+    ``width`` over its own width: the same field of view (and pixel aspect, lens) sampled by fewer or
+    more pixels. Unchanged without a realism camera or a width."""
+    if width is None or cfg.realism.camera == "ideal" or cfg.scene.f_px is None:
+        return out
+    k = out.scene.width / cfg.scene.width
+    fy = None if cfg.scene.fy_px is None else cfg.scene.fy_px * k
+    return replace(out, scene=replace(out.scene, f_px=cfg.scene.f_px * k, fy_px=fy))
 
 
 def add_parser(sub) -> None:

@@ -82,8 +82,9 @@ def add_parser(sub) -> None:
     add_verify_grid_flag(p)
     p.add_argument("--l-bends", default="", help="convex bends (deg) for the L-formula check (default none; "
                    "e.g. 120,150,165,172)")
-    p.add_argument("--width", type=int, default=640, help="false-boundary: image width in px (default 640; f scales "
-                   "with it); accuracy: the realism's camera sets it")
+    p.add_argument("--width", type=int, help="false-boundary: image width in px (default 640, the height 3/4 of it; "
+                   "f scales with it; under --realism the camera's own size, its field of view and aspect kept at "
+                   "another width); accuracy: the realism's camera sets it")
     p.add_argument("--spp", type=int, help="samples per pixel (default 2; accuracy 16: the corners are fitted to "
                    "edges, and the renderer's Monte Carlo noise at the edge pixels would add to the camera's)")
     p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
@@ -103,7 +104,10 @@ def add_parser(sub) -> None:
     a = p.add_argument_group("accuracy study")
     a.add_argument("--realism", choices=tuple(REALISM_PRESETS), default=None,
                    help="the error model (default 1995 for accuracy: the paper's PULNiX camera moved by a PUMA 560; "
-                        "modern: a rigid head on a current arm; ideal: none). false-boundary: only ideal so far")
+                        "modern: a rigid head on a current arm; ideal: none). false-boundary: default ideal; under a "
+                        "preset each plate's poses are taken by the robot with its errors (one draw per plate: --seed "
+                        "plus the CRC-32 of its name, recorded in each row) and the loop measures and merges through "
+                        "the commanded poses and the estimated hand/eye and calibration")
     a.add_argument("--draws", type=int, default=30,
                    help="Monte Carlo draws per budget row (default 30; allowed 1 to 1000): each draws new robot "
                         "errors, a new hand/eye and intrinsics estimate, new line jitter and sensor noise; draw k "
@@ -119,15 +123,15 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     if args.which == "accuracy":
         return run_accuracy(args)
-    if args.realism not in (None, "ideal"):
-        raise UserValueError(f"--realism = {args.realism} for the false-boundary study: the sensing loop does not "
-                             "model robot, hand/eye or calibration errors yet; allowed: ideal")
+    if args.realism not in (None, "ideal") and args.which == "cut-squares":
+        raise UserValueError(f"--realism = {args.realism} for the cut-squares study: it places its cameras itself; "
+                             "allowed: ideal")
     if args.spp is None:
         args.spp = 2
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
     from platebench.bench.run.study import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
-    from platebench.bench.run.study import perturbed_cases, study_cases, write_study  # noqa: PLC0415
+    from platebench.bench.run.study import perturbed_cases, study_cases, with_realism_seeds, write_study  # noqa: PLC0415
 
     if args.which == "cut-squares":
         return run_cut_squares(args)
@@ -135,7 +139,7 @@ def run(args) -> int:
                              max_count=MAX_BENDS)
     l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
         if args.l_bends.strip() else []
-    if not (160 <= args.width <= 4096):
+    if args.width is not None and not (160 <= args.width <= 4096):
         raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
     if not (1 <= args.spp <= 1024):
         raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 1024")
@@ -162,19 +166,25 @@ def run(args) -> int:
             raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
         cases = cases[:args.limit]
     cases = perturbed_cases(cases, axis_deg, distance_mm)
-    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
-                                          pattern=parse_grid(args.grid) if args.grid else {}), render=render)
+    base, options_extra = study_base(args, render)
+    if not base.realism.is_ideal:
+        cases = with_realism_seeds(cases, args.seed)
+    width, height = base.scene.width, base.scene.height
     verify_grid = verify_grid_arg(args.verify_grid)
     if verify_grid == "auto":
         from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
-        verify_grid = auto_verify_grid(args.width)
-    options = SensingOptions(verify_grid=verify_grid)
+        verify_grid = auto_verify_grid(width)
+    options = SensingOptions(verify_grid=verify_grid, **options_extra)
     settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams,
                 "grid": args.grid or "paper's 4x4 (sense's default)",
-                "verify_grid": verify_grid or "stage 3's", "width_px": args.width,
-                "height_px": args.width * 3 // 4, "spp": args.spp, "seed": args.seed,
+                "verify_grid": verify_grid or "stage 3's", "width_px": width,
+                "height_px": height, "spp": args.spp, "seed": args.seed,
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
                 "workers": args.workers}
+    if not base.realism.is_ideal:
+        settings.update(realism=base.realism.name, realism_sources=list(base.realism.sources),
+                        realism_seeds="--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
+                        corner_noise_px=options.corner_noise_px)
     from platebench.bench.run.journal import journal_path  # noqa: PLC0415
 
     ran = 0
@@ -201,6 +211,31 @@ def run(args) -> int:
     return 0
 
 
+def study_base(args, render: RenderSettings) -> tuple[SampleConfig, dict]:
+    """The false-boundary study's sample configuration (before each plate's) and the sensing options
+    it adds: ideal, ``--width`` (default 640) by 3/4 of it; under ``--realism``, the preset's camera at
+    its own size, or at ``--width`` with its field of view and aspect kept, and the corner noise of its
+    calibration views measured once for every plate (``realism.measure_corner_noise``)."""
+    grid = parse_grid(args.grid) if args.grid else {}
+    if args.realism in (None, "ideal"):
+        width = args.width or DEFAULT_WIDTH
+        return SampleConfig(scene=SceneParams(width=width, height=width * 3 // 4, pattern=grid), render=render), {}
+    from dataclasses import replace  # noqa: PLC0415
+
+    from platebench.bench.cli.render import realism_camera_at_width  # noqa: PLC0415
+    from platebench.bench.config.presets import with_realism  # noqa: PLC0415
+    from platebench.bench.run.realism import measure_corner_noise  # noqa: PLC0415
+
+    cfg = with_realism(SampleConfig(scene=SceneParams(pattern=grid), render=render), args.realism)
+    if args.width is not None:
+        at = replace(cfg, scene=replace(cfg.scene, width=args.width,
+                                        height=max(16, round(args.width * cfg.scene.height / cfg.scene.width))))
+        cfg = realism_camera_at_width(cfg, at, args.width)
+    noise = measure_corner_noise(cfg) if cfg.realism.estimates else 0.0
+    return cfg, {"corner_noise_px": noise}
+
+
+DEFAULT_WIDTH = 640  # false-boundary: the ideal camera's image width (px)
 MAX_DRAWS = 1000
 ACCURACY_SPP = 16  # the no-source floor of the block's corners: 0.74 mm at spp 4, 0.33 at 16, 0.22 at 64 (8 draws)
 
@@ -328,7 +363,9 @@ def run_cut_squares(args) -> int:
     bends = values(args.bend, "--bend", CUT_BENDS_DEG, 0.0, 350.0)
     axes = values(args.axes, "--axes", CUT_AXES_DEG, 0.0, 179.9)
     distances = values(args.distances, "--distances", CUT_DISTANCES_M, 0.2, 2.0)
-    if not (160 <= args.width <= 4096):
+    if args.width is None:
+        args.width = DEFAULT_WIDTH
+    if args.width is not None and not (160 <= args.width <= 4096):
         raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
     try:
         render = RenderSettings(spp=args.spp, seed=args.seed)
@@ -407,6 +444,10 @@ def table_lines(study) -> list[str]:
     for d, s in detector_scores(rows)["all"].items():
         out.append(f"detector {d:22s} precision {_f(s.precision)}, recall {_f(s.recall)} (TP {s.true_positive}, "
                    f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
+    st = study.settings
+    if st.get("realism"):
+        out.append(f"realism {st['realism']}: " + ", ".join(st.get("realism_sources", [])) + "; each plate's draw: "
+                   + st.get("realism_seeds", "") + f"; corner noise of the calibration views {st.get('corner_noise_px', 0):.3f} px")
     t = study.targets
     out.append(f"targets: silent {t.silent}, errors {t.errors}, cured {t.seen_all_of_curable}/{t.curable} "
                f"({_pct(t.seen_all_frac)} %: the final poses see it all), verified {t.cured_of_verifiable} of the "

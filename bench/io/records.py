@@ -122,6 +122,8 @@ class StudyRow(_Record):
     axis_deg: float | None = None
     aspect: float | None = None
     distance_m: float | None = None
+    realism: str | None = None  # the error model (bench.config.realism) when not ideal, and this plate's draw
+    realism_seed: int | None = None
     outcome: str = "error"
     error: str | None = None
     boundary_verified: bool | None = None

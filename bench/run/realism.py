@@ -17,6 +17,12 @@ camera (``measure_corner_noise``). ``realise(setup, rig, seed)`` then draws one 
 4. the stereo pair: the loop asks for the commanded conventional rig; the robot moves the camera
    there through the estimated mount, once per view (or once for a rigid head), with its errors.
 
+``draw_rig`` does steps 1-3 once (a ``RigDraw``); its ``acquire`` does step 4 for any commanded rig, as
+often as asked: the sensing loop's successive poses are successive moves of the same drawn robot, with
+the same estimates (``realise`` is a draw's first pair). A pose the arm cannot reach from the cell is
+taken with the cell turned about the world's vertical axis (``RigDraw.reach_yaw``: a turntable under the
+plate, exact).
+
 Returns the rig the method is told (commanded poses, estimated intrinsics), the pair that was really
 taken (a ``PosedPair``: render it and cast ground truth from it) and the target pose estimate; and
 what each estimate missed by (``report``), against the truth. Seeds: ``numpy.random.default_rng([seed,
@@ -30,6 +36,7 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET, Cell, TargetBlock, nominal_arm, robot_error_model
 from platebench.bench.config.realism import Realism
@@ -45,6 +52,7 @@ from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import PosedPair, StereoRig
 from platebench.scenes.robot import (
     EyeInHand,
+    IKError,
     Robot,
     RobotErrorModel,
     camera_from_pose,
@@ -55,7 +63,7 @@ from platebench.scenes.robot import (
 )
 from platebench.scenes.scene_spec import RenderSettings
 
-__all__ = ["RealismSetup", "Acquisition", "realise", "realise_sample", "measure_corner_noise", "calibration_view_cameras",
+__all__ = ["RealismSetup", "Acquisition", "RigDraw", "draw_rig", "REACH_YAWS_RAD", "realise", "realise_sample", "measure_corner_noise", "calibration_view_cameras",
            "STREAM_ROBOT", "STREAM_MOVES", "STREAM_CORNERS"]
 
 STREAM_ROBOT, STREAM_MOVES, STREAM_CORNERS = 1, 2, 3
@@ -142,28 +150,137 @@ def _observe(cam: Camera, pts_world: np.ndarray, noise_px: float, rng) -> tuple[
 
 def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
     """One draw of the acquisition of the commanded conventional ``rig`` (see the module doc)."""
+    return draw_rig(setup, rig.left, seed).acquire(rig)
+
+
+@dataclass(frozen=True)
+class RigDraw:
+    """One draw of a real rig before any stereo pair (steps 1-3 of the module doc): the robot as drawn
+    (None: no robot), the estimates the method is told (``K_est``, ``lens_est``: None, a pinhole;
+    ``mount_est``, ``T_block_est``), the truth beside them, and ``report`` (what each estimate missed
+    by). ``acquire(rig)`` takes one stereo pair with it (step 4); successive pairs continue the same
+    draw: the same robot and estimates, each move a new repeatability draw from ``moves`` (a stream
+    that advances: a sensing run's poses are its successive moves). ``camera``: the true camera
+    (intrinsics, image size, lens; its pose is ignored)."""
+
+    realism: Realism
+    cell: Cell
+    camera: Camera
+    robot: Robot | None
+    K_est: np.ndarray
+    lens_est: BrownConrady | None
+    mount_est: np.ndarray
+    T_block_est: np.ndarray
+    T_world_block: np.ndarray
+    moves: np.random.Generator
+    report: dict
+    exact: bool = False  # the robot goes where it is told and the method is told the truth
+
+    def told(self, rig: StereoRig) -> StereoRig:
+        """The conventional ``rig`` as the method is told it: its commanded poses, the estimated
+        intrinsics and lens (CalibrationError when the estimated lens is unusable)."""
+        if self.exact:
+            return rig
+        try:
+            return StereoRig(replace(rig.left, K=self.K_est, distortion=self.lens_est),
+                             replace(rig.right, K=self.K_est, distortion=self.lens_est), rig.baseline_m)
+        except ValueError as e:  # e.g. an estimated lens that folds over inside the image: the draw cannot be measured
+            raise CalibrationError(f"draw {self.realism.seed}: the estimated calibration is unusable: "
+                                   f"{str(e).splitlines()[0]}") from None
+
+    @property
+    def moves_camera(self) -> bool:
+        """True when the cameras really posed are not the commanded ones (a robot, or an estimated mount)."""
+        return not self.exact and (self.robot is not None or self.realism.on("hand_eye"))
+
+    def eye(self) -> EyeInHand:
+        """The camera on the flange: its true mount and the mount the method believes in."""
+        return EyeInHand(self.robot or _exact_robot(self.realism, self.cell), self.cell.mount, self.mount_est,
+                         self.camera)
+
+    def acquire(self, rig: StereoRig, yaw_rad: float = 0.0) -> Acquisition:
+        """The pair really taken for the commanded conventional ``rig`` (step 4 of the module doc): the
+        rig the method is told, the pair that was taken, and how far each view was from its command.
+        ``yaw_rad``: the cell turned about the world's vertical axis through the origin (``reach_yaw``)."""
+        told = self.told(rig)
+        if not self.moves_camera:
+            return Acquisition(told, rig, self.T_block_est, self.T_world_block, dict(self.report))
+        head = None
+        if self.realism.rigid_head:
+            head = invert_pose(camera_pose(rig.left)) @ camera_pose(rig.right)  # the head's true left -> right pose
+        if yaw_rad == 0.0:
+            taken = self.eye().executed_pair(rig, self.moves, head)
+        else:
+            turn = _turn(yaw_rad)  # the cell turned: command the rig as the turned cell sees it, turn back what it took
+            back = invert_pose(turn)
+            turned = self.eye().executed_pair(PosedPair(_moved(back, rig.left), _moved(back, rig.right)), self.moves,
+                                              head)
+            taken = PosedPair(_moved(turn, turned.left), _moved(turn, turned.right))
+        report = {**self.report,
+                  "views": {c: dict(zip(("position_error_m", "rotation_error_rad"),
+                                        pose_difference(camera_pose(taken.cameras[c]), camera_pose(rig.cameras[c]))))
+                            for c in ("left", "right")}}
+        return Acquisition(told, taken, self.T_block_est, self.T_world_block, report)
+
+    def reach_yaw(self, rig: StereoRig, yaws_rad=None) -> float | None:
+        """The first of ``yaws_rad`` (default ``REACH_YAWS_RAD``: no turn first, then ever larger turns)
+        by which the cell turned about the world's vertical axis lets the arm reach both views of ``rig``
+        (its controller's IK, from its seed configuration); None when none does. 0 without a robot."""
+        if self.robot is None or not self.moves_camera:
+            return 0.0
+        eye = self.eye()
+        for yaw in REACH_YAWS_RAD if yaws_rad is None else yaws_rad:
+            turn_back = _turn(-yaw)
+            try:
+                for cam in (rig.left, rig.right):
+                    self.robot.joints_for(eye.command_for(_moved(turn_back, cam)))
+            except IKError:
+                continue
+            return float(yaw)
+        return None
+
+
+# Turns of the cell about the world's vertical axis tried by ``RigDraw.reach_yaw``: none, then +-30 deg
+# steps to a half turn (a turntable under the plate; exact in the simulation).
+REACH_YAWS_RAD = tuple(np.radians([0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0, -120.0, 150.0, -150.0, 180.0]))
+
+
+def _turn(yaw_rad: float) -> np.ndarray:
+    """4x4: a turn by ``yaw_rad`` about the world's vertical axis through the origin."""
+    return pose_matrix(Rotation.from_rotvec([0.0, 0.0, float(yaw_rad)]).as_matrix(), np.zeros(3))
+
+
+def _moved(T, cam: Camera) -> Camera:
+    """``cam`` moved rigidly by the world transform ``T`` (4x4)."""
+    return camera_from_pose(np.asarray(T) @ camera_pose(cam), cam)
+
+
+def draw_rig(setup: RealismSetup, camera: Camera, seed: int) -> RigDraw:
+    """Steps 1-3 of the module doc for the true ``camera`` (intrinsics, image size, lens): the robot,
+    the calibration views and the estimates, draw ``seed``."""
     rz = setup.realism
     cell, target = setup.cell, setup.target
     T_world_block = target.pose_world(cell)
-    K_true, W, H = rig.left.K, rig.left.width, rig.left.height
+    K_true, W, H = camera.K, camera.width, camera.height
     moves = setup.robot_model is not None and not setup.robot_model.exact
+    move_rng = _rng(seed, STREAM_MOVES)
     if not moves and not rz.estimates:  # the robot goes where it is told, the method is told the truth
-        return Acquisition(rig, rig, T_world_block, T_world_block, {"exact": True})
+        return RigDraw(rz, cell, camera, None, K_true, camera.distortion, cell.mount, T_world_block, T_world_block,
+                       move_rng, {"exact": True}, exact=True)
     report: dict = {"exact": False}
     robot = None
     if moves:
         hw = ROBOTS[rz.robot]
         robot = Robot.build(nominal_arm(hw, cell), setup.robot_model, cell.q_seed, _rng(seed, STREAM_ROBOT))
-    move_rng = _rng(seed, STREAM_MOVES)
-    mount_est, T_block_est, K_est, lens_est = cell.mount, T_world_block, K_true, rig.left.distortion
+    mount_est, T_block_est, K_est, lens_est = cell.mount, T_world_block, K_true, camera.distortion
     if rz.estimates:
         corners_block = target.corners_block()
         corners_world = corners_block @ T_world_block[:3, :3].T + T_world_block[:3, 3]
         noise = _rng(seed, STREAM_CORNERS)
-        eye_cal = EyeInHand(robot, cell.mount, cell.mount, rig.left) if robot is not None else None
+        eye_cal = EyeInHand(robot, cell.mount, cell.mount, camera) if robot is not None else None
         flanges, dets = [], []
         for F in calibration_flange_poses(cell, target):
-            cam = eye_cal.move_flange(F, move_rng) if eye_cal is not None else camera_from_pose(F @ cell.mount, rig.left)
+            cam = eye_cal.move_flange(F, move_rng) if eye_cal is not None else camera_from_pose(F @ cell.mount, camera)
             idx, uv = _observe(cam, corners_world, setup.corner_noise_px, noise)
             flanges.append(F)
             dets.append(BoardDetection(idx, uv, corners_block[idx]) if len(idx) >= MIN_VIEW_CORNERS else None)
@@ -186,7 +303,7 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
         else:
             poses = []
             for i in used:
-                ok, rv, tv = cv2.solvePnP(dets[i].object_points, dets[i].image_points, K_true, _opencv_dist(rig.left),
+                ok, rv, tv = cv2.solvePnP(dets[i].object_points, dets[i].image_points, K_true, _opencv_dist(camera),
                                           flags=cv2.SOLVEPNP_ITERATIVE)
                 poses.append(pose_matrix(cv2.Rodrigues(rv)[0], tv))
         if rz.on("hand_eye"):
@@ -199,22 +316,7 @@ def realise(setup: RealismSetup, rig: StereoRig, seed: int) -> Acquisition:
                                   "residual_rotation_rms_rad": he.rotation_rms_rad,
                                   "residual_translation_rms_m": he.translation_rms_m, "views": len(used)}
         report["corner_noise_px"] = setup.corner_noise_px
-    try:
-        told = StereoRig(replace(rig.left, K=K_est, distortion=lens_est),
-                         replace(rig.right, K=K_est, distortion=lens_est), rig.baseline_m)
-    except ValueError as e:  # e.g. an estimated lens that folds over inside the image: the draw cannot be measured
-        raise CalibrationError(f"draw {seed}: the estimated calibration is unusable: {str(e).splitlines()[0]}") from None
-    if robot is None and not rz.on("hand_eye"):
-        return Acquisition(told, rig, T_block_est, T_world_block, report)
-    eye = EyeInHand(robot or _exact_robot(rz, cell), cell.mount, mount_est, rig.left)
-    head = None
-    if rz.rigid_head:
-        head = invert_pose(camera_pose(rig.left)) @ camera_pose(rig.right)  # the head's true left -> right pose
-    taken = eye.executed_pair(rig, move_rng, head)
-    report["views"] = {c: dict(zip(("position_error_m", "rotation_error_rad"),
-                                   pose_difference(camera_pose(taken.cameras[c]), camera_pose(rig.cameras[c]))))
-                       for c in ("left", "right")}
-    return Acquisition(told, taken, T_block_est, T_world_block, report)
+    return RigDraw(rz, cell, camera, robot, K_est, lens_est, mount_est, T_block_est, T_world_block, move_rng, report)
 
 
 def realise_sample(cfg, rig: StereoRig) -> Acquisition:

@@ -14,6 +14,7 @@ import io
 import math
 import time
 import traceback
+import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -162,16 +163,25 @@ class StudyCase:
     axis_deg: float | None = None
     aspect: float = REFERENCE_ASPECT
     distance_m: float = 0.40
+    realism_seed: int | None = None  # under a real rig: this plate's draw (``with_realism_seeds``); None: ideal
 
     def config(self, base: SampleConfig) -> SampleConfig:
         area = base.plate.length_m * base.plate.width_m
         plate = replace(base.plate, length_m=float(np.sqrt(area * self.aspect)),
                         width_m=float(np.sqrt(area / self.aspect)), deformation=self.deformation)
+        if self.realism_seed is not None:
+            return replace(base, plate=plate, realism=base.realism.with_seed(self.realism_seed))
         return replace(base, plate=plate)
 
     def params(self) -> dict:
         return {"case": self.name, "family": self.family, "bend_deg": self.bend_deg, "direction": self.direction,
                 "axis_deg": self.axis_deg, "aspect": round(self.aspect, 3), "distance_m": self.distance_m}
+
+
+def with_realism_seeds(cases: list[StudyCase], seed: int) -> list[StudyCase]:
+    """Each plate's draw of a real rig: ``seed`` plus the CRC-32 of the plate's name, modulo 2^31, so a
+    plate keeps its draw in any set of plates (``sense --realism-seed`` repeats it)."""
+    return [replace(c, realism_seed=(int(seed) + zlib.crc32(c.name.encode())) % 2 ** 31) for c in cases]
 
 
 def _cyl(b: float, d: str, ax: float, **kw) -> StudyCase:
@@ -290,10 +300,13 @@ def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = Sen
     """Run the sensing loop on one plate and flatten what the study needs into a row (``StudyRow``;
     see ``StudyResult``). An exception becomes outcome "error" with its message (never dropped)."""
     params = case.params()
+    cfg = case.config(base)
+    if not cfg.realism.is_ideal:  # the error model and this plate's draw of it
+        params.update(realism=cfg.realism.name, realism_seed=cfg.realism.seed)
     t0 = time.perf_counter()
     try:
-        r = run_sensing(case.config(base), None, replace(options, working_distance_m=case.distance_m,
-                                                         write_stages=False, ground_truth_reach=True))
+        r = run_sensing(cfg, None, replace(options, working_distance_m=case.distance_m,
+                                           write_stages=False, ground_truth_reach=True))
     except Exception as e:  # noqa: BLE001 (a study records every failure and goes on)
         return StudyRow(**params, outcome="error", error=f"{type(e).__name__}: {e}".splitlines()[0],
                         traceback=traceback.format_exc(limit=3), time_s=time.perf_counter() - t0)

@@ -25,7 +25,9 @@ say when it is not sure.
 Decisions are pure functions of measurements in ``reconstruction.strategy``; the simulated robot
 (``sensor``) renders, and holds the ground truth for scoring only: each step's ``gt_visibility``
 and, at the end, the visibility of the true boundary from the final poses, the accuracy and the
-outcome class (``records.OUTCOMES``).
+outcome class (``records.OUTCOMES``). Under a real rig (``cfg.realism``) the loop knows only the
+commanded poses and the estimated hand/eye and calibration (``sensor`` module doc); sensing.json's
+``acquisition`` records the draw and how far each move really landed (``acquisition_record``).
 """
 from __future__ import annotations
 
@@ -159,15 +161,15 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     """Stages 1, 2 and 3 of the paper (module doc). Raises ``PoseError`` on an unreachable pose and
     ``ReconstructionError`` when passive stereo fails at stage 1 or 2."""
     cam, pcam, B = sensor.camera, sensor.projector_camera, sensor.baseline_m
-    pose1 = stage1_pose(np.zeros(3), options.workspace_radius_m, cam, B)
+    pose1 = sensor.within_reach(stage1_pose(np.zeros(3), options.workspace_radius_m, cam, B), options.working_distance_m)
     s1 = sensor.shoot(pose1, PASSIVE, label="stage 1")
-    p1 = passive_stereo(s1.digital["left_passive"], s1.digital["right_passive"], s1.scene.rig)
+    p1 = passive_stereo(s1.digital["left_passive"], s1.digital["right_passive"], s1.measured.rig)
     r1 = StageRecord(1, pose1, len(p1.boundary), p1.stereo.method, gt_visibility_dict(s1.gt_visibility), p1.plane)
 
     pose2 = stage2_pose(p1.boundary, p1.plane, cam, B, options.working_distance_m)
     validate_pose(pose2, p1.boundary, p1.plane, cam, B)
     s2 = sensor.shoot(pose2, PASSIVE, label="stage 2")
-    p2 = passive_stereo(s2.digital["left_passive"], s2.digital["right_passive"], s2.scene.rig)
+    p2 = passive_stereo(s2.digital["left_passive"], s2.digital["right_passive"], s2.measured.rig)
     r2 = StageRecord(2, pose2, len(p2.boundary), p2.stereo.method, gt_visibility_dict(s2.gt_visibility))
 
     # stage 3 (paper V-B): the projector's centre ray through the boundary centre along the normal
@@ -180,10 +182,10 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     s3 = sensor.shoot(pose2, ACTIVE, projector=proj_pose, label="stage 3")
     gt3, vis3 = sensor.dense_ground_truth()
     sample3 = RenderedSample(sensor.cfg, sensor.plate, s3.scene, {**s2.radiance, **s3.radiance},
-                             {**s2.digital, **s3.digital}, gt3, vis3, {}, sensor.renderer.variant)
+                             {**s2.digital, **s3.digital}, gt3, vis3, {}, sensor.renderer.variant, s3.told)
     rec, error, notes = None, None, []
     try:
-        rec = reconstruct(sample3.digital, s3.scene.rig, rays_for(s3.scene), s3.scene.projector.pattern)
+        rec = reconstruct(sample3.digital, s3.measured.rig, rays_for(s3.measured), s3.scene.projector.pattern)
     except ReconstructionError as e:
         error = f"active stage failed: {e}"
         notes.append(error)
@@ -192,8 +194,8 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
                       gt_visibility_dict(vis3), error, 0 if rec is None else len(rec.cut))
     # the stage-2 pose's own outline, measured by the general outline stereo (as every later pose's)
     # (in undistorted pixels: its camera is the rig's pinhole)
-    view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.scene, s2.digital),
-                        s2.scene.rig.left.pinhole, s2.gt_visibility)
+    view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.measured, s2.digital),
+                        s2.measured.rig.left.pinhole, s2.gt_visibility)
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
 
 
@@ -213,19 +215,19 @@ def stage2_verification(sensor: SimulatedSensor, first: FirstStages, rays_for) -
     view = PlannedView("stage 2", first.pose2, "verification", "verification pattern",
                        "stage 3's shot again under the verification pattern: the square centres the loop plans from")
     try:  # every centre, cut squares' too, as at every later pose: the projector check below judges them
-        rec = reconstruct(images, shot.scene.rig, rays_for(shot.scene), shot.scene.projector.pattern,
+        rec = reconstruct(images, shot.measured.rig, rays_for(shot.measured), shot.scene.projector.pattern,
                           PipelineOptions(keep_cut_squares=True))
     except ReconstructionError as e:
         record = ViewRecord(view, 0, "", gt_visibility_dict(first.view2.gt_visibility), f"active stage failed: {e}")
         return replace(first, records=first.records + (record,),
                        notes=first.notes + (f"stage 2 under the verification pattern failed ({e}): the loop plans "
                                             "from stage 3",))
-    active = on_feature_rays(first.view2.name, rec.points, rec.uv_left, rays_for(shot.scene),
+    active = on_feature_rays(first.view2.name, rec.points, rec.uv_left, rays_for(shot.measured),
                              rowcol=pattern_rowcol(shot.scene.projector.pattern))
     o = first.view2.outline
     record = ViewRecord(view, len(o.points), o.method, gt_visibility_dict(first.view2.gt_visibility), None,
                         active.to_dict())
-    return replace(first, records=first.records + (record,), rec_verify=rec, scene_verify=shot.scene)
+    return replace(first, records=first.records + (record,), rec_verify=rec, scene_verify=shot.measured)
 
 
 def stage3_active(first: FirstStages, rays_for) -> ActivePoints | None:
@@ -452,7 +454,7 @@ def verification_stage(sensor: SimulatedSensor, first: FirstStages, m: Measureme
 def detectors(first: FirstStages, m: Measurements) -> tuple[DetectorResult, ...]:
     """The detectors of a false boundary at the stage-2 pose (``reconstruction.strategy.detectors``)."""
     rec, view2 = first.rec, first.view2
-    rig = first.sample3.scene.rig
+    rig = first.sample3.calibration_rig  # the rig the loop is told
     cams = np.array([rig.left.center, rig.right.center])
     return tuple(paper_tests(rec.false_boundary) if rec is not None else []) + (
         viewpoint_consistency(view2.outline, m.verdict), occluding_contour(view2.outline, m.model),
@@ -541,7 +543,7 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     ``out/stage3``, ``sensing.json`` and ``multiview.npz`` (every pose's outline, its confirmed
     points, the merged boundary, and the true boundary for plots)."""
     t0 = time.perf_counter()
-    sensor = sensor or SimulatedSensor(cfg, progress, options.verify_grid)
+    sensor = sensor or SimulatedSensor(cfg, progress, options.verify_grid, corner_noise_px=options.corner_noise_px)
     rays_for = feature_rays or _true_rays
     first = first_stages(sensor, options, rays_for)
     if options.verification and options.active_views:
@@ -559,12 +561,22 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     reach_poses = m.poses + [v.pose for v in verif] + [v.pose for v in cands]
     final = final_record(sensor, first, m, cures, reach_poses, options)
     result = SensingResult(cfg, tuple(steps), dets, verif, cures, m.verdict, final, tuple(notes),
-                           time.perf_counter() - t0, tuple(m.outlines), sensor.patterns)
+                           time.perf_counter() - t0, tuple(m.outlines), sensor.patterns, acquisition_record(sensor))
     if out is not None:
         write_json(Path(out) / "sensing.json", result.to_dict())
         write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary),
                         m.merged())
     return result
+
+
+def acquisition_record(sensor: SimulatedSensor) -> dict | None:
+    """sensing.json's record of a real rig (None: ideal): the realism and its draw, what the draw's
+    estimates missed by (``realism.RigDraw.report``), and every move: the view, the turn of the cell,
+    how far each camera really stood from its command (the loop knows only the command)."""
+    d = sensor.rig_draw
+    if d is None:
+        return None
+    return {"realism": d.realism.to_dict(), "estimates": d.report, "moves": list(sensor.moves)}
 
 
 def write_multiview(path: Path, views: list[ViewOutline], verdict: BoundaryVerdict, true_boundary,

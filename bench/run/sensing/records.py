@@ -96,6 +96,9 @@ class SensingOptions:
     # For scoring only: cast ground truth's boundary visibility from every pose the loop could reach
     # (its verification views and cure candidates) to say whether a reachable set sees the boundary.
     ground_truth_reach: bool = False
+    # A real rig (``cfg.realism`` not ideal): the corner-localisation noise of its calibration views
+    # (px; ``bench.run.realism.RealismSetup``); None: measured on renders at the start of the run.
+    corner_noise_px: float | None = None
 
 
 @dataclass(frozen=True)
@@ -240,6 +243,9 @@ class SensingResult:
     views: tuple[ViewOutline, ...] = ()  # every measuring pose's outline (not in sensing.json: multiview.npz)
     # the projected patterns (``Pattern.description``): stage 3's, and the verification views' and cures'
     patterns: dict = field(default_factory=dict)
+    # a real rig (``cfg.realism`` not ideal): what its draw's estimates missed by
+    # (``bench.run.realism.RigDraw.report``) and every move, commanded vs really posed; None: ideal
+    acquisition: dict | None = None
 
     @property
     def cures(self) -> int:
@@ -251,4 +257,5 @@ class SensingResult:
                 "verification_views": [v.to_dict() for v in self.verification_views],
                 "cures": self.cures, "cure_views": [v.to_dict() for v in self.cure_views],
                 "verdict": self.verdict.to_dict(), "notes": list(self.notes),
-                "patterns": self.patterns, "final": self.final.to_dict(), "time_s": self.time_s}
+                "patterns": self.patterns, "final": self.final.to_dict(), "time_s": self.time_s,
+                **({} if self.acquisition is None else {"acquisition": self.acquisition})}

@@ -6,7 +6,11 @@ truth's boundary visibility beside it for scoring only. ``passive_view`` is one 
 the loop: the passive pair rendered and its outline measured by the general outline stereo, and,
 when asked, the active pair (projector beside the rig, ``active_views.projector_pose``, projecting
 the verification pattern) and its checked square centres (``reconstruction.strategy.active_views``).
-World frame, metres.
+
+Under a real rig (``cfg.realism`` not ideal) every shot is a move of one drawn robot
+(``bench.run.realism.RigDraw``): the images and ground truth come from the cameras really posed, and
+every measurement is made with the rig the loop is told (``Shot.measured``: the commanded poses, the
+estimated intrinsics and lens). World frame, metres.
 """
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from platebench.bench.config import SampleConfig, parse_grid
+from platebench.bench.run.realism import RealismSetup, draw_rig
 from platebench.bench.run.render import ground_truth_at, render_images
 from platebench.bench.run.sensing.records import auto_verify_grid
 from platebench.plates import build_plate
@@ -23,24 +28,34 @@ from platebench.reconstruction.paper.outline_stereo import match_outlines
 from platebench.reconstruction.paper.plate_region import ReconstructionError, plate_mask
 from platebench.reconstruction.strategy.active_views import ActivePoints, active_points, projector_pose
 from platebench.reconstruction.strategy.multiview import ViewOutline
-from platebench.reconstruction.strategy.poses import SensorPose
+from platebench.reconstruction.strategy.poses import PoseError, SensorPose
 from platebench.scenes.render.ground_truth import GroundTruthCaster, combined_visibility
+from platebench.scenes.rig import StereoRig
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
 
 PASSIVE = ("left_passive", "right_passive")
+REACH_STEP_M = 0.01  # ``within_reach``: a pose out of the robot's reach comes closer by this much at a time
 ACTIVE = ("left_active", "right_active")
 
 
 @dataclass(frozen=True)
 class Shot:
-    """One render at a pose: the scene, images by name (radiance and digitised), and ground truth's
-    boundary visibility (camera -> ``BoundaryVisibility``; for scoring only)."""
+    """One render at a pose: the scene rendered (the cameras really posed: ground truth), images by
+    name (radiance and digitised), ground truth's boundary visibility (camera -> ``BoundaryVisibility``;
+    for scoring only), and ``told``: the rig the loop is told (commanded poses, estimated calibration;
+    None: the rendered one, a rig without errors)."""
 
     scene: SceneSpec
     radiance: dict
     digital: dict
     gt_visibility: dict
+    told: StereoRig | None = None
+
+    @property
+    def measured(self) -> SceneSpec:
+        """The scene as the loop knows it: the told rig, the projector as placed."""
+        return self.scene if self.told is None else self.scene.with_rig(self.told)
 
 
 @dataclass(frozen=True)
@@ -73,6 +88,11 @@ def measure_outline(name: str, scene: SceneSpec, digital: dict, masks: dict | No
     return ViewOutline.from_stereo(name, st, scene.rig.center, scene.rig.left)
 
 
+def _same_rig(a, b) -> bool:
+    """True when two commanded rigs place both cameras identically."""
+    return all(np.array_equal(x.R, y.R) and np.array_equal(x.t, y.t) for x, y in ((a.left, b.left), (a.right, b.right)))
+
+
 class SimulatedSensor:
     """The rig of ``cfg``'s scene on a robot; the passive light rides with it (``follows_rig``).
     Stage 3 projects ``cfg``'s pattern; the measuring poses after it (``passive_view``) project
@@ -80,11 +100,16 @@ class SimulatedSensor:
     the image width; None: ``cfg``'s pattern too), from the same projector."""
 
     def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None,
-                 overlap: bool | None = None):
+                 overlap: bool | None = None, corner_noise_px: float | None = None):
         self.cfg = cfg
         self.overlap = overlap  # passive_views' overlap of renders and measurements (None: on a GPU)
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
+        # a real rig (``cfg.realism`` not ideal): one draw of the robot and the estimates for the whole run
+        self.rig_draw = None if cfg.realism.is_ideal else draw_rig(
+            RealismSetup.prepare(cfg.realism, cfg, corner_noise_px=corner_noise_px), built.rig.left, cfg.realism.seed)
+        self.moves: list[dict] = []  # each acquisition of a real rig: commanded vs really posed (``_acquire``)
+        self._last = None  # (commanded rig, Acquisition) of the last move: a shot at the same pose reuses it
         proj = self.base.projector
         if verify_grid == "auto":
             verify_grid = auto_verify_grid(self.base.rig.left.width)
@@ -93,7 +118,8 @@ class SimulatedSensor:
         same = grid is None or grid.description == proj.pattern.description
         self.verify_base = self.base if same else replace(self.base, projector=proj.with_pattern(grid))
         self.plate = build_plate(cfg.plate)
-        self.camera = self.base.rig.left
+        # the camera the loop plans with: the estimated one under a real rig
+        self.camera = self.base.rig.left if self.rig_draw is None else self.rig_draw.told(self.base.rig).left
         self.projector_camera = self.base.projector.camera
         self.baseline_m = self.base.rig.baseline_m
         self.renderer = None
@@ -112,14 +138,50 @@ class SimulatedSensor:
                               projector_center=None if projector is None else projector.center,
                               projector_target=None if projector is None else projector.target)
 
+    def within_reach(self, pose: SensorPose, nearest_m: float) -> SensorPose:
+        """``pose``, or under a real rig whose robot cannot reach it, the same line of sight brought
+        closer to its target (steps of ``REACH_STEP_M``, no closer than ``nearest_m``) until the robot
+        reaches it from some turn of the cell (``RigDraw.reach_yaw``); its reason says so. ``pose`` when
+        none does (``shoot`` then refuses it)."""
+        if self.rig_draw is None:
+            return pose
+        d0 = pose.distance_m
+        for d in np.arange(d0, nearest_m - REACH_STEP_M / 2, -REACH_STEP_M):
+            p = replace(pose, center=pose.target - pose.view_dir * d)
+            if self.rig_draw.reach_yaw(self.scene_at(p).rig) is not None:
+                return p if d == d0 else replace(p, reason=f"{pose.reason}; brought to {d * 1e3:.0f} mm, the farthest "
+                                                 f"the robot ({self.cfg.realism.robot}) reaches ({d0 * 1e3:.0f} mm asked)")
+        return pose
+
     def shoot(self, pose: SensorPose, names, projector: SensorPose | None = None, label: str = "",
               verify: bool = False) -> Shot:
         """Render the images ``names`` with the rig at ``pose`` (and the projector at ``projector``,
         projecting the verification pattern if ``verify``)."""
         self._progress(f"{label}: render" if label else "render")
         scene = self.scene_at(pose, projector, verify)
+        told = None
+        if self.rig_draw is not None:
+            acq = self._acquire(scene.rig, label)
+            scene, told = scene.with_rig(acq.taken), acq.told
         rad, dig, vis, self.renderer = render_images(self.cfg, self.renderer, scene, self.plate, names)
-        return Shot(scene, rad, dig, vis)
+        return Shot(scene, rad, dig, vis, told)
+
+    def _acquire(self, rig, label: str):
+        """The robot moved to the commanded ``rig`` (``realism.RigDraw.acquire``), the cell turned when
+        the arm cannot reach it otherwise (``RigDraw.reach_yaw``; ``PoseError`` when no turn lets it).
+        A shot at the same commanded rig as the last one is taken where the robot already stands (at
+        each view the camera takes its passive and active images before it moves on)."""
+        if self._last is not None and _same_rig(self._last[0], rig):
+            return self._last[1]
+        yaw = self.rig_draw.reach_yaw(rig)
+        if yaw is None:
+            raise PoseError(f"{label or 'pose'}: the robot ({self.cfg.realism.robot}) cannot reach this pose "
+                            "from any turn of the cell")
+        acq = self.rig_draw.acquire(rig, yaw)
+        self._last = (rig, acq)
+        self.moves.append({"view": label, "cell_turn_deg": float(np.degrees(yaw)), **{
+            f"{c}_{k}": v for c, e in acq.report.get("views", {}).items() for k, v in e.items()}})
+        return acq
 
     def dense_ground_truth(self) -> tuple[dict, dict]:
         """Dense ground truth and boundary visibility at the last shot's scene (scoring only)."""
@@ -161,15 +223,25 @@ class SimulatedSensor:
         from platebench.scenes.render.runtime import default_variant  # noqa: PLC0415
         return (self.cfg.variant or default_variant()).startswith("cuda")
 
-    def _shoot_view(self, name: str, pose: SensorPose, active: bool) -> Shot:
-        return self.shoot(pose, PASSIVE + (ACTIVE if active else ()), projector=projector_pose(pose) if active else None,
-                          label=name, verify=True)
+    def _shoot_view(self, name: str, pose: SensorPose, active: bool) -> Shot | PoseError:
+        """The view's shot; under a real rig, the ``PoseError`` of a pose its robot cannot reach."""
+        try:
+            return self.shoot(pose, PASSIVE + (ACTIVE if active else ()),
+                              projector=projector_pose(pose) if active else None, label=name, verify=True)
+        except PoseError as e:
+            if self.rig_draw is None:
+                raise
+            return e
 
-    def _measure_view(self, name: str, pose: SensorPose, shot: Shot, rays_for) -> PassiveView:
-        """The outline (and, with ``rays_for``, the checked square centres) measured from ``shot``."""
-        # a distorted camera's images are measured undistorted, with its pinhole (reconstruction.calibration.undistort)
-        digital, rig = undistort_views(shot.digital, shot.scene.rig)
-        scene = replace(shot.scene, rig=rig)
+    def _measure_view(self, name: str, pose: SensorPose, shot: Shot | PoseError, rays_for) -> PassiveView:
+        """The outline (and, with ``rays_for``, the checked square centres) measured from ``shot``
+        (a pose the robot could not reach: no outline, the reason as the error)."""
+        if isinstance(shot, PoseError):
+            return PassiveView(name, pose, None, self.camera, {}, f"not taken: {shot}")
+        # a distorted camera's images are measured undistorted, with its pinhole (reconstruction.calibration.undistort);
+        # under a real rig, with the estimated lens, at the commanded poses (``Shot.measured``)
+        digital, rig = undistort_views(shot.digital, shot.measured.rig)
+        scene = replace(shot.measured, rig=rig)
         try:
             masks = plate_masks(digital)
             o = measure_outline(name, scene, digital, masks)
@@ -179,7 +251,7 @@ class SimulatedSensor:
         if rays_for is not None:
             try:
                 active = active_points(name, digital, {c: m.mask for c, m in masks.items()}, rig,
-                                       rays_for(shot.scene), shot.scene.projector.pattern)
+                                       rays_for(shot.measured), shot.scene.projector.pattern)
             except ReconstructionError:  # no square inside the outline: recorded as 0 points (ViewRecord.active)
                 active = ActivePoints.empty(name)
         return PassiveView(name, pose, o, rig.left, shot.gt_visibility, active=active)
