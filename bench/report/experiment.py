@@ -27,7 +27,7 @@ from platebench.bench.report.inputs import (
     score_document_paths,
 )
 from platebench.bench.report.page import Page
-from platebench.bench.report.values import finite, flag, fmt
+from platebench.bench.report.values import finite, fmt
 from platebench.evaluation.metrics_row import MetricsRow, metric_label, metric_unit
 
 __all__ = ["recon_section", "sample_section", "compare_section", "score_section", "is_reference", "score_figures"]
