@@ -151,6 +151,39 @@ def test_a_small_study_runs_and_reports(tmp_path):
 
 
 @pytest.mark.render
+def test_an_interrupt_stops_the_plates_running_in_the_worker_processes():
+    """An interrupt while plates run in worker processes stops them: the pool's processes are gone
+    within seconds, not when their plates would have finished (Python's exit joins a process pool,
+    and a SIGTERM to the study alone left its workers computing). The interrupt is raised from the
+    progress callback as the flat plate finishes; the other, a 240-degree curl that takes 17 or so
+    poses (a minute or more at 640 x 480 and spp 8), is still running then."""
+    import multiprocessing
+    import time
+
+    from platebench.bench.config import SampleConfig, SceneParams
+    from platebench.bench.run.sensing import SensingOptions
+    from platebench.bench.run.study import _study_rows, study_cases
+    from platebench.scenes.scene_spec import RenderSettings
+    cases = [c for c in study_cases() if c.name in ("flat (cylinder 0)", "cylinder 240 down axis 30")]
+    assert len(cases) == 2
+    base = SampleConfig(scene=SceneParams(width=640, height=480), render=RenderSettings(spp=8))
+    before = set(multiprocessing.active_children())
+    workers = []
+
+    def progress(k, row):
+        workers.extend(p for p in multiprocessing.active_children() if p not in before and p.is_alive())
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        list(_study_rows(cases, base, SensingOptions(), progress, workers=2))
+    assert workers, "no worker process was running when the first plate finished"
+    deadline = time.monotonic() + 5.0
+    while any(p.is_alive() for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(p.is_alive() for p in workers), [p.pid for p in workers if p.is_alive()]
+
+
+@pytest.mark.render
 def test_an_interrupted_study_keeps_its_finished_plates_and_resume_runs_the_rest(tmp_path):
     """SIGTERM as the first plate's progress line arrives (its row is in the journal by then): exit 143,
     no output folder, the finished plate kept (and said so). Without --resume or --overwrite the

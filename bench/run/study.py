@@ -516,8 +516,11 @@ def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOpti
             rows[futures[fut]] = row
             if progress is not None:
                 progress(futures[fut], row)
-    except BaseException:  # interrupted: do not wait for the plates running (the workers die with us)
+    except BaseException:  # interrupted: stop the plates running, never wait for them
+        running = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
+        for proc in running:  # else Python's exit joins the pool, which lets every plate in flight finish
+            proc.terminate()
         raise
     pool.shutdown()
     yield from rows
