@@ -85,17 +85,20 @@ def test_stale_temporary_names_of_dead_owners_are_swept_live_ones_kept(tmp_path)
     assert [p.name for p in tmp_path.iterdir()] == [f".tmp-x~{host}~{os.getpid()}~cd34"]
 
 
-def test_an_existing_empty_folder_takes_a_sweep_only_with_overwrite_or_resume(tmp_path):
+def test_an_existing_empty_folder_takes_a_sweep_and_a_folder_with_files_does_not(tmp_path):
+    """An empty folder (a mount point made for the dataset) holds nothing to lose: the sweep writes
+    into it. A folder with anything in it needs --resume or --overwrite."""
     from platebench.bench.sweep.dataset import DatasetLayoutError, check_dataset
     from platebench.bench.sweep.spec import parse_spec
     spec = parse_spec({"base": {"scene": {"width": 64, "height": 48}}, "grid": {"bend_deg": [0]}})
     out = tmp_path / "ds"
     assert check_dataset(out, spec, resume=False, overwrite=False) is None  # new: created by the sweep
     out.mkdir()
+    assert check_dataset(out, spec, resume=False, overwrite=False) is None
+    (out / "notes.txt").write_text("mine")
     with pytest.raises(DatasetLayoutError, match="already exists"):
         check_dataset(out, spec, resume=False, overwrite=False)
-    assert check_dataset(out, spec, resume=False, overwrite=True) is None
-    assert check_dataset(out, spec, resume=True, overwrite=False) is None
+    assert (out / "notes.txt").read_text() == "mine"
 
 
 def test_a_sweep_killed_before_its_first_manifest_can_be_resumed(tmp_path):

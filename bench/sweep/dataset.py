@@ -434,12 +434,8 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
         guard_output(out)
     if os.path.lexists(out) and not out.is_dir():
         raise DatasetLayoutError(f"{out} exists and is not a directory")
-    if not out.is_dir():
-        return None
-    if not any(out.iterdir()):  # an empty folder: taken with --overwrite or --resume only, as every output is
-        if overwrite or resume:
-            return None
-        raise DatasetLayoutError(f"{out} already exists (empty; use --overwrite to write the dataset into it)")
+    if not (out.is_dir() and any(out.iterdir())):
+        return None  # new, or an empty folder (a mount point made for the dataset): nothing there to lose
     manifest = read_manifest(out)
     if manifest is None and (overwrite or resume):
         manifest = recover_manifest(out, spec if resume else None)
