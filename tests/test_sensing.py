@@ -415,7 +415,8 @@ def test_a_batch_rendered_while_earlier_views_are_measured_gives_the_same_run():
     from platebench.bench.run.sensing.sensor import SimulatedSensor
     cfg = with_overrides(SampleConfig(scene=SENSE.scene, render=RenderSettings(spp=2, seed=3)), bend_deg=60.0,
                          bend_axis_deg=30.0)
-    runs = [run_sensing(cfg, None, SensingOptions(), sensor=SimulatedSensor(cfg, overlap=overlap))
+    opts = SensingOptions()  # the verification grid of sense's defaults, as the sensor below projects it
+    runs = [run_sensing(cfg, None, opts, sensor=SimulatedSensor(cfg, verify_grid=opts.verify_grid, overlap=overlap))
             for overlap in (False, True)]
     docs = [r.to_dict() for r in runs]
     for d in docs:
