@@ -376,6 +376,17 @@ class DaskExecutor:
             while waiting and len(pending) < limit:
                 submit(waiting.pop(0))
 
+        def run_again(key, fut, t: SampleTask) -> bool:
+            """Submit ``t`` again (its result was lost with a worker), at most ``MAX_REFETCH`` times."""
+            refetched[t.sample_id] += 1
+            if refetched[t.sample_id] > MAX_REFETCH:
+                return False
+            del pending[key]
+            with contextlib.suppress(Exception):
+                fut.release()
+            submit(t, refetched[t.sample_id])
+            return True
+
         top_up()
         total, done = len(tasks), 0
         next_check = time.monotonic() + 2.0
@@ -386,9 +397,12 @@ class DaskExecutor:
                 status = fut.status
                 if status in ("pending",):
                     continue
-                if status in ("cancelled", "lost") or client.status != "running":
-                    raise self._lost(done, total, f"its futures were {status}" if status in ("cancelled", "lost")
+                if status == "cancelled" or client.status != "running":
+                    raise self._lost(done, total, "its futures were cancelled" if status == "cancelled"
                                      else f"client {client.status}")
+                if status == "lost" and run_again(key, fut, t):  # its result died with the worker holding it
+                    progressed = True
+                    continue
                 try:
                     if status == "finished":
                         res, exc = fut.result(timeout=self.connect_timeout_s), None
@@ -401,12 +415,7 @@ class DaskExecutor:
                     # its result was lost. Run it again (the sweep process commits only verified
                     # attempts); if no worker is left, the no-worker timeout below stops the sweep with
                     # the sample still pending, never recorded as failed.
-                    refetched[t.sample_id] += 1
-                    if refetched[t.sample_id] <= MAX_REFETCH:
-                        del pending[key]
-                        with contextlib.suppress(Exception):
-                            fut.release()
-                        submit(t, refetched[t.sample_id])
+                    if run_again(key, fut, t):
                         progressed = True
                         continue
                     res, exc = None, e
