@@ -129,7 +129,8 @@ def test_every_path_and_module_named_to_a_reader_exists():
 
 def test_the_checker_finds_stale_references():
     # the rules above, on references that moved or point outside
-    assert _path_problem("bench/sweep_spec.py") and _path_problem("../shared/DESIGN.md")
+    moved = "bench/" + "sweep_spec.py"  # in pieces: this file is scanned for stale paths too
+    assert _path_problem(moved) and _path_problem("../shared/DESIGN.md")
     assert _path_problem("DESIGN.md") and _module_problem("bench.perf_sweep")
     assert _module_problem("platebench.scenes.mitsuba_convert")
     assert not _path_problem("bench/sweep/spec.py") and not _path_problem("docs/architecture.md")
@@ -144,26 +145,25 @@ def test_every_flag_of_every_command_says_what_it_does():
     assert not bare, "flags without help text: " + ", ".join(bare)
 
 
-# Words of the product's history, not of the product: what made it (an issue tracker, a harness that
+# Words of the product's history, not of the product: what made it (a tracker of work items, a harness that
 # is not in the repository, a person stopping a run) has no place in what users read.
-HISTORY = re.compile(r"\bissues?\b|dev harness|where I stopped|\bitems? \d+\b|as the issue|the issue's",
-                     re.IGNORECASE)
+# The words are written in pieces, so that this file, scanned like any other, does not say them itself.
+TRACKER, HARNESS, STOPPED = "iss" + "ue", "dev " + "harness", "where I " + "stopped"
+HISTORY = re.compile(rf"\b{TRACKER}s?\b|{HARNESS}|{STOPPED}|\bitems? \d+\b", re.IGNORECASE)
 
 
 def test_the_product_speaks_of_itself_not_of_its_history():
     said = []
     for p in _files({".py", ".md", ".toml", ".html", ".css", ".txt"}) + [REPO / "Makefile", REPO / ".ci" / "run"]:
         rel = p.relative_to(REPO).as_posix()
-        if rel == "tests/test_references.py":
-            continue
         for i, line in enumerate(p.read_text().splitlines(), 1):
             if HISTORY.search(line):
                 said.append(f"{rel}:{i}: {line.strip()[:120]}")
     assert not said, "\n".join(said)
 
 
-@pytest.mark.parametrize("line", ["cured, as the issue counts it", "the issue's targets", "(dev harness, renders)",
-                                  "Issue 13, item 9: bad inputs", "where I stopped that run"])
+@pytest.mark.parametrize("line", [f"cured, as the {TRACKER} counts it", f"the {TRACKER}'s targets", f"({HARNESS}, renders)",
+                                  f"{TRACKER.title()} 13, it" "em 9: bad inputs", f"{STOPPED} that run"])
 def test_history_words_are_caught(line):
     assert HISTORY.search(line)
 
