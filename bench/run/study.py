@@ -503,7 +503,7 @@ def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOpti
     import os  # noqa: PLC0415
     from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: PLC0415
 
-    from platebench.bench.run.workers import pool_worker_init  # noqa: PLC0415
+    from platebench.bench.run.workers import pool_worker_init, stop_pool  # noqa: PLC0415
 
     threads = max(1, (os.cpu_count() or 1) // workers)
     rows: list[StudyRow | None] = [None] * len(cases)
@@ -516,11 +516,8 @@ def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOpti
             rows[futures[fut]] = row
             if progress is not None:
                 progress(futures[fut], row)
-    except BaseException:  # interrupted: stop the plates running, never wait for them
-        running = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in running:  # else Python's exit joins the pool, which lets every plate in flight finish
-            proc.terminate()
+    except BaseException:  # interrupted: stop the plates running, never wait for them to finish
+        stop_pool(pool)
         raise
     pool.shutdown()
     yield from rows

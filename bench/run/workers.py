@@ -3,6 +3,7 @@ with the parent. Used by the study's process pool (``bench.run.study``) and the 
 (``bench.sweep``)."""
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -36,3 +37,17 @@ def pool_worker_init(parent_pid: int | None = None, render_threads: int | None =
     """Initializer of a process pool's workers: ``die_with_parent`` and ``set_render_threads``."""
     set_render_threads(render_threads)
     die_with_parent(parent_pid)
+
+
+def stop_pool(pool) -> None:
+    """Stop a ``concurrent.futures.ProcessPoolExecutor`` now: terminate its workers, cancel what is
+    queued, and wait (10 s at most each) until they are gone. ``shutdown(wait=False)`` alone is not
+    enough: Python's exit joins the pool, so every task in flight would run to its end."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(timeout=10)

@@ -52,6 +52,7 @@ from platebench.bench import interrupts
 from platebench.bench.io.atomic import pid_alive, swap_in, sweep_stale
 from platebench.bench.io.fs_errors import RunStopped, environmental
 from platebench.bench.io.fs_errors import describe as describe_os_error
+from platebench.bench.run.workers import stop_pool
 from platebench.bench.sweep import dataset as ds
 from platebench.bench.sweep.tasks import (
     SampleTask,
@@ -197,7 +198,7 @@ class LocalExecutor:
             raise
         finally:
             if aborted:
-                _terminate(pool)
+                stop_pool(pool)  # their attempt directories are left, swept by the next run
             else:
                 pool.shutdown(wait=not broken, cancel_futures=True)
                 queue.close()
@@ -218,22 +219,9 @@ class LocalExecutor:
         pool, self._pool = self._pool, None
         if pool is not None:
             if terminate:
-                _terminate(pool)
+                stop_pool(pool)  # their attempt directories are left, swept by the next run
             else:
                 pool.shutdown(wait=False, cancel_futures=True)
-
-
-def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Stop a pool now: cancel what is queued, terminate the workers (their attempt directories are
-    left, swept by the next run)."""
-    procs = list((getattr(pool, "_processes", None) or {}).values())
-    for p in procs:
-        with contextlib.suppress(Exception):
-            p.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        with contextlib.suppress(Exception):
-            p.join(timeout=10)
 
 
 def _drain(queue, started: dict) -> None:
