@@ -4,6 +4,7 @@ pinhole cameras, with the depth noise a stereo outline has, over small perturbat
 geometry and other seeds."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -112,13 +113,18 @@ def test_coinciding_contours_confirm_nothing_and_a_true_edge_turned_about_is_con
 def _samples(spec: PlateSpec, step_m: float, rng) -> tuple[np.ndarray, np.ndarray]:
     """Points every ``step_m`` over the plate (u, v), jittered, with 0.2 mm of noise, and the
     exact front normals there."""
+    return _samples_uv(spec, step_m, rng)[:2]
+
+
+def _samples_uv(spec: PlateSpec, step_m: float, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``_samples`` and the (N,2) material coordinates (u along the length, v across) of each point."""
     L, W = spec.length_m, spec.width_m
     u, v = np.meshgrid(np.arange(-L / 2 + step_m / 2, L / 2, step_m), np.arange(-W / 2 + step_m / 2, W / 2, step_m))
     uv = np.column_stack([u.ravel(), v.ravel()]) + rng.uniform(-step_m / 4, step_m / 4, (u.size, 2))
     uv = np.clip(uv, [-L / 2, -W / 2], [L / 2, W / 2])
     plate = build_plate(spec)
     P = np.asarray(plate.surface_point(uv)) + rng.normal(0.0, 0.2e-3, (len(uv), 3))
-    return P, np.asarray(plate.surface_normal(uv))
+    return P, np.asarray(plate.surface_normal(uv)), uv
 
 
 @pytest.mark.parametrize("deformation", [
@@ -194,3 +200,41 @@ def test_sparse_square_centres_across_a_crease_are_not_trusted_to_orient_it(defo
     sheet" (``Measurements.front_checked``)."""
     P, _ = _paper_grid_centres(PlateSpec(0.1165, 0.0735, deformation=deformation), np.random.default_rng(seed))
     assert sparse_front_side(P).max_turn_rad > SPARSE_MAX_TURN_RAD
+
+
+@pytest.mark.parametrize("deformation", [
+    CylindricalBend(math.radians(120.0), "up", math.radians(60.0)), CylindricalBend(math.radians(121.0), "up",
+                                                                                     math.radians(61.0)),
+    CylindricalBend(math.radians(180.0), "up", math.radians(89.0))], ids=lambda d: f"up{math.degrees(d.angle_rad):.0f}")
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_row_of_centres_cut_off_near_a_steep_corner_is_oriented_with_the_plate(deformation, seed):
+    """Square centres every 7 mm, but none in a 16 mm band before one end of the plate, whose last
+    row stands alone (as one pose's row of squares does beside a steep corner, the squares between
+    cut by the outline or stretched apart by the slope): the row is farther than ``JOIN_M`` from the
+    rest, and is joined to it along the sheet (``BRIDGE_JOIN_M``), its normals the plate's front."""
+    spec = PlateSpec(0.1165, 0.0735, deformation=deformation)
+    P, N, uv = _samples_uv(spec, 7e-3, np.random.default_rng(seed))
+    L = spec.length_m
+    row = uv[:, 0] > L / 2 - 5e-3
+    gap = (uv[:, 0] > L / 2 - 21e-3) & ~row
+    P, N, row = P[~gap], N[~gap], row[~gap]
+    fs = front_side(P)
+    assert fs.known[row].all() and fs.known.mean() > 0.97
+    agree = np.einsum("ij,ij->i", fs.normals, N) > 0
+    assert agree[row].all() and agree[fs.known].mean() > 0.97
+
+
+def test_a_front_reads_its_fallback_only_where_it_knows_no_side():
+    """``FrontSide.fallback``: the sensing loop's front is the square centres' and, where they
+    tell nothing (more than ``SIDE_RADIUS_M`` away), the measured surface's."""
+    spec = PlateSpec(0.1165, 0.0735, deformation=CylindricalBend(math.radians(60.0), "up"))
+    P, _ = _samples(spec, 7e-3, np.random.default_rng(3))
+    middle = np.abs(P[:, 0]) < 0.02
+    dense = front_side(P)
+    sparse = front_side(P[middle])
+    both = dataclasses.replace(sparse, fallback=dense)
+    ends = np.abs(P[:, 0]) > 0.045
+    assert np.isnan(sparse.normals_at(P[ends])).all()
+    assert np.allclose(both.normals_at(P[ends]), dense.normals_at(P[ends]))
+    assert np.allclose(both.normals_at(P[middle]), sparse.normals_at(P[middle]))
+    assert sparse.oriented_share(P) < both.oriented_share(P) == 1.0

@@ -36,6 +36,16 @@ SIDE_CANDIDATES = 8  # nearest surface points tried for a point's side ...
 SAME_SHEET_M = 3e-3  # ... the first whose tangent plane passes this close to it
 TANGENTIAL_RAD = float(np.radians(30.0))  # neighbours joined only along the sheet (two layers face across)
 SEED_VERTICAL_COS = 0.95
+# A part of the surface not joined to the plate's middle within JOIN_M (one pose's row of squares
+# near a steep corner, 18-24 mm from the nearest other centre: the squares between them are cut by
+# the outline or stretched apart by the slope) is joined to an oriented part by its best link of at
+# most BRIDGE_JOIN_M that lies along both sheets within BRIDGE_TANGENTIAL_RAD: a link across two
+# layers runs along their normals (a flap folded over the plate lies 13 mm or more above it, a
+# link to it at least 36 mm long to pass 20 degrees). Without the bridge, the stage-2 outline
+# beside such a row had no known front, no pair could confirm it, and the loop took cures on
+# plates where nothing was hidden (concave cylinders of 120 degrees about axes 60 and 90).
+BRIDGE_JOIN_M = 25e-3
+BRIDGE_TANGENTIAL_RAD = float(np.radians(20.0))
 GRAZING_RAD = float(np.radians(10.0))  # a side is called only this far from grazing
 GRAZING_SIN = float(np.sin(GRAZING_RAD))  # normals this near the vertical vote on which way is up
 SIDE_RADIUS_M = 15e-3  # a point's side is read from the nearest measured surface point this close
@@ -59,13 +69,22 @@ class FrontSide:
     radius_m: float = SIDE_RADIUS_M  # ``normals_at``: how far from a point its side is read
     same_sheet_m: float = SAME_SHEET_M  # ``normals_at``: how close to the point the tangent plane passes
     max_turn_rad: float = 0.0  # the largest angle between the normals of neighbours joined in the oriented part
+    fallback: "FrontSide | None" = None  # read where this one knows no side (``normals_at``)
 
     def normals_at(self, points: np.ndarray) -> np.ndarray:
         """(N,3) the front's unit normal at ``points`` (N,3): that of the nearest oriented surface
         point within ``radius_m`` whose tangent plane passes within ``same_sheet_m`` of the
-        point (on a tight fold the nearest measured point can lie on the other face); NaN where
-        there is none."""
+        point (on a tight fold the nearest measured point can lie on the other face); where there
+        is none, the ``fallback``'s; NaN where neither has one."""
         P = np.atleast_2d(np.asarray(points, float))
+        out = self._own_normals_at(P)
+        if self.fallback is not None:
+            miss = ~np.all(np.isfinite(out), axis=1)
+            if miss.any():
+                out[miss] = self.fallback.normals_at(P[miss])
+        return out
+
+    def _own_normals_at(self, P: np.ndarray) -> np.ndarray:
         out = np.full((len(P), 3), np.nan)
         if not self.known.any() or not len(P):
             return out
@@ -132,7 +151,8 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, r
         return FrontSide(P, normals, known, radius_m, same_sheet_m)
     rows, cols = pairs[:, 0], pairs[:, 1]
     off = P[cols] - P[rows]
-    off /= np.linalg.norm(off, axis=1, keepdims=True)
+    length = np.linalg.norm(off, axis=1)
+    rows, cols, off = rows[length > 0], cols[length > 0], off[length > 0] / length[length > 0, None]  # no repeats
     along = np.maximum(np.abs(np.einsum("ij,ij->i", normals[rows], off)),
                        np.abs(np.einsum("ij,ij->i", normals[cols], off)))
     keep = along <= np.sin(TANGENTIAL_RAD)  # one sheet: neighbours lie along it, not across
@@ -161,7 +181,48 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, r
         child = main[1:]  # each joined to its predecessor in the spanning tree
         turn = float(np.arccos(np.clip(np.einsum("ij,ij->i", normals[child], normals[pred[child]]), -1.0, 1.0)).max(
             initial=0.0))
+        turn = max(turn, _bridge_parts(P, normals, known, [p[0] for p in parts if p[0] is not main], kd, join_m))
     return FrontSide(P, normals, known, radius_m, same_sheet_m, turn)
+
+
+def _bridge_parts(P: np.ndarray, normals: np.ndarray, known: np.ndarray, others: list[np.ndarray], kd: cKDTree,
+                  join_m: float) -> float:
+    """Join the parts ``others`` (index arrays, each oriented within itself) to the oriented points
+    (``known``, updated in place with ``normals``) by their best link of at most
+    ``max(BRIDGE_JOIN_M, join_m)`` lying along both sheets within ``BRIDGE_TANGENTIAL_RAD``
+    (``BRIDGE_JOIN_M``); repeated while a part joins. Returns the largest turn between the
+    normals of a link used (radians; 0.0 for none)."""
+    reach = max(BRIDGE_JOIN_M, join_m)
+    turn = 0.0
+    todo = [o for o in others if len(o)]
+    while todo:
+        best = None
+        for k, part in enumerate(todo):
+            for i, near in zip(part, kd.query_ball_point(P[part], reach)):
+                j = np.asarray(near, int)
+                j = j[known[j]]
+                if not len(j):
+                    continue
+                off = P[j] - P[i]
+                length = np.linalg.norm(off, axis=1)
+                j, off = j[length > 0], off[length > 0] / length[length > 0, None]
+                along = np.maximum(np.abs(off @ normals[i]), np.abs(np.einsum("ij,ij->i", normals[j], off)))
+                ok = along <= np.sin(BRIDGE_TANGENTIAL_RAD)
+                if not ok.any():
+                    continue
+                agree = np.abs(normals[j[ok]] @ normals[i])
+                m = int(np.argmax(agree))
+                if best is None or agree[m] > best[0]:
+                    best = (float(agree[m]), k, i, int(j[ok][m]))
+        if best is None:
+            break
+        _, k, i, j = best
+        part = todo.pop(k)
+        if normals[i] @ normals[j] < 0:
+            normals[part] = -normals[part]
+        known[part] = True
+        turn = max(turn, float(np.arccos(np.clip(best[0], -1.0, 1.0))))
+    return turn
 
 
 def sparse_front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
