@@ -154,9 +154,9 @@ def realism_lines(s: SensingResult) -> list[str]:
     if moves:
         import numpy as np  # noqa: PLC0415
 
-        pos = np.array([[m[f"{c}_position_error_m"] for c in ("left", "right")] for m in moves]) * 1e3
-        rot = np.array([[m[f"{c}_rotation_error_rad"] for c in ("left", "right")] for m in moves]) * 1e3
-        turned = sum(m["cell_turn_deg"] != 0 for m in moves)
+        pos = np.array([[m.views[c].position_error_m for c in ("left", "right")] for m in moves]) * 1e3
+        rot = np.array([[m.views[c].rotation_error_rad for c in ("left", "right")] for m in moves]) * 1e3
+        turned = sum(m.cell_turn_deg != 0 for m in moves)
         out.append(f"  moves       {len(moves)}: cameras really posed {np.median(pos):.3f} mm (max {pos.max():.3f}), "
                    f"{np.median(rot):.3f} mrad (max {rot.max():.3f}) from the commanded poses (median); the loop "
                    f"measured at the commanded poses; cell turned for {turned} of them")

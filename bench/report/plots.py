@@ -974,28 +974,27 @@ def compare_error_figure(cmp) -> bytes:
 
 
 # ----------------------------------------------------------------------------- accuracy study
-def plot_accuracy_study(doc: dict, path) -> Path:
-    """The accuracy study (``bench.run.accuracy``): per target, each draw's worst corner with every source
-    on beside the paper's bound (top), and the error budget: the median worst corner of each budget row
-    with its 5-95 % spread over the draws (bottom). Millimetres."""
-    targets = list(doc.get("summary", {}))
-    paper = doc.get("paper", {})
+def plot_accuracy_study(study, path) -> Path:
+    """The accuracy study (``bench.run.accuracy``, an ``AccuracyStudy``): per target, each draw's worst
+    corner with every source on beside the paper's bound (top), and the error budget: the median worst
+    corner of each budget row with its 5-95 % spread over the draws (bottom). Millimetres."""
+    targets = list(study.summary)
+    paper = study.paper
     fig = _figure(6.5 * max(len(targets), 1), 9.0)
     if not targets:
         ax = fig.add_subplot(1, 1, 1)
         ax.text(0.5, 0.5, "no trials", ha="center", va="center")
         ax.set_axis_off()
         return _save(fig, path)
-    rows = doc.get("rows", [])
     grid = fig.add_gridspec(2, len(targets), height_ratios=[1.0, 1.6])
     for j, target in enumerate(targets):
-        summary = doc["summary"][target]
+        summary = study.summary[target]
         top = fig.add_subplot(grid[0, j])
-        allc = [c for c, v in summary.items() if v.get("kind") == "all"]
-        trials = [r for r in rows if r["target"] == target and allc and r["config"] == allc[0] and r["status"] == "ok"]
-        for k, (key, label, color, bound) in enumerate((("worst_depth_mm", "depth", "C0", paper.get("depth_mm")),
-                                                         ("worst_xy_mm", "x/y", "C1", paper.get("xy_mm")))):
-            v = np.array([r[key] for r in trials], float)
+        allc = [c for c, v in summary.items() if v.kind == "all"]
+        trials = [r for r in study.rows if r.target == target and allc and r.config == allc[0] and r.ok]
+        for k, (worst, label, color, bound) in enumerate(((lambda r: r.worst_depth_mm, "depth", "C0", paper.depth_mm),
+                                                           (lambda r: r.worst_xy_mm, "x/y", "C1", paper.xy_mm))):
+            v = np.array([worst(r) for r in trials], float)
             x = np.full(v.size, float(k)) + np.linspace(-0.25, 0.25, max(v.size, 1))[:v.size]
             top.plot(x, v, "o", color=color, ms=4, alpha=0.7)
             if v.size:
@@ -1011,13 +1010,14 @@ def plot_accuracy_study(doc: dict, path) -> Path:
         labels = list(summary)
         y = np.arange(len(labels))
         for k, (m, color, dy) in enumerate((("depth", "C0", -0.18), ("xy", "C1", 0.18))):
-            med = np.array([summary[c].get(m, {}).get("worst_median_mm", np.nan) for c in labels], float)
-            lo = np.array([summary[c].get(m, {}).get("worst_quantiles_mm", {}).get("q05", np.nan) for c in labels])
-            hi = np.array([summary[c].get(m, {}).get("worst_quantiles_mm", {}).get("q95", np.nan) for c in labels])
+            stats = [summary[c].stats(m) for c in labels]
+            med = np.array([np.nan if s is None else s.worst_median_mm for s in stats], float)
+            lo = np.array([np.nan if s is None else s.worst_quantiles_mm.get("q05", np.nan) for s in stats], float)
+            hi = np.array([np.nan if s is None else s.worst_quantiles_mm.get("q95", np.nan) for s in stats], float)
             ax.barh(y + dy, med, height=0.34, color=color, label="depth" if m == "depth" else "x/y")
             ax.errorbar(med, y + dy, xerr=[np.nan_to_num(med - lo), np.nan_to_num(hi - med)], fmt="none",
                         ecolor="k", lw=0.8, capsize=2)
-        for bound, style in ((paper.get("depth_mm"), "--"), (paper.get("xy_mm"), ":")):
+        for bound, style in ((paper.depth_mm, "--"), (paper.xy_mm, ":")):
             if bound:
                 ax.axvline(bound, color="k", ls=style, lw=1)
         ax.set_yticks(y, labels, fontsize=8)
@@ -1025,7 +1025,7 @@ def plot_accuracy_study(doc: dict, path) -> Path:
         ax.set_xlabel("worst corner, median over draws (mm); whiskers 5-95 %\npaper: -- depth, : x/y")
         ax.set_title(f"{target}: error budget", fontsize=10)
         ax.legend(fontsize=8, loc="lower right")
-    rz = doc.get("settings", {}).get("realism", {}).get("preset", "")
+    rz = study.settings.realism.name
     fig.suptitle(f"Accuracy test (paper V-D) under realism {rz}", fontsize=11)
     fig.tight_layout()
     return _save(fig, path)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.realism_records import DrawReport
 from platebench.bench.run.realism import realise_sample
 from platebench.plates import Plate, build_plate
 from platebench.scenes.naming import IMAGE_NAMES, image_seed
@@ -49,7 +50,7 @@ class RenderedSample:
     timings_s: dict
     variant: str
     told: StereoRig | None = None  # the rig the method is told, when it is not the one rendered (realism)
-    acquisition: dict | None = None  # what the realism's draw missed by (``bench.run.realism.Acquisition.report``)
+    acquisition: DrawReport | None = None  # what the realism's draw missed by (``bench.run.realism.Acquisition.report``)
 
     @property
     def calibration_rig(self) -> StereoRig:
