@@ -59,7 +59,7 @@ def verify_grid_arg(text: str) -> str | None:
     if text.strip() == "auto":
         return "auto"
     try:
-        square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **parse_grid(text))
+        square_grid(REFERENCE.projector_width, REFERENCE.projector_height, **parse_grid(text))
     except UserValueError as e:
         raise UserValueError(str(e).replace("--grid", "--verify-grid") + ", 'auto' or 'stage3'") from None
     except ValueError as e:  # the grid does not fit the projector's image
@@ -165,9 +165,12 @@ def realism_lines(s: SensingResult) -> list[str]:
 
 def grid_text(desc: dict | None) -> str:
     """A square grid's description (``Pattern.description``) as 'ROWSxCOLS@PX (row gap GAP px)'."""
+    from platebench.scenes.pattern import SquareGridLayout  # noqa: PLC0415
+
     if not desc or desc.get("kind") != "square_grid":
         return "-" if not desc else str(desc.get("kind"))
-    return f"{desc['rows']}x{desc['cols']}@{desc['square_px']} (row gap {desc['gap_y_px']} projector px)"
+    g = SquareGridLayout.from_dict(desc)
+    return f"{g.rows}x{g.cols}@{g.square_px} (row gap {g.gap_y_px} projector px)"
 
 
 def run(args) -> int:

@@ -131,7 +131,8 @@ def run(args) -> int:
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
     from platebench.bench.run.study import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
-    from platebench.bench.run.study import perturbed_cases, study_cases, with_realism_seeds, write_study  # noqa: PLC0415
+    from platebench.bench.run.study import StudyRealism, perturbed_cases, study_cases, with_realism_seeds  # noqa: PLC0415
+    from platebench.bench.run.study import write_study  # noqa: PLC0415
 
     if args.which == "cut-squares":
         return run_cut_squares(args)
@@ -182,9 +183,10 @@ def run(args) -> int:
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
                 "workers": args.workers}
     if not base.realism.is_ideal:
-        settings.update(realism=base.realism.name, realism_sources=list(base.realism.sources),
-                        realism_seeds="--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
-                        corner_noise_px=options.corner_noise_px)
+        settings.update(StudyRealism(
+            base.realism.name, base.realism.sources,
+            "--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
+            options.corner_noise_px).to_dict())
     from platebench.bench.run.journal import journal_path  # noqa: PLC0415
 
     ran = 0
@@ -418,7 +420,7 @@ def _yn(v):
 def table_lines(study) -> list[str]:
     """The per-plate table, outcome counts, detector scores and targets of a ``bench.run.study.StudyResult``
     as text lines."""
-    from platebench.bench.run.study import detector_scores  # noqa: PLC0415
+    from platebench.bench.run.study import StudyRealism, detector_scores  # noqa: PLC0415
     from platebench.reconstruction.strategy.detectors import DETECTORS  # noqa: PLC0415
 
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
@@ -444,10 +446,10 @@ def table_lines(study) -> list[str]:
     for d, s in detector_scores(rows)["all"].items():
         out.append(f"detector {d:22s} precision {_f(s.precision)}, recall {_f(s.recall)} (TP {s.true_positive}, "
                    f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
-    st = study.settings
-    if st.get("realism"):
-        out.append(f"realism {st['realism']}: " + ", ".join(st.get("realism_sources", [])) + "; each plate's draw: "
-                   + st.get("realism_seeds", "") + f"; corner noise of the calibration views {st.get('corner_noise_px', 0):.3f} px")
+    rz = StudyRealism.from_dict(study.settings)
+    if rz.realism:
+        out.append(f"realism {rz.realism}: " + ", ".join(rz.realism_sources) + "; each plate's draw: "
+                   + (rz.realism_seeds or "") + f"; corner noise of the calibration views {rz.corner_noise_px or 0:.3f} px")
     t = study.targets
     out.append(f"targets: silent {t.silent}, errors {t.errors}, cured {t.seen_all_of_curable}/{t.curable} "
                f"({_pct(t.seen_all_frac)} %: the final poses see it all), verified {t.cured_of_verifiable} of the "

@@ -17,6 +17,7 @@ import traceback
 import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
@@ -404,6 +405,28 @@ def targets(rows: list[StudyRow]) -> StudyTargets:
                              "cured >= 90 %": at_least(seen_frac, 0.9),
                              "verified >= 90 % of the verifiable": at_least(cured_v_frac, 0.9),
                              "false alarms <= 2 %": None if fa_frac is None else fa_frac <= 0.02})
+
+
+@dataclass(frozen=True)
+class StudyRealism:
+    """The real rig a study measured with (its part of the study's settings; all None: ideal): the
+    realism preset's name, the error sources on, how each plate's draw is seeded and the corner noise
+    of the calibration views (px per axis, measured once for every plate)."""
+
+    realism: str | None = None
+    realism_sources: tuple = ()
+    realism_seeds: str | None = None
+    corner_noise_px: float | None = None
+
+    def to_dict(self) -> dict:
+        return {"realism": self.realism, "realism_sources": list(self.realism_sources),
+                "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px}
+
+    @classmethod
+    def from_dict(cls, settings: Mapping) -> "StudyRealism":
+        """The realism part of a study's settings (the other settings are left alone)."""
+        return cls(settings.get("realism"), tuple(settings.get("realism_sources") or ()),
+                   settings.get("realism_seeds"), settings.get("corner_noise_px"))
 
 
 @dataclass(frozen=True)
