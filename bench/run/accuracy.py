@@ -129,7 +129,7 @@ class SquareTarget:
 
 
 # -- one trial -------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TrialErrors:
     """What one trial measured: each point's error (measured minus true, metres, (N, 3): x, y, z in
     the block's frame or the world's) and the points compared."""

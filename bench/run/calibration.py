@@ -210,7 +210,7 @@ def rotation_angle_rad(Ra: np.ndarray, Rb: np.ndarray) -> float:
     return float(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RayErrors:
     """Per feature (``ids``, (F,)): the angle between an estimated and a true ray (rad, (F,)) and
     the distance between their cuts with a plane z = const (metres, (F,))."""
