@@ -87,6 +87,33 @@ class Pattern:
                 "features": [f.to_dict() for f in self.features]}
 
 
+@dataclass(frozen=True)
+class SquareGridLayout:
+    """The layout of a square grid (``square_grid``; its pattern's ``description``): rows and
+    columns of squares, a square's side, the gap between squares in x and between rows, and the
+    top-left square's corner, in projector pixels."""
+
+    rows: int
+    cols: int
+    square_px: int
+    gap_x_px: int
+    gap_y_px: int
+    x0: int
+    y0: int
+
+    def to_dict(self) -> dict:
+        return {"kind": "square_grid", "rows": self.rows, "cols": self.cols, "square_px": self.square_px,
+                "gap_x_px": self.gap_x_px, "gap_y_px": self.gap_y_px, "x0": self.x0, "y0": self.y0}
+
+    @classmethod
+    def from_dict(cls, d) -> "SquareGridLayout":
+        """A square grid's description (``to_dict``); ValueError for another pattern's."""
+        if d.get("kind") != "square_grid":
+            raise ValueError(f"pattern description of kind {d.get('kind')!r} is not a square grid's")
+        return cls(int(d["rows"]), int(d["cols"]), int(d["square_px"]), int(d["gap_x_px"]), int(d["gap_y_px"]),
+                   int(d["x0"]), int(d["y0"]))
+
+
 def square_grid(width: int, height: int, rows: int = 4, cols: int = 4, square_px: int = 40,
                 gap_x_px: int = 24, gap_y_px: int = 80, center=None) -> Pattern:
     """The paper's array of squares: ``rows`` horizontal square arrays of ``cols`` squares.
@@ -121,8 +148,7 @@ def square_grid(width: int, height: int, rows: int = 4, cols: int = 4, square_px
             lo_v, hi_v = r0 - 0.5, r0 + square_px - 0.5
             features.append(Feature(fid, r, c, (c0 + (square_px - 1) / 2.0, r0 + (square_px - 1) / 2.0),
                                     ((lo_u, lo_v), (hi_u, lo_v), (hi_u, hi_v), (lo_u, hi_v))))
-    desc = {"kind": "square_grid", "rows": rows, "cols": cols, "square_px": square_px,
-            "gap_x_px": gap_x_px, "gap_y_px": gap_y_px, "x0": x0, "y0": y0}
+    desc = SquareGridLayout(rows, cols, square_px, gap_x_px, gap_y_px, x0, y0).to_dict()
     return Pattern(image, tuple(features), fmap, desc)
 
 

@@ -114,10 +114,25 @@ class SceneSpec:
         return replace(self, rig=rig)
 
 
+@dataclass(frozen=True)
+class ReferenceSetup:
+    """The reference experiment's set-up: the cameras' height above the plate (m), their image size
+    (px), focal length (px) and baseline (m), the projector's image size (px) and focal length (px)."""
+
+    distance_m: float
+    width: int
+    height: int
+    f_px: float
+    baseline_m: float
+    projector_width: int
+    projector_height: int
+    projector_f_px: float
+
+
 # Reference experiment (paper V-A; docs/architecture.md): cameras 0.40 m above the plate looking
 # straight down, 1280 x 960 px, f = 2000 px, baseline 0.10 m, projector between them.
-REFERENCE = dict(distance_m=0.40, width=1280, height=960, f_px=2000.0, baseline_m=0.10,
-                 projector_width=1024, projector_height=768, projector_f_px=1600.0)
+REFERENCE = ReferenceSetup(distance_m=0.40, width=1280, height=960, f_px=2000.0, baseline_m=0.10,
+                           projector_width=1024, projector_height=768, projector_f_px=1600.0)
 
 
 def default_pattern(width=1024, height=768):
@@ -164,9 +179,9 @@ def scene_for_pose(center, target, baseline_dir, base: SceneSpec, baseline_m: fl
     return replace(base, rig=rig, projector=proj)
 
 
-def reference_scene(distance_m: float = REFERENCE["distance_m"], width: int = REFERENCE["width"],
-                    height: int = REFERENCE["height"], f_px: float = REFERENCE["f_px"],
-                    baseline_m: float = REFERENCE["baseline_m"], target=(0.0, 0.0, 0.0),
+def reference_scene(distance_m: float = REFERENCE.distance_m, width: int = REFERENCE.width,
+                    height: int = REFERENCE.height, f_px: float = REFERENCE.f_px,
+                    baseline_m: float = REFERENCE.baseline_m, target=(0.0, 0.0, 0.0),
                     projector_kind: str = "pinhole", pattern=None, material: Material | None = None,
                     lighting: Lighting | None = None, fy_px: float | None = None,
                     distortion=None) -> SceneSpec:
@@ -179,11 +194,11 @@ def reference_scene(distance_m: float = REFERENCE["distance_m"], width: int = RE
     center = target + np.array([0.0, 0.0, distance_m])
     K = None if fy_px is None else intrinsics(f_px, width, height, fy_px=fy_px)
     rig = StereoRig.conventional(center, target, baseline_m, f_px, width, height, K=K, distortion=distortion)
-    pattern = pattern or default_pattern(REFERENCE["projector_width"], REFERENCE["projector_height"])
+    pattern = pattern or default_pattern(REFERENCE.projector_width, REFERENCE.projector_height)
     if projector_kind == "spot":
         # Same footprint as the pinhole: tan(cutoff) = (W/2) / f, texture stretched to +-cutoff.
-        cutoff = float(np.arctan(pattern.width / 2.0 / REFERENCE["projector_f_px"]))
+        cutoff = float(np.arctan(pattern.width / 2.0 / REFERENCE.projector_f_px))
         proj = Projector.look_at(center, target, pattern, kind="spot", cutoff_rad=cutoff)
     else:
-        proj = Projector.look_at(center, target, pattern, f_px=REFERENCE["projector_f_px"], kind=projector_kind)
+        proj = Projector.look_at(center, target, pattern, f_px=REFERENCE.projector_f_px, kind=projector_kind)
     return SceneSpec(rig, proj, material or Material(), lighting or Lighting())

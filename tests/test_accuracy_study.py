@@ -48,12 +48,15 @@ def test_the_ideal_study_measures_the_methods_floor_in_the_true_block_frame():
     """Every source off: the corners are triangulated by the true rig and the block's true pose, so the errors
     are the corner method's alone: well inside the paper's bound, and the plate's centres at the bench's
     noise-free level."""
-    doc = run_accuracy_study(AccuracySettings(REALISM_PRESETS["ideal"], draws=2, targets=("block", "plate"), spp=4))
-    assert {r["config"] for r in doc["rows"]} == {"no source"}
-    block, plate = doc["summary"]["block"]["no source"], doc["summary"]["plate"]["no source"]
-    assert block["depth"]["max_mm"] < 1.0 and block["xy"]["max_mm"] < 0.2
-    assert plate["depth"]["rms_mm"] < 0.03 and plate["xy"]["max_mm"] < 0.05
-    assert all(r["acquisition"] == {"exact": True} for r in doc["rows"])
+    study = run_accuracy_study(AccuracySettings(REALISM_PRESETS["ideal"], draws=2, targets=("block", "plate"), spp=4))
+    assert {r.config for r in study.rows} == {"no source"}
+    block, plate = study.summary["block"]["no source"], study.summary["plate"]["no source"]
+    assert block.depth.max_mm < 1.0 and block.xy.max_mm < 0.2
+    assert plate.depth.rms_mm < 0.03 and plate.xy.max_mm < 0.05
+    assert all(r.acquisition.exact and r.acquisition.to_dict() == {"exact": True} for r in study.rows)
+    # the study's file form reads back as the study
+    from platebench.bench.io.accuracy_records import AccuracyStudy
+    assert AccuracyStudy.from_dict(json.loads(json.dumps(study.to_dict()))) == study
 
 
 def test_render_under_realism_renders_the_pair_really_taken_and_tells_the_commanded_rig(tmp_path):

@@ -146,32 +146,31 @@ def test_estimated_intrinsics_and_stereo_within_tolerance(calibrated):
     rep = result.report
     for key in ("fixed_distortion", "free_distortion"):
         for cam in ("left", "right"):
-            e = rep["cameras"][key][cam]
-            assert abs(e["fx_error_pct"]) < 0.5 and abs(e["fy_error_pct"]) < 0.5, (key, cam, e)
-            assert e["principal_point_error_px"] < 2.0, (key, cam, e)
-            assert e["reprojection_rms_px"] < 0.1
-        s = rep["stereo"][key]
-        assert abs(s["K_left"]["fx_error_pct"]) < 0.5 and s["K_left"]["principal_point_error_px"] < 2.0, s
-        assert s["K_right"]["principal_point_error_px"] < 2.0, s
-        assert abs(s["baseline_error_pct"]) < 1.0, s
-        assert s["rotation_between_cameras_error_deg"] < 0.1, s
-        assert s["left_rotation_error_deg"] < 0.1 and s["left_center_error_norm_mm"] < 2.0, s
-    assert rep["cameras"]["fixed_distortion"]["left"]["max_distortion_displacement_px"] < 1e-9
-    assert rep["cameras"]["free_distortion"]["left"]["max_distortion_displacement_px"] < 1.0
+            e = rep.cameras[key][cam]
+            assert abs(e.fx_error_pct) < 0.5 and abs(e.fy_error_pct) < 0.5, (key, cam, e)
+            assert e.principal_point_error_px < 2.0, (key, cam, e)
+            assert e.reprojection_rms_px < 0.1
+        s = rep.stereo[key]
+        assert abs(s.K_left.fx_error_pct) < 0.5 and s.K_left.principal_point_error_px < 2.0, s
+        assert s.K_right.principal_point_error_px < 2.0, s
+        assert abs(s.baseline_error_pct) < 1.0, s
+        assert s.rotation_between_cameras_error_deg < 0.1, s
+        assert s.left_rotation_error_deg < 0.1 and s.left_center_error_norm_mm < 2.0, s
+    assert rep.cameras["fixed_distortion"]["left"].max_distortion_displacement_px < 1e-9
+    assert rep.cameras["free_distortion"]["left"].max_distortion_displacement_px < 1.0
     rig = result.rig_estimate  # the pipeline's conventional rig
     assert abs(rig.baseline_m - 0.1) < 1e-3 and abs(rig.left.f_px / 1000.0 - 1) < 5e-3
 
 
 def test_projector_rays_from_two_depths_pass_near_the_true_feature_points(calibrated):
     result, _ = calibrated
-    for key in ("projector_rays", "projector_rays_true_stereo"):
-        r = result.report[key]
-        assert len(r["ids"]) == 16
-        assert r["distance_at_plate_plane_max_mm"] < 0.3, r["distance_at_plate_plane_mm"]
-        assert r["angle_error_max_mrad"] < 2.0, r["angle_error_mrad"]
-        assert r["projector_center_error_norm_mm"] < 5.0
-        for plane, z in zip(r["target_planes"], TARGET_Z_M):
-            assert abs(plane["depth_error_mm"]) < 0.2 and plane["tilt_deg"] < 0.1
+    for r in (result.report.projector_rays, result.report.projector_rays_true_stereo):
+        assert len(r.ids) == 16
+        assert r.distance_at_plate_plane_max_mm < 0.3, r.distance_at_plate_plane_mm
+        assert r.angle_error_max_mrad < 2.0, r.angle_error_mrad
+        assert r.projector_center_error_norm_mm < 5.0
+        for plane, z in zip(r.target_planes, TARGET_Z_M):
+            assert abs(plane.depth_error_mm) < 0.2 and plane.tilt_deg < 0.1
     rays = result.rays
     assert np.allclose(np.linalg.norm(rays.directions, axis=1), 1.0)
     assert np.all(rays.directions[:, 2] < 0)  # from the projector down toward the plate
@@ -198,6 +197,24 @@ def test_pipeline_with_estimated_calibration_finds_the_16_squares(small_cfg, cal
     text = format_table(result.report, cmp)
     assert "estimated" in text and "baseline error" in text and "at the square centres" in text
     json.dumps({name: {"metrics": rows[name].columns(), "score": s.to_dict()} for name, s in cmp.items()})
+
+
+def test_the_calibration_report_reads_back_what_calibration_json_holds(calibrated):
+    """The report's file form (calibration.json's keys) read back gives the same figures, and the
+    estimate the pipeline gets (its stereo calibration and rays) whole."""
+    from platebench.bench.io.calibration_records import CalibrationReport
+    result, _ = calibrated
+    d = json.loads(json.dumps(result.report.to_dict()))
+    assert d["cameras"]["free_distortion"]["left"]["fx_error_px"] == result.report.cameras["free_distortion"][
+        "left"].fx_error_px
+    assert d["projector_rays"]["target_planes"][0]["depth_error_mm"] == result.report.projector_rays.target_planes[
+        0].depth_error_mm
+    back = CalibrationReport.from_dict(d)
+    assert back.to_dict() == d
+    assert back.cameras == result.report.cameras and back.stereo == result.report.stereo
+    assert back.projector_rays == result.report.projector_rays and back.timings_s == result.report.timings_s
+    assert np.array_equal(back.estimate.stereo.K_left, result.stereo[result.distortion_model].K_left)
+    assert np.array_equal(back.estimate.feature_rays.directions, result.rays.directions)
 
 
 def test_cli_refuses_a_single_target_height(tmp_path):

@@ -51,9 +51,9 @@ def test_distortion_round_trip_returns_the_ideal_depth_error(configs, tmp_path):
 
     result, renderer = run_calibration(lens_cfg, target_z_m=(-0.02, 0.02))
     assert result.distortion_model == "free_distortion"  # chosen from the images
-    est = result.report["cameras"]["free_distortion"]["left"]
-    assert abs(est["dist_k1_k2_p1_p2_k3"][0] - LENS["k1"]) < 0.02
-    assert abs(est["fy_px"] / est["fx_px"] - 1.25) < 2e-3
+    est = result.report.cameras["free_distortion"]["left"]
+    assert abs(est.dist_k1_k2_p1_p2_k3[0] - LENS["k1"]) < 0.02
+    assert abs(est.fy_px / est.fx_px - 1.25) < 2e-3
     assert result.rig_estimate.left.distortion is not None
 
     cmp = compare_reconstruction(lens_cfg, result, renderer)
@@ -65,7 +65,7 @@ def test_distortion_round_trip_returns_the_ideal_depth_error(configs, tmp_path):
 
     # the calibration.json the CLI writes hands the lens to `reconstruct --calibration`
     path = tmp_path / "calibration.json"
-    write_json(path, result.report)
+    write_json(path, result.report.to_dict())
     rig, rays = load_estimated_calibration(path)
     assert rig.left.distortion == result.rig_estimate.left.distortion
 

@@ -1,27 +1,35 @@
 """Figures travel as typed records (``bench.io.records``, ``evaluation.score.Score``,
-``evaluation.metrics_row.MetricsRow``) from the sensing loop, the study and ``compare`` to the
-command line and the report; a dict of them is written and read only in ``bench/io`` (and by a
-record's own ``to_dict``/``from_dict``).
+``evaluation.metrics_row.MetricsRow`` and the records of the calibration, the realism's draw, the
+accuracy and cut-squares studies) between the modules of the package, down to the command line
+and the report; a dict of them is written and read only in ``bench/io`` (and by a record's own
+``to_dict``/``from_dict``).
 
 The scan (``figure_key_reads``) reads every module of the package outside ``bench/io`` with
 Python's ``ast`` and reports each string-constant key read of a figure: ``x["KEY"]`` (a load, not
-a store), ``x.get("KEY", ...)`` and ``x.pop("KEY", ...)``, where KEY is a figure of the typed
-records, that is:
+a store), ``x.get("KEY", ...)`` and ``x.pop("KEY", ...)``, where KEY is a figure, that is:
 
+* any key whose name ends in a unit (``_mm``, ``_mm2``, ``_frac``, ``_pct``, ``_px``, ``_m``,
+  ``_m2``, ``_deg``, ``_rad``): a figure, or a specification's value in its unit, which a
+  specification's own dataclass parses in its ``from_dict``;
 * a field of ``Stage3Accuracy``, ``MergedFigures``, ``StudyRow``, ``StudyTargets``,
   ``MethodFigures``, ``SparseDepthScore`` or ``MetricsRow``, or a key of score.json
-  (``Score.to_dict``, every part), whose name ends in a unit (``_mm``, ``_mm2``, ``_frac``,
-  ``_pct``, ``_px``, ``_m``, ``_m2``, ``_deg``, ``_rad``);
+  (``Score.to_dict``, every part), whose name ends in a unit;
 * or an older spelling the records read back (their ``RENAMED`` keys, ``coverage_pct``).
 
 Left out of the key set: a plate's and a rig's parameters (``bend_deg``, ``axis_deg``,
-``distance_m``: inputs, read by key where specification files are parsed) and timings (``_s``).
+``distance_m``), which name a plate of a results table (the rows of a study or a sweep that the
+report plots and tabulates by column, and the steps of sensing.json it lists) as much as a figure;
+and timings (``_s``). A results table read with pandas (results.csv) is read by column name in
+the report: by those parameters' names, or by a figure's name held in a variable (the metric
+lists of ``bench.report.summary``), which a scan of string constants does not see; the table is
+the file's own form, and no other exemption is made for it.
 Reads inside a function named ``to_dict`` or ``from_dict`` are a record's own file form.
 """
 from __future__ import annotations
 
 import ast
 import dataclasses
+import math
 import re
 from pathlib import Path
 
@@ -49,13 +57,22 @@ def _keys(d: dict) -> set[str]:
     return out
 
 
-def figure_keys() -> set[str]:
+class FigureKeys(frozenset):
+    """The keys the scan looks for (module doc): the records' figures and older spellings (the set),
+    and any other key whose name ends in a unit (``in``)."""
+
+    def __contains__(self, key) -> bool:
+        return frozenset.__contains__(self, key) or (isinstance(key, str) and UNIT.fullmatch(key) is not None
+                                                      and key not in PARAMETERS)
+
+
+def figure_keys() -> FigureKeys:
     """The keys the scan looks for (module doc)."""
     names = {f.name for c in RECORDS for f in dataclasses.fields(c)} | set(METRIC_FIELDS)
     t, p = _truth()
     names |= _keys(score_reconstruction(t, _recon(t, p, depth_mm=0.1, boundary_up_mm=0.1)).to_dict())
     old = {k for c in RECORDS for k in getattr(c, "RENAMED", {})} | {"coverage_pct"}
-    return {k for k in names if UNIT.fullmatch(k)} - PARAMETERS | old
+    return FigureKeys({k for k in names if UNIT.fullmatch(k)} - PARAMETERS | old)
 
 
 def _key_read(node: ast.AST) -> str | None:
@@ -68,7 +85,7 @@ def _key_read(node: ast.AST) -> str | None:
     return None
 
 
-def figure_key_reads(source: str, keys: set[str]) -> list[tuple[int, str]]:
+def figure_key_reads(source: str, keys) -> list[tuple[int, str]]:
     """(line, key) of every read of one of ``keys`` by a string constant in ``source`` (module doc)."""
     tree = ast.parse(source)
     own = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
@@ -92,9 +109,12 @@ def keys():
 def test_the_scan_looks_for_the_records_figures(keys):
     for k in ("centres_depth_rms_mm", "coverage_frac", "merged_boundary_mean_mm", "seen_all_frac", "mb_all_bad_1_0_pct",
               "gt_unconfirmable_max_mm", "depth_max_mm", "xy_per_axis_max_mm", "mean_sym_mm", "surface_coverage",
-              "coverage_pct", "merged_surface_coverage"):
+              "coverage_pct", "merged_surface_coverage",
+              # any key with a unit, of a record or not
+              "fx_error_px", "worst_median_mm", "position_error_m", "kept_depth_max_mm", "tilt_deg", "f_px"):
         assert k in keys, k
-    assert not keys & {"bend_deg", "distance_m", "time_s", "outcome", "case"}
+    for k in ("bend_deg", "axis_deg", "distance_m", "time_s", "outcome", "case", "views", "exact", "kind"):
+        assert k not in keys, k
 
 
 def test_the_scan_finds_what_the_package_used_to_do(keys):
@@ -107,10 +127,15 @@ def cells(s):
     return s["depth_median_mm"], f"{s['coverage_pct']:.1f} %"
 def lines(t, pb):
     return f"{t['seen_all_frac']} {pb.get('depth_max_mm')}"
+def calibration(report, acq, row, pose):
+    c = report["config"]
+    return (c["width_px"], report["cameras"]["free_distortion"]["left"]["fx_error_px"],
+            acq["views"]["left"].get("position_error_m"), row.pop("kept_depth_max_mm"), pose.get("tilt_deg", 0.0))
 '''
     assert sorted(k for _, k in figure_key_reads(before, keys)) == sorted([
         "boundary_mean_mm", "surface_coverage", "centres_depth_rms_mm", "depth_median_mm", "coverage_pct",
-        "seen_all_frac", "depth_max_mm"])
+        "seen_all_frac", "depth_max_mm", "width_px", "fx_error_px", "position_error_m", "kept_depth_max_mm",
+        "tilt_deg"])
     after = '''
 def study_row(f, m):
     return m.boundary_mean_mm, m.coverage_frac, f.accuracy.centres_depth_rms_mm
@@ -119,7 +144,9 @@ def write(d, m):
 class Rec:
     @classmethod
     def from_dict(cls, d):
-        return cls(d.get("coverage_frac"))
+        return cls(d.get("coverage_frac"), d["tilt_deg"])
+def calibration(report, pose):
+    return report.config.width_px, report.cameras["free_distortion"]["left"].fx_error_px, pose.tilt_deg
 '''
     assert figure_key_reads(after, keys) == []
 
@@ -172,6 +199,136 @@ def test_records_read_back_what_they_write_and_older_spellings():
     f = R.compare_methods({"methods": {"gc": {"kind": "disparity", "coverage_pct": 44.0, "depth_rms_mm": 0.2,
                                               "middlebury": {"mb_all_bad_1_0_pct": 3.2}}}})["gc"]
     assert (f.measure, f.coverage_frac, f.error_rms_mm, f.mb_all_bad_1_0_pct) == ("disparity", 0.44, 0.2, 3.2)
+
+
+def _json(d: dict) -> dict:
+    """``d`` as a JSON file gives it back (lists for tuples; infinities kept, as ``json`` writes them)."""
+    import json
+    return json.loads(json.dumps(d))
+
+
+def test_a_realism_draws_report_and_moves_read_back_what_they_write():
+    from platebench.bench.io.realism_records import (
+        DrawReport,
+        HandEyeEstimate,
+        IntrinsicsEstimate,
+        RobotMove,
+        ViewPoseError,
+    )
+    assert DrawReport(exact=True).to_dict() == {"exact": True}  # an exact draw: nothing missed
+    cal = IntrinsicsEstimate(1.5, -0.25, 0.1, 0.9, 0.15, 12, True, (-0.2, 0.05, 0.0, 0.0, 0.0))
+    he = HandEyeEstimate(0.003, 0.0013, 0.0008, 0.0024, 0.0038, 0.0015, 12)
+    views = {"left": ViewPoseError(0.0029, 0.00048), "right": ViewPoseError(0.0028, 0.00056)}
+    r = DrawReport(False, cal, he, 0.12).with_views(views)
+    d = _json(r.to_dict())
+    assert list(d) == ["exact", "calibration", "hand_eye", "corner_noise_px", "views"]
+    assert d["views"]["right"] == {"position_error_m": 0.0028, "rotation_error_rad": 0.00056}
+    assert DrawReport.from_dict(d) == r and DrawReport.from_dict({"exact": False}) == DrawReport()
+    m = RobotMove("stage 2", 15.0, views)
+    md = _json(m.to_dict())
+    assert md == {"view": "stage 2", "cell_turn_deg": 15.0, "left_position_error_m": 0.0029,
+                  "left_rotation_error_rad": 0.00048, "right_position_error_m": 0.0028,
+                  "right_rotation_error_rad": 0.00056}
+    assert RobotMove.from_dict(md) == m and RobotMove.from_dict({"view": None, "cell_turn_deg": 0.0}).views == {}
+
+
+def test_the_accuracy_studys_records_read_back_what_they_write():
+    from platebench.bench.config.realism import REALISM_PRESETS
+    from platebench.bench.io.accuracy_records import (
+        AccuracyCamera,
+        AccuracyPaper,
+        AccuracyRobot,
+        AccuracySettings,
+        AccuracyStudy,
+        AccuracyTargetBlock,
+        AccuracyTrial,
+        ConfigSummary,
+        ErrorStats,
+    )
+    from platebench.bench.io.realism_records import DrawReport
+    ok = AccuracyTrial("block", "all sources", "all", "1995", "noise", 3, "ok", None, 4, 1.2, 0.4, 0.8, 0.2, -0.1,
+                       ((0.1, -0.4, 1.2), (0.0, 0.3, -0.9)), 2.5, DrawReport(exact=True))
+    failed = AccuracyTrial("plate", "all sources", "all", "1995", "noise", 4, "failed", "no square centre measured",
+                           time_s=0.0)
+    assert "worst_depth_mm" not in failed.to_dict() and "error" in ok.to_dict()
+    depth = ErrorStats(1.2, {"q05": 1.0, "q95": 1.4}, 0.8, 1.3, 1.5, 1.0, mean_signed_mm=-0.1)
+    xy = ErrorStats(0.4, {"q05": 0.3, "q95": 0.5}, 0.2, 0.45, 0.5, 1.0)
+    assert "mean_signed_mm" not in xy.to_dict() and "xy" not in ConfigSummary("none", (), 2, 2).to_dict()
+    study = AccuracyStudy(
+        AccuracySettings(REALISM_PRESETS["1995"], 2, ("block", "plate")), AccuracyPaper(2.0, 1.0, 0.4, "worst corner"),
+        AccuracyCamera("pulnix", 512, 480, 1000.0, 1020.0, 0.1, 0.4, (-0.2, 0.0, 0.0, 0.0, 0.0), 0.0, 0.1, 2e4, 0.5, 8),
+        AccuracyTargetBlock(5, 5, 0.02, 0.3), AccuracyRobot("puma560", "a PUMA", 1e-4, 2e-4, 1e-5), {"all sources": 0.1},
+        {"noise": "sensor noise"}, {"block": {"all sources": ConfigSummary("all", ("noise",), 1, 0, depth, xy)},
+                                    "plate": {"all sources": ConfigSummary("all", ("noise",), 1, 1)}}, (ok, failed), 9.5)
+    d = _json(study.to_dict())
+    assert list(d)[:2] == ["study", "settings"] and d["summary"]["block"]["all sources"]["depth"]["worst_median_mm"] == 1.2
+    assert AccuracyStudy.from_dict(d) == study and AccuracyStudy.from_dict(d).summary["block"]["all sources"].stats(
+        "xy") == xy
+    assert AccuracyRobot("ideal arm", "none").to_dict() == {"name": "ideal arm", "description": "none"}
+
+
+def test_the_cut_squares_studys_records_read_back_what_they_write():
+    from platebench.bench.io.cut_records import CutRow, CutStudy, CutTotals
+    rows = (CutRow(40.0, "down", 31.0, 0.495, centres=16, kept=14, cut=2, cut_by_outline=2, outside_before=2,
+                   outside_cut=2, kept_depth_max_mm=0.4, kept_xy_max_mm=0.2),
+            CutRow(40.0, "up", 31.0, 0.495, centres=16, kept=16, outside_before=1, outside_kept=1,
+                   kept_depth_max_mm=2.4, kept_xy_max_mm=0.3),
+            CutRow(60.0, "up", 31.0, 0.495, error="ReconstructionError: no plate region"))
+    t = CutTotals.of(rows)
+    assert (t.plates, t.errors, t.centres, t.cut, t.outside_before, t.plates_outside_before, t.plates_outside_kept) == \
+        (3, 1, 32, 2, 3, 2, 1)
+    study = CutStudy(rows, t, 12.0, {"bends_deg": [40.0, 60.0], "grid": "paper's 4x4"})
+    d = _json(study.to_dict())
+    assert list(d) == ["kind", "rows", "totals", "time_s", "settings"]
+    assert "error" not in d["rows"][0] and set(d["rows"][2]) == {"bend_deg", "direction", "axis_deg", "distance_m", "error"}
+    assert CutStudy.from_dict(d) == study
+
+
+def test_the_l_formula_rows_read_back_what_they_write_infinity_kept():
+    row = R.LFormulaRow(180.0, 0.23, 0.24, 0.26, 0.26 / 0.24, math.inf, None)
+    d = _json(row.to_dict())
+    assert d["gt_distance_baseline_along_bend_m"] == math.inf  # never fully visible, as study.json writes it
+    assert R.LFormulaRow.from_dict(d) == row
+    sh, lf = R.study_extras({"smallest_hiding_bend_deg": {"down": 61.25, "up": None},
+                             "l_formula": [d, {"L_m": 0.2}, "not a row"]})
+    assert sh == {"down": 61.25, "up": None} and lf == [row]
+    assert R.study_extras({}) == ({}, [])
+
+
+def test_specification_records_read_back_what_they_write():
+    import numpy as np
+
+    from platebench.bench.config import RigPose
+    from platebench.bench.io.export import ExportedSample
+    from platebench.bench.run.study import StudyRealism
+    from platebench.reconstruction.calibration.stereo import StereoCalibration
+    from platebench.reconstruction.paper.false_boundary import FeatureRays
+    from platebench.scenes.pattern import SquareGridLayout, square_grid
+    from platebench.scenes.scene_spec import reference_scene
+    assert RigPose.from_dict(RigPose(30.0, -45.0).to_dict()) == RigPose(30.0, -45.0)
+    assert RigPose.from_dict({"tilt_deg": 20}) == RigPose(20.0, 0.0) and RigPose.from_dict(None) == RigPose()
+    g = square_grid(1024, 768, rows=6, cols=12, square_px=12)
+    layout = SquareGridLayout.from_dict(g.description)
+    assert (layout.rows, layout.cols, layout.square_px) == (6, 12, 12) and layout.to_dict() == g.description
+    with pytest.raises(ValueError, match="not a square grid"):
+        SquareGridLayout.from_dict({"kind": "image", "note": "user image"})
+    rz = StudyRealism("1995", ("noise", "hand_eye"), "--seed + CRC-32", 0.12)
+    assert StudyRealism.from_dict({"plates": 3, **_json(rz.to_dict())}) == rz
+    assert StudyRealism.from_dict({"plates": 3}) == StudyRealism()
+    mb = ExportedSample("0000", "0000", "/d/0000", 3, 12.5, 40, 90, 640, 480)
+    kitti = ExportedSample("0001", "training/*/000001_10.png", "/d/0001", 0, 0.0, 20, 60, 320, 240, resample_factor=2,
+                           resampled="images reduced 2x", f_px=500.0, baseline_m=0.1)
+    assert list(mb.to_dict())[-4:] == ["vmin", "vmax", "width", "height"] and "f_px" not in mb.to_dict()
+    assert list(kitti.to_dict())[5:9] == ["resample_factor", "resampled", "f_px", "baseline_m"]
+    assert ExportedSample.from_dict(_json(mb.to_dict())) == mb and ExportedSample.from_dict(_json(kitti.to_dict())) == kitti
+    st = StereoCalibration.from_rig(reference_scene().rig)
+    back = StereoCalibration.from_dict(_json(st.to_dict()))
+    assert back.to_dict() == _json(st.to_dict()) and np.array_equal(back.t_world, st.t_world)
+    rays = FeatureRays(np.array([[0.0, 0.0, 0.4], [0.01, 0.0, 0.4]]), np.array([[0.0, 0.0, -1.0], [0.0, 0.6, -0.8]]),
+                       np.array([3, 7]))
+    r = FeatureRays.from_dict(_json(rays.to_dict()))
+    assert np.array_equal(r.origins, rays.origins) and np.array_equal(r.directions, rays.directions) \
+        and r.ids.tolist() == [3, 7]
 
 
 # ----------------------------------------------------------------------------- the report shows what the data holds

@@ -444,14 +444,14 @@ def test_error_map_on_a_real_tiny_sample(tmp_path):
                                 image_checksums(inputs.images))
 
     data = P.error_map_data(sdir, rdir)
-    assert len(data["centres"]) == len(rec.points) > 0
-    assert np.all(np.isfinite(data["centre_err_mm"])) and np.all(data["centre_err_mm"] >= 0)
-    assert (data["centre_kind"] == "3d").sum() > 0  # identities from the GT feature map
-    assert data["surface_dist_mm"] is not None and np.all(np.isfinite(data["surface_dist_mm"]))
-    assert data["surface_dist_mm"].max() < 20.0  # mm: a 20-degree bend reconstructs to within millimetres
+    assert len(data.centres) == len(rec.points) > 0
+    assert np.all(np.isfinite(data.centre_err_mm)) and np.all(data.centre_err_mm >= 0)
+    assert (data.centre_kind == "3d").sum() > 0  # identities from the GT feature map
+    assert data.surface_dist_mm is not None and np.all(np.isfinite(data.surface_dist_mm))
+    assert data.surface_dist_mm.max() < 20.0  # mm: a 20-degree bend reconstructs to within millimetres
     from platebench.evaluation.point_metrics import point_to_surface_distance
     d = point_to_surface_distance(rec.points, sample.plate.mesh) * 1e3
-    assert np.all(data["centre_err_mm"][data["centre_kind"] == "3d"] >= d[data["centre_kind"] == "3d"] - 1e-9)
+    assert np.all(data.centre_err_mm[data.centre_kind == "3d"] >= d[data.centre_kind == "3d"] - 1e-9)
     out = P.plot_error_map(sdir, rdir, tmp_path / "map.png", data=data)
     w, h = _check_png(out)
     assert w >= 800 and h >= 300

@@ -207,7 +207,7 @@ def test_robot_errors_move_the_views_by_their_sourced_order():
     cfg = with_realism(SampleConfig(), rz)
     rig = cfg.scene.build().rig
     setup = RealismSetup.prepare(rz, cfg)
-    d = [realise(setup, rig, k).report["views"]["left"]["position_error_m"] for k in range(20)]
+    d = [realise(setup, rig, k).report.views["left"].position_error_m for k in range(20)]
     rp = ROBOTS["puma560"].repeatability_rp_m
     assert 0.05 * rp < np.median(d) < rp
     acq = realise(setup, rig, 0)

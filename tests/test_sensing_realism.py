@@ -53,7 +53,7 @@ def test_a_pose_beyond_the_arms_reach_is_taken_with_the_cell_turned(tilt_deg):
     for c in ("left", "right"):  # the pair really taken is near the command, as an unturned pose's
         dp, da = pose_difference(camera_pose(acq.taken.cameras[c]), camera_pose(rig.cameras[c]))
         assert 1e-5 < dp < 0.01 and 1e-5 < da < 0.02, (dp, da)
-        assert acq.report["views"][c]["position_error_m"] == pytest.approx(dp)
+        assert acq.report.views[c].position_error_m == pytest.approx(dp)
 
 
 def test_sense_under_the_1995_rig_measures_through_the_commanded_poses(tmp_path):

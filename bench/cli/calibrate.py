@@ -6,6 +6,7 @@ from pathlib import Path
 
 from platebench.bench.cli.render import add_sample_flags, config_from_args, refuse_robot_errors
 from platebench.bench.io.atomic import write_json
+from platebench.bench.io.calibration_records import LENS_MODELS
 from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
@@ -72,7 +73,7 @@ def run(args) -> int:
         if not args.no_reconstruction:
             comparison = compare_reconstruction(cfg, result, renderer, progress=step)
         pbar.set_postfix_str("write")
-        out = dict(result.report)
+        out = result.report.to_dict()
         out["units"] = ("metres, radians, pixels unless a key names another unit; camera dicts (K, R, t) in the "
                         "OpenCV convention of calib.json (x_cam = R x_world + t, t in metres)")
         if comparison is not None:
@@ -85,58 +86,62 @@ def run(args) -> int:
     return 0
 
 
-def format_table(report: dict, comparison: dict | None = None) -> str:
-    """The calibration report (and the reference reconstruction per calibration, ``Score``s) as text."""
-    c = report["config"]
-    est = report["estimate"]
-    lines = [f"calibration at {c['width_px']}x{c['height_px']} px, f {c['f_px']:.1f} px"
-             + (f" (fy {c['fy_px']:.1f})" if abs(c.get("fy_px", c["f_px"]) - c["f_px"]) > tol.pixel else "")
-             + f", spp {c['spp']}, {len(c['board_poses'])} board poses, "
-             f"target z {[round(z * 1e3, 1) for z in c['target_z_m']]} mm",
-             f"estimate handed to the pipeline: {est['distortion_model'].replace('_', ' ')} "
-             f"({est['distortion_model_choice']})",
+def format_table(report, comparison: dict | None = None) -> str:
+    """The calibration report (``bench.io.calibration_records.CalibrationReport``; and the reference
+    reconstruction per calibration, ``Score``s) as text."""
+    c = report.config
+    est = report.estimate
+    lines = [f"calibration at {c.width_px}x{c.height_px} px, f {c.f_px:.1f} px"
+             + (f" (fy {c.fy_px:.1f})" if abs(c.fy_px - c.f_px) > tol.pixel else "")
+             + f", spp {c.spp}, {len(c.board_poses)} board poses, "
+             f"target z {[round(z * 1e3, 1) for z in c.target_z_m]} mm",
+             f"estimate handed to the pipeline: {est.distortion_model.replace('_', ' ')} "
+             f"({est.distortion_model_choice})",
              f"{'quantity':34s} {'fixed distortion':>22s} {'free distortion':>22s}"]
 
     def row(name, fmt, get):
-        vals = [fmt.format(get(report, k)) for k in ("fixed_distortion", "free_distortion")]
+        vals = [fmt.format(get(model)) for model in LENS_MODELS]
         lines.append(f"{name:34s} {vals[0]:>22s} {vals[1]:>22s}")
 
     for cam in ("left", "right"):
-        row(f"{cam} fx error (px / %)", "{}", lambda r, k: f"{r['cameras'][k][cam]['fx_error_px']:+.3f} / "
-                                                           f"{r['cameras'][k][cam]['fx_error_pct']:+.4f}")
-        row(f"{cam} fy error (px / %)", "{}", lambda r, k: f"{r['cameras'][k][cam]['fy_error_px']:+.3f} / "
-                                                           f"{r['cameras'][k][cam]['fy_error_pct']:+.4f}")
+        def camera(model, cam=cam):
+            return report.cameras[model][cam]
+        row(f"{cam} fx error (px / %)", "{}",
+            lambda k: f"{camera(k).fx_error_px:+.3f} / {camera(k).fx_error_pct:+.4f}")
+        row(f"{cam} fy error (px / %)", "{}",
+            lambda k: f"{camera(k).fy_error_px:+.3f} / {camera(k).fy_error_pct:+.4f}")
         row(f"{cam} principal point error (px)", "{}",
-            lambda r, k: f"{r['cameras'][k][cam]['cx_error_px']:+.3f}, {r['cameras'][k][cam]['cy_error_px']:+.3f}")
-        row(f"{cam} reprojection RMS (px)", "{:.4f}", lambda r, k: r["cameras"][k][cam]["reprojection_rms_px"])
-        row(f"{cam} max distortion shift (px)", "{:.3f}",
-            lambda r, k: r["cameras"][k][cam]["max_distortion_displacement_px"])
-        row(f"{cam} lens model error max (px)", "{:.3f}",
-            lambda r, k: r["cameras"][k][cam]["lens_model_error_max_px"])
-    row("stereo f error (px / %)", "{}", lambda r, k: f"{r['stereo'][k]['K_left']['fx_error_px']:+.3f} / "
-                                                      f"{r['stereo'][k]['K_left']['fx_error_pct']:+.4f}")
-    row("stereo pp error L, R (px)", "{}", lambda r, k: f"{r['stereo'][k]['K_left']['principal_point_error_px']:.3f}, "
-                                                        f"{r['stereo'][k]['K_right']['principal_point_error_px']:.3f}")
-    row("baseline error (mm / %)", "{}", lambda r, k: f"{r['stereo'][k]['baseline_error_mm']:+.4f} / "
-                                                      f"{r['stereo'][k]['baseline_error_pct']:+.4f}")
-    row("rotation between cameras (deg)", "{:.4f}", lambda r, k: r["stereo"][k]["rotation_between_cameras_error_deg"])
-    row("f x baseline error (%)", "{:+.4f}", lambda r, k: r["stereo"][k]["f_times_baseline_error_pct"])
-    row("stereo reprojection RMS (px)", "{:.4f}", lambda r, k: r["stereo"][k]["stereo_reprojection_rms_px"])
-    row("left camera centre error (mm)", "{:.4f}", lambda r, k: r["stereo"][k]["left_center_error_norm_mm"])
-    row("left camera rotation error (deg)", "{:.4f}", lambda r, k: r["stereo"][k]["left_rotation_error_deg"])
-    true_shift = report["cameras"]["fixed_distortion"]["left"]["true_max_distortion_displacement_px"]
+            lambda k: f"{camera(k).cx_error_px:+.3f}, {camera(k).cy_error_px:+.3f}")
+        row(f"{cam} reprojection RMS (px)", "{:.4f}", lambda k: camera(k).reprojection_rms_px)
+        row(f"{cam} max distortion shift (px)", "{:.3f}", lambda k: camera(k).max_distortion_displacement_px)
+        row(f"{cam} lens model error max (px)", "{:.3f}", lambda k: camera(k).lens_model_error_max_px)
+    st = report.stereo
+    row("stereo f error (px / %)", "{}",
+        lambda k: f"{st[k].K_left.fx_error_px:+.3f} / {st[k].K_left.fx_error_pct:+.4f}")
+    row("stereo pp error L, R (px)", "{}", lambda k: f"{st[k].K_left.principal_point_error_px:.3f}, "
+                                                     f"{st[k].K_right.principal_point_error_px:.3f}")
+    row("baseline error (mm / %)", "{}",
+        lambda k: f"{st[k].baseline_error_mm:+.4f} / {st[k].baseline_error_pct:+.4f}")
+    row("rotation between cameras (deg)", "{:.4f}", lambda k: st[k].rotation_between_cameras_error_deg)
+    row("f x baseline error (%)", "{:+.4f}", lambda k: st[k].f_times_baseline_error_pct)
+    row("stereo reprojection RMS (px)", "{:.4f}", lambda k: st[k].stereo_reprojection_rms_px)
+    row("left camera centre error (mm)", "{:.4f}", lambda k: st[k].left_center_error_norm_mm)
+    row("left camera rotation error (deg)", "{:.4f}", lambda k: st[k].left_rotation_error_deg)
+    true_shift = report.cameras["fixed_distortion"]["left"].true_max_distortion_displacement_px
     lines.append(f"{'true lens: max distortion shift (px)':34s} {true_shift:>22.3f}")
     lines.append("projector rays (estimated stereo | true stereo):")
-    for key, label, unit in (("angle_error", "ray angle error", "mrad"),
-                             ("distance_at_plate_plane", "ray distance at z = 0", "mm")):
-        a, b = report["projector_rays"], report["projector_rays_true_stereo"]
-        lines.append(f"  {label + ' RMS / max (' + unit + ')':32s} {a[f'{key}_rms_{unit}']:>10.4f} / "
-                     f"{a[f'{key}_max_{unit}']:.4f} | {b[f'{key}_rms_{unit}']:.4f} / {b[f'{key}_max_{unit}']:.4f}")
-    a = report["projector_rays"]
-    lines.append(f"  {'projector centre error (mm)':32s} {a['projector_center_error_norm_mm']:>10.4f} | "
-                 f"{report['projector_rays_true_stereo']['projector_center_error_norm_mm']:.4f}")
+    a, b = report.projector_rays, report.projector_rays_true_stereo
+    for label, unit, rms_max in (("ray angle error", "mrad",
+                                  lambda r: (r.angle_error_rms_mrad, r.angle_error_max_mrad)),
+                                 ("ray distance at z = 0", "mm",
+                                  lambda r: (r.distance_at_plate_plane_rms_mm, r.distance_at_plate_plane_max_mm))):
+        (a_rms, a_max), (b_rms, b_max) = rms_max(a), rms_max(b)
+        lines.append(f"  {label + ' RMS / max (' + unit + ')':32s} {a_rms:>10.4f} / {a_max:.4f} | "
+                     f"{b_rms:.4f} / {b_max:.4f}")
+    lines.append(f"  {'projector centre error (mm)':32s} {a.projector_center_error_norm_mm:>10.4f} | "
+                 f"{b.projector_center_error_norm_mm:.4f}")
     lines.append(f"  {'target plane depth error (mm)':32s} "
-                 + ", ".join(f"z {p['known_z_mm']:+.0f}: {p['depth_error_mm']:+.4f}" for p in a["target_planes"]))
+                 + ", ".join(f"z {p.known_z_mm:+.0f}: {p.depth_error_mm:+.4f}" for p in a.target_planes))
     if comparison is not None:
         lines.append("reference reconstruction:")
         lines.append(f"  {'calibration':26s} {'points':>6s} {'depth RMS':>10s} {'depth max':>10s} {'x/y RMS':>15s} "
@@ -151,7 +156,7 @@ def format_table(report: dict, comparison: dict | None = None) -> str:
                          f"{m.centres_depth_max_mm:>10.4f} {p.x.rms * 1e3:>7.4f}/{p.y.rms * 1e3:<7.4f} "
                          f"{m.boundary_mean_mm:>9.4f} "
                          f"{s.matching.expected_count_method:>8d}")
-    t = report["timings_s"]
-    lines.append(f"{'time (s)':34s} board {t['board_render_s']:.1f}, target {t['target_render_s']:.1f}, "
-                 f"calibrate {t['calibrate_s']:.1f}")
+    t = report.timings_s
+    lines.append(f"{'time (s)':34s} board {t.board_render_s:.1f}, target {t.target_render_s:.1f}, "
+                 f"calibrate {t.calibrate_s:.1f}")
     return "\n".join(lines)

@@ -73,8 +73,7 @@ def run(args) -> int:
         summary = export_dataset(args.dataset, args.out, args.fmt, images=args.images, shift=shift,
                                  overwrite=args.overwrite, progress=step)
     for s in summary.samples:
-        print(f"{s['id']:24s} {s['width']}x{s['height']}  shift {s['shift_px']} px, disparity {s['vmin']} to "
-              f"{s['vmax']} px, doffs {s['doffs_px']:g} px"
-              + (f"; resampled: {s['resampled']}" if s.get("resampled") else ""))
+        print(f"{s.id:24s} {s.width}x{s.height}  shift {s.shift_px} px, disparity {s.vmin} to "
+              f"{s.vmax} px, doffs {s.doffs_px:g} px" + (f"; resampled: {s.resampled}" if s.resampled else ""))
     print(f"exported    {len(summary.samples)} sample(s), {args.fmt} layout, {args.images} images -> {summary.out}")
     return 0

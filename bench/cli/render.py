@@ -140,20 +140,21 @@ def sample_moves(cfg) -> bool:
     return not cfg.realism.is_ideal
 
 
-def acquisition_lines(cfg, report: dict) -> list[str]:
-    """What the realism's draw did to the acquisition, in mm, mrad and px."""
+def acquisition_lines(cfg, report) -> list[str]:
+    """What the realism's draw did to the acquisition (``bench.io.realism_records.DrawReport``), in
+    mm, mrad and px."""
     rz = cfg.realism
     out = [f"realism     {rz.name} (draw {rz.seed}): " + (", ".join(rz.sources) or "no source on")]
-    for cam, v in (report.get("views") or {}).items():
-        out.append(f"  {cam:5s} view  really posed {v['position_error_m'] * 1e3:.3f} mm, "
-                   f"{v['rotation_error_rad'] * 1e3:.3f} mrad from the commanded pose")
-    he = report.get("hand_eye")
+    for cam, v in report.views.items():
+        out.append(f"  {cam:5s} view  really posed {v.position_error_m * 1e3:.3f} mm, "
+                   f"{v.rotation_error_rad * 1e3:.3f} mrad from the commanded pose")
+    he = report.hand_eye
     if he:
-        out.append(f"  hand/eye    mount {he['mount_position_error_m'] * 1e3:.3f} mm, "
-                   f"{he['mount_rotation_error_rad'] * 1e3:.3f} mrad off; target {he['target_position_error_m'] * 1e3:.3f} "
-                   f"mm, {he['target_rotation_error_rad'] * 1e3:.3f} mrad off ({he['views']} views)")
-    cal = report.get("calibration")
+        out.append(f"  hand/eye    mount {he.mount_position_error_m * 1e3:.3f} mm, "
+                   f"{he.mount_rotation_error_rad * 1e3:.3f} mrad off; target {he.target_position_error_m * 1e3:.3f} "
+                   f"mm, {he.target_rotation_error_rad * 1e3:.3f} mrad off ({he.views} views)")
+    cal = report.calibration
     if cal:
-        out.append(f"  intrinsics  fx {cal['fx_error_px']:+.3f} px, fy {cal['fy_error_px']:+.3f} px, principal point "
-                   f"{cal['cx_error_px']:+.3f}/{cal['cy_error_px']:+.3f} px off (reprojection {cal['reprojection_rms_px']:.3f} px)")
+        out.append(f"  intrinsics  fx {cal.fx_error_px:+.3f} px, fy {cal.fy_error_px:+.3f} px, principal point "
+                   f"{cal.cx_error_px:+.3f}/{cal.cy_error_px:+.3f} px off (reprojection {cal.reprojection_rms_px:.3f} px)")
     return out

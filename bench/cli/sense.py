@@ -59,7 +59,7 @@ def verify_grid_arg(text: str) -> str | None:
     if text.strip() == "auto":
         return "auto"
     try:
-        square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **parse_grid(text))
+        square_grid(REFERENCE.projector_width, REFERENCE.projector_height, **parse_grid(text))
     except UserValueError as e:
         raise UserValueError(str(e).replace("--grid", "--verify-grid") + ", 'auto' or 'stage3'") from None
     except ValueError as e:  # the grid does not fit the projector's image
@@ -154,9 +154,9 @@ def realism_lines(s: SensingResult) -> list[str]:
     if moves:
         import numpy as np  # noqa: PLC0415
 
-        pos = np.array([[m[f"{c}_position_error_m"] for c in ("left", "right")] for m in moves]) * 1e3
-        rot = np.array([[m[f"{c}_rotation_error_rad"] for c in ("left", "right")] for m in moves]) * 1e3
-        turned = sum(m["cell_turn_deg"] != 0 for m in moves)
+        pos = np.array([[m.views[c].position_error_m for c in ("left", "right")] for m in moves]) * 1e3
+        rot = np.array([[m.views[c].rotation_error_rad for c in ("left", "right")] for m in moves]) * 1e3
+        turned = sum(m.cell_turn_deg != 0 for m in moves)
         out.append(f"  moves       {len(moves)}: cameras really posed {np.median(pos):.3f} mm (max {pos.max():.3f}), "
                    f"{np.median(rot):.3f} mrad (max {rot.max():.3f}) from the commanded poses (median); the loop "
                    f"measured at the commanded poses; cell turned for {turned} of them")
@@ -165,9 +165,12 @@ def realism_lines(s: SensingResult) -> list[str]:
 
 def grid_text(desc: dict | None) -> str:
     """A square grid's description (``Pattern.description``) as 'ROWSxCOLS@PX (row gap GAP px)'."""
+    from platebench.scenes.pattern import SquareGridLayout  # noqa: PLC0415
+
     if not desc or desc.get("kind") != "square_grid":
         return "-" if not desc else str(desc.get("kind"))
-    return f"{desc['rows']}x{desc['cols']}@{desc['square_px']} (row gap {desc['gap_y_px']} projector px)"
+    g = SquareGridLayout.from_dict(desc)
+    return f"{g.rows}x{g.cols}@{g.square_px} (row gap {g.gap_y_px} projector px)"
 
 
 def run(args) -> int:

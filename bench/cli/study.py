@@ -131,7 +131,8 @@ def run(args) -> int:
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
     from platebench.bench.run.study import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
-    from platebench.bench.run.study import perturbed_cases, study_cases, with_realism_seeds, write_study  # noqa: PLC0415
+    from platebench.bench.run.study import StudyRealism, perturbed_cases, study_cases, with_realism_seeds  # noqa: PLC0415
+    from platebench.bench.run.study import write_study  # noqa: PLC0415
 
     if args.which == "cut-squares":
         return run_cut_squares(args)
@@ -182,9 +183,10 @@ def run(args) -> int:
                 "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
                 "workers": args.workers}
     if not base.realism.is_ideal:
-        settings.update(realism=base.realism.name, realism_sources=list(base.realism.sources),
-                        realism_seeds="--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
-                        corner_noise_px=options.corner_noise_px)
+        settings.update(StudyRealism(
+            base.realism.name, base.realism.sources,
+            "--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
+            options.corner_noise_px).to_dict())
     from platebench.bench.run.journal import journal_path  # noqa: PLC0415
 
     ran = 0
@@ -270,79 +272,79 @@ def run_accuracy(args) -> int:
     with output_dir(args.out, "accuracy study", overwrite=args.overwrite) as stage:
         done: dict = {}
         with bar(total, f"study accuracy ({realism.name})", unit="trial") as pbar:
-            def progress(row):
+            def progress(trial):
                 pbar.update(1)
-                key = (row["target"], row["config"])
-                done.setdefault(key, []).append(row)
+                key = (trial.target, trial.config)
+                done.setdefault(key, []).append(trial)
                 if len(done[key]) == args.draws:
-                    pbar.write(config_line(row["target"], row["config"], done[key]))
+                    pbar.write(config_line(trial.target, trial.config, done[key]))
                     sys.stdout.flush()
-            doc = run_accuracy_study(settings, progress)
-        write_json(stage / "accuracy.json", doc)
-        write_text(stage / "accuracy.csv", accuracy_csv(doc["rows"]))
-        plot_accuracy_study(doc, stage / "accuracy.png")
-    for line in accuracy_lines(doc):
+            study = run_accuracy_study(settings, progress)
+        write_json(stage / "accuracy.json", study.to_dict())
+        write_text(stage / "accuracy.csv", accuracy_csv(study.rows))
+        plot_accuracy_study(study, stage / "accuracy.png")
+    for line in accuracy_lines(study):
         print(line)
     print(f"written         {args.out / 'accuracy.json'}, {args.out / 'accuracy.csv'}, {args.out / 'accuracy.png'}")
     return 0
 
 
 def config_line(target: str, config: str, rows: list) -> str:
-    """One finished budget row: the median worst corner over its draws (mm)."""
+    """One finished budget row (its ``AccuracyTrial``s): the median worst corner over its draws (mm)."""
     import numpy as np  # noqa: PLC0415
 
-    ok = [r for r in rows if r["status"] == "ok"]
+    ok = [r for r in rows if r.ok]
     if not ok:
-        return f"{target:6s} {config:32s} every draw failed: {rows[0].get('error')}"
-    d = np.median([r["worst_depth_mm"] for r in ok])
-    xy = np.median([r["worst_xy_mm"] for r in ok])
+        return f"{target:6s} {config:32s} every draw failed: {rows[0].error}"
+    d = np.median([r.worst_depth_mm for r in ok])
+    xy = np.median([r.worst_xy_mm for r in ok])
     return (f"{target:6s} {config:32s} worst corner, median of {len(ok)} draws: depth {d:.3f} mm, x/y {xy:.3f} mm"
             + (f" ({len(rows) - len(ok)} failed)" if len(ok) < len(rows) else ""))
 
 
-def accuracy_lines(doc: dict) -> list[str]:
-    """The accuracy study's tables: per target, each budget row beside the paper's figures."""
+def accuracy_lines(study) -> list[str]:
+    """The accuracy study's tables (``bench.io.accuracy_records.AccuracyStudy``): per target, each
+    budget row beside the paper's figures."""
     from platebench.bench.run.accuracy import dominant_sources  # noqa: PLC0415
 
-    paper = doc["paper"]
-    st = doc["settings"]
-    cam = doc["camera"]
-    out = [f"realism {st['realism']['preset']}: camera {cam['name']} {cam['width_px']}x{cam['height_px']} px, "
-           f"fx/fy {cam['fx_px']:.1f}/{cam['fy_px']:.1f} px, baseline {cam['baseline_m'] * 1e3:.0f} mm, distance "
-           f"{cam['distance_m'] * 1e3:.0f} mm; {st['draws']} draws per row; paper (V-D): depth <= "
-           f"{paper['depth_mm']:g} mm, x/y <= {paper['xy_mm']:g} mm (one trial's worst corner)"]
-    if doc.get("robot"):
-        r = doc["robot"]
-        out.append(f"robot {r['name']}: {r['description']}")
-    if doc.get("corner_noise_px"):
-        vals = sorted(set(round(v, 4) for v in doc["corner_noise_px"].values()))
+    paper = study.paper
+    st = study.settings
+    cam = study.camera
+    out = [f"realism {st.realism.name}: camera {cam.name} {cam.width_px}x{cam.height_px} px, "
+           f"fx/fy {cam.fx_px:.1f}/{cam.fy_px:.1f} px, baseline {cam.baseline_m * 1e3:.0f} mm, distance "
+           f"{cam.distance_m * 1e3:.0f} mm; {st.draws} draws per row; paper (V-D): depth <= "
+           f"{paper.depth_mm:g} mm, x/y <= {paper.xy_mm:g} mm (one trial's worst corner)"]
+    if study.robot:
+        r = study.robot
+        out.append(f"robot {r.name}: {r.description}")
+    if study.corner_noise_px:
+        vals = sorted(set(round(v, 4) for v in study.corner_noise_px.values()))
         out.append(f"calibration views: corner noise measured on rendered target images, {vals[0]:.3f}-{vals[-1]:.3f} "
                    "px per axis (by the camera defects on)")
     head = (f"{'':34s} {'depth: worst corner (mm)':>32s}  {'all corners (mm)':>20s}   "
             f"{'x/y: worst corner (mm)':>32s}  {'all corners (mm)':>20s}")
     sub = (f"{'budget row':34s} {'median':>8s} {'q05-q95':>15s} {'<=2':>5s}   {'RMS':>6s} {'p95':>6s} {'max':>6s}   "
            f"{'median':>8s} {'q05-q95':>15s} {'<=1':>5s}   {'RMS':>6s} {'p95':>6s} {'max':>6s}")
-    for target, rows in doc["summary"].items():
+    for target, rows in study.summary.items():
         what = ("the target block's square, 4 corners, block frame" if target == "block"
                 else "the reference plate, 16 square centres, world frame")
         out += ["", f"{target}: {what}", head, sub]
         for label, s in rows.items():
-            if "depth" not in s:
+            if s.depth is None:
                 out.append(f"{label:34s} every draw failed")
                 continue
             cells = []
-            for m in ("depth", "xy"):
-                v = s[m]
-                q = v["worst_quantiles_mm"]
-                cells.append(f"{v['worst_median_mm']:8.3f} {q['q05']:6.3f}-{q['q95']:<8.3f} {v['within_paper_frac'] * 100:4.0f}%"
-                             f"   {v['rms_mm']:6.3f} {v['p95_mm']:6.3f} {v['max_mm']:6.3f}")
-            out.append(f"{label:34s} " + "   ".join(cells) + (f"  ({s['failed']} failed)" if s["failed"] else ""))
+            for v in (s.depth, s.xy):
+                q = v.worst_quantiles_mm
+                cells.append(f"{v.worst_median_mm:8.3f} {q['q05']:6.3f}-{q['q95']:<8.3f} {v.within_paper_frac * 100:4.0f}%"
+                             f"   {v.rms_mm:6.3f} {v.p95_mm:6.3f} {v.max_mm:6.3f}")
+            out.append(f"{label:34s} " + "   ".join(cells) + (f"  ({s.failed} failed)" if s.failed else ""))
         for m, name in (("depth", "depth"), ("xy", "x/y")):
             ranked = dominant_sources(rows, m)
             if ranked:
                 out.append(f"  added to the no-source floor alone ({name}, median worst): "
                            + ", ".join(f"{k} {v:+.3f} mm" for k, v in ranked))
-    out.append(f"time: {doc['time_s']:.0f} s")
+    out.append(f"time: {study.time_s:.0f} s")
     return out
 
 
@@ -418,7 +420,7 @@ def _yn(v):
 def table_lines(study) -> list[str]:
     """The per-plate table, outcome counts, detector scores and targets of a ``bench.run.study.StudyResult``
     as text lines."""
-    from platebench.bench.run.study import detector_scores  # noqa: PLC0415
+    from platebench.bench.run.study import StudyRealism, detector_scores  # noqa: PLC0415
     from platebench.reconstruction.strategy.detectors import DETECTORS  # noqa: PLC0415
 
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
@@ -444,10 +446,10 @@ def table_lines(study) -> list[str]:
     for d, s in detector_scores(rows)["all"].items():
         out.append(f"detector {d:22s} precision {_f(s.precision)}, recall {_f(s.recall)} (TP {s.true_positive}, "
                    f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
-    st = study.settings
-    if st.get("realism"):
-        out.append(f"realism {st['realism']}: " + ", ".join(st.get("realism_sources", [])) + "; each plate's draw: "
-                   + st.get("realism_seeds", "") + f"; corner noise of the calibration views {st.get('corner_noise_px', 0):.3f} px")
+    rz = StudyRealism.from_dict(study.settings)
+    if rz.realism:
+        out.append(f"realism {rz.realism}: " + ", ".join(rz.realism_sources) + "; each plate's draw: "
+                   + (rz.realism_seeds or "") + f"; corner noise of the calibration views {rz.corner_noise_px or 0:.3f} px")
     t = study.targets
     out.append(f"targets: silent {t.silent}, errors {t.errors}, cured {t.seen_all_of_curable}/{t.curable} "
                f"({_pct(t.seen_all_frac)} %: the final poses see it all), verified {t.cured_of_verifiable} of the "

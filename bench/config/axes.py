@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from platebench.bench.config.presets import noise_preset_of
 from platebench.bench.config.realism import SOURCES
-from platebench.bench.config.sample_config import ConfigError, SampleConfig
+from platebench.bench.config.sample_config import ConfigError, RigPose, SampleConfig
 from platebench.plates.spec import family_sweep_keys
 
 __all__ = ["ParameterColumn", "PARAMETERS", "PARAMETER_NAMES", "AxisInfo", "AXES", "axis_column",
@@ -69,8 +69,8 @@ def _mat(key: str, kind: str | None = None):
 def _focal(cfg: dict, pose: dict):
     try:
         return SampleConfig.from_dict(cfg).scene.focal_px
-    except ConfigError:
-        return cfg.get("scene", {}).get("f_px")
+    except ConfigError:  # a configuration that no longer parses: the focal length it states, if any
+        return _at("scene", "f_px")(cfg, pose)
 
 
 def _pattern(cfg: dict, pose: dict):
@@ -91,8 +91,8 @@ PARAMETERS: tuple[ParameterColumn, ...] = (
     ParameterColumn("metal", "str", "", "metal", _mat("metal", "roughconductor")),
     ParameterColumn("roughness", "float", "", "roughness (GGX alpha)", _mat("alpha", "roughconductor")),
     ParameterColumn("distance_m", "float", "m", "sensing distance", _at("scene", "distance_m")),
-    ParameterColumn("tilt_deg", "float", "deg", "rig tilt", lambda c, p: float(p.get("tilt_deg", 0.0))),
-    ParameterColumn("azimuth_deg", "float", "deg", "rig tilt azimuth", lambda c, p: float(p.get("azimuth_deg", 0.0))),
+    ParameterColumn("tilt_deg", "float", "deg", "rig tilt", lambda c, p: RigPose.from_dict(p).tilt_deg),
+    ParameterColumn("azimuth_deg", "float", "deg", "rig tilt azimuth", lambda c, p: RigPose.from_dict(p).azimuth_deg),
     ParameterColumn("baseline_m", "float", "m", "stereo baseline", _at("scene", "baseline_m")),
     ParameterColumn("projector_kind", "str", "", "projector model", _at("scene", "projector_kind")),
     ParameterColumn("pattern", "str", "", "projected pattern", _pattern),

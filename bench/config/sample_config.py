@@ -65,7 +65,7 @@ from platebench.scenes.scene_spec import (
 )
 from platebench.scenes.sensor_model import SensorModel
 
-__all__ = ["ConfigError", "SceneParams", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid",
+__all__ = ["ConfigError", "SceneParams", "RigPose", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid",
            "with_overrides", "read_toml", "read_toml_text", "check_types", "check_value_type"]
 
 
@@ -162,11 +162,11 @@ def _check_keys(where: str, d: dict, allowed: set) -> None:
 class SceneParams:
     """The scalar knobs of a scene (what sample.json records); ``build()`` makes the SceneSpec."""
 
-    distance_m: float = REFERENCE["distance_m"]
-    width: int = REFERENCE["width"]
-    height: int = REFERENCE["height"]
+    distance_m: float = REFERENCE.distance_m
+    width: int = REFERENCE.width
+    height: int = REFERENCE.height
     f_px: float | None = None  # None: 2000 px scaled with the width (same field of view)
-    baseline_m: float = REFERENCE["baseline_m"]
+    baseline_m: float = REFERENCE.baseline_m
     projector_kind: str = "pinhole"
     ambient: float = 0.0
     material: dict = field(default_factory=dict)
@@ -204,7 +204,7 @@ class SceneParams:
             material = Material(**self.material)
             pattern = None
             if self.pattern:
-                pattern = square_grid(REFERENCE["projector_width"], REFERENCE["projector_height"], **self.pattern)
+                pattern = square_grid(REFERENCE.projector_width, REFERENCE.projector_height, **self.pattern)
             scene = reference_scene(distance_m=self.distance_m, width=int(self.width), height=int(self.height),
                                     f_px=self.focal_px, baseline_m=self.baseline_m,
                                     projector_kind=self.projector_kind, pattern=pattern, material=material,
@@ -217,7 +217,7 @@ class SceneParams:
     @property
     def focal_px(self) -> float:
         """Focal length in pixels; by default the reference 2000 px scaled with the image width."""
-        return float(self.f_px) if self.f_px is not None else REFERENCE["f_px"] * self.width / REFERENCE["width"]
+        return float(self.f_px) if self.f_px is not None else REFERENCE.f_px * self.width / REFERENCE.width
 
     @property
     def lens(self) -> BrownConrady | None:
@@ -234,6 +234,26 @@ class SceneParams:
         if self.distortion:
             d["distortion"] = dict(self.distortion)
         return d
+
+
+@dataclass(frozen=True)
+class RigPose:
+    """A sweep's pose of the rig (``scenes.scene_spec.scene_for_pose``): its viewing direction
+    tilted ``tilt_deg`` from vertical toward azimuth ``azimuth_deg`` (from +X around +Z), degrees;
+    0, 0: the reference rig looking straight down."""
+
+    tilt_deg: float = 0.0
+    azimuth_deg: float = 0.0
+
+    def to_dict(self) -> dict:
+        return {"tilt_deg": self.tilt_deg, "azimuth_deg": self.azimuth_deg}
+
+    @classmethod
+    def from_dict(cls, d) -> "RigPose":
+        """A sweep sample's pose table (``{"tilt_deg", "azimuth_deg"}``, either absent: 0; None: the
+        reference pose)."""
+        d = d or {}
+        return cls(float(d.get("tilt_deg", 0.0)), float(d.get("azimuth_deg", 0.0)))
 
 
 @dataclass(frozen=True)

@@ -53,9 +53,10 @@ from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX, PlateBenchDatas
 from platebench.bench.io.images import DatasetError, write_pfm, write_png
 from platebench.bench.io.middlebury import write_calib
 from platebench.bench.io.outputs import check_output, output_dir
+from platebench.bench.io.records import Record
 from platebench.tolerances import tol
 
-__all__ = ["FORMATS", "ExportSummary", "export_dataset", "KITTI_SCALE", "KITTI_MAX_DISPARITY_PX", "nocc_mask_png",
+__all__ = ["FORMATS", "ExportSummary", "ExportedSample", "export_dataset", "KITTI_SCALE", "KITTI_MAX_DISPARITY_PX", "nocc_mask_png",
            "KittiPair", "kitti_pair", "kitti_resample_factor"]
 
 FORMATS = ("middlebury", "kitti")
@@ -65,11 +66,41 @@ _DEPTH_RULE = {"middlebury": "Z = baseline f / (d + doffs), from calib.txt (base
                "kitti": "Z = f B / d, f = P_rect_02[0, 0], B = (P_rect_02[0, 3] - P_rect_03[0, 3]) / f (metres)"}
 
 
+_KITTI_ONLY = ("resample_factor", "resampled", "f_px", "baseline_m")
+
+
+@dataclass(frozen=True)
+class ExportedSample(Record):
+    """One exported sample (a row of export.json's ``samples``): its id, its files in the export,
+    the sample it came from, the shift of its disparities (px) and Middlebury's doffs (px), its
+    disparity range (px, as the format's vmin/vmax) and image size (px). KITTI only: the factor its
+    images were reduced by, why (None: not reduced), its focal length (px) and baseline (m)."""
+
+    id: str
+    files: str
+    source: str
+    shift_px: int
+    doffs_px: float
+    vmin: int
+    vmax: int
+    width: int
+    height: int
+    resample_factor: int | None = None
+    resampled: str | None = None
+    f_px: float | None = None
+    baseline_m: float | None = None
+
+    def to_dict(self) -> dict:
+        d = super().to_dict()
+        order = ("id", "files", "source", "shift_px", "doffs_px", *_KITTI_ONLY, "vmin", "vmax", "width", "height")
+        return {k: d[k] for k in order if self.resample_factor is not None or k not in _KITTI_ONLY}
+
+
 @dataclass(frozen=True)
 class ExportSummary:
     out: Path
     format: str
-    samples: tuple  # ({"id", "source", "shift_px", "vmin", "vmax"}, ...)
+    samples: tuple[ExportedSample, ...]
 
 
 def nocc_mask_png(pair: StereoPair) -> np.ndarray:
@@ -195,26 +226,26 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
                 raise DatasetError(f"{pair.sample_dir}: no plate pixel with a true disparity in the exported view")
             if fmt == "middlebury":
                 _write_middlebury(d / pair.sample_id, pair)
-                rows.append({"id": pair.sample_id, "files": pair.sample_id, "source": str(pair.sample_dir.resolve()),
-                             "shift_px": pair.shift_px, "doffs_px": pair.calib.doffs, "vmin": pair.calib.vmin,
-                             "vmax": pair.calib.vmax, "width": pair.calib.width, "height": pair.calib.height})
+                rows.append(ExportedSample(id=pair.sample_id, files=pair.sample_id, source=str(pair.sample_dir.resolve()),
+                                           shift_px=pair.shift_px, doffs_px=pair.calib.doffs, vmin=pair.calib.vmin,
+                                           vmax=pair.calib.vmax, width=pair.calib.width, height=pair.calib.height))
             else:
                 kp = kitti_pair(pair)
                 _write_kitti(d, k, kp)
                 known = kp.disparity[np.isfinite(kp.disparity)]
-                rows.append({"id": pair.sample_id, "files": f"training/*/{k:06d}_10.png",
-                             "source": str(pair.sample_dir.resolve()), "shift_px": 0, "doffs_px": 0.0,
-                             "resample_factor": kp.factor,
-                             "resampled": (f"images reduced {kp.factor}x (area average of {kp.factor}x{kp.factor} "
-                                           f"pixel blocks) so that the true disparities, "
-                                           f"{pair.calib.vmin} to {pair.calib.vmax} px as rendered, fit KITTI's "
-                                           f"d < {KITTI_MAX_DISPARITY_PX:.2f} px") if kp.factor > 1 else None,
-                             "f_px": float(kp.K[0, 0]), "baseline_m": kp.baseline_m,
-                             "vmin": math.floor(known.min()) if known.size else 0,
-                             "vmax": math.ceil(known.max()) if known.size else 0,
-                             "width": int(kp.left.shape[1]), "height": int(kp.left.shape[0])})
+                rows.append(ExportedSample(
+                    id=pair.sample_id, files=f"training/*/{k:06d}_10.png", source=str(pair.sample_dir.resolve()),
+                    shift_px=0, doffs_px=0.0, resample_factor=kp.factor,
+                    resampled=(f"images reduced {kp.factor}x (area average of {kp.factor}x{kp.factor} "
+                               f"pixel blocks) so that the true disparities, "
+                               f"{pair.calib.vmin} to {pair.calib.vmax} px as rendered, fit KITTI's "
+                               f"d < {KITTI_MAX_DISPARITY_PX:.2f} px") if kp.factor > 1 else None,
+                    f_px=float(kp.K[0, 0]), baseline_m=kp.baseline_m,
+                    vmin=math.floor(known.min()) if known.size else 0,
+                    vmax=math.ceil(known.max()) if known.size else 0,
+                    width=int(kp.left.shape[1]), height=int(kp.left.shape[0])))
         write_json(d / "export.json", {"format": fmt, "images": images, "shift": shift,
-                                       "min_disparity_px": min_disparity_px, "samples": rows,
+                                       "min_disparity_px": min_disparity_px, "samples": [r.to_dict() for r in rows],
                                        "units": "px; baseline in calib.txt in mm (Middlebury), in P_rect_03 in m "
                                                 "(KITTI)",
                                        "depth": _DEPTH_RULE[fmt]})

@@ -16,8 +16,8 @@ import math
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Mapping
 
-__all__ = ["Stage3Accuracy", "MergedFigures", "StudyRow", "StudyTargets", "record_from_dict", "final_figures",
-           "study_rows", "MethodFigures", "compare_methods", "score_record"]
+__all__ = ["Record", "file_form", "records_from", "Stage3Accuracy", "MergedFigures", "StudyRow", "StudyTargets", "record_from_dict", "final_figures",
+           "study_rows", "LFormulaRow", "study_extras", "MethodFigures", "compare_methods", "score_record"]
 
 
 def _value(v):
@@ -27,10 +27,28 @@ def _value(v):
     return v
 
 
+def file_form(v):
+    """``v`` as a file holds it: a record (anything with ``to_dict``) as its dict, a mapping as a
+    dict and a tuple or list as a list of their items' file forms, a NaN or infinite number as None."""
+    if hasattr(v, "to_dict"):
+        return v.to_dict()
+    if isinstance(v, Mapping):
+        return {k: file_form(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [file_form(x) for x in v]
+    return _value(v)
+
+
+def records_from(cls, d: Mapping[str, Any] | None) -> dict:
+    """A mapping of ``cls`` records (name -> ``cls.from_dict``) from its dict form."""
+    return {str(k): cls.from_dict(v) for k, v in (d or {}).items()}
+
+
 def record_from_dict(cls, d: Mapping[str, Any] | None, renamed: Mapping[str, str] | None = None):
     """A ``cls`` record from its dict form: every field from the key of its name (missing keys: the
-    field's default; ValueError for a field without one); ``renamed``: old key -> field name, for
-    files written before a figure was renamed. Unknown keys are ignored (a newer writer's figures)."""
+    field's default; ValueError for a field without one; a list as a tuple); ``renamed``: old key ->
+    field name, for files written before a figure was renamed. Unknown keys are ignored (a newer
+    writer's figures)."""
     d = dict(d or {})
     for old, new in (renamed or {}).items():
         if old in d and new not in d:
@@ -40,17 +58,18 @@ def record_from_dict(cls, d: Mapping[str, Any] | None, renamed: Mapping[str, str
                and f.name not in d]
     if missing:
         raise ValueError(f"a {cls.__name__} record without {missing[0]!r}")
-    return cls(**{k: _value(v) for k, v in d.items() if k in names})
+    return cls(**{k: tuple(v) if isinstance(v, list) else _value(v) for k, v in d.items() if k in names})
 
 
-class _Record:
-    """``to_dict`` (field name -> value) and ``from_dict`` (``record_from_dict``, with the class's
-    ``RENAMED``: old key -> field name) for a frozen dataclass of figures."""
+class Record:
+    """``to_dict`` (field name -> the value's ``file_form``) and ``from_dict`` (``record_from_dict``,
+    with the class's ``RENAMED``: old key -> field name) for a frozen dataclass of figures. A record
+    with records among its fields reads them back in its own ``from_dict``."""
 
     RENAMED: Mapping[str, str] = {}
 
     def to_dict(self) -> dict:
-        return {f.name: _value(getattr(self, f.name)) for f in fields(self)}
+        return {f.name: file_form(getattr(self, f.name)) for f in fields(self)}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None):
@@ -58,7 +77,7 @@ class _Record:
 
 
 @dataclass(frozen=True)
-class Stage3Accuracy(_Record):
+class Stage3Accuracy(Record):
     """The stage-3 reconstruction (the paper's method) scored against ground truth: depth RMS at its
     square centres, the centres scored, boundary mean distance, surface RMS and coverage, the
     paper's bound and the bench's goals (``evaluation.score``)."""
@@ -75,7 +94,7 @@ class Stage3Accuracy(_Record):
 
 
 @dataclass(frozen=True)
-class MergedFigures(_Record):
+class MergedFigures(Record):
     """The merged multi-view reconstruction (``active_views.MergedReconstruction``) scored against
     ground truth (``bench.run.sensing.scoring.merged_accuracy``): its boundary (points, mean
     symmetric and one-way distance to the true boundary, the share of the true boundary's length
@@ -107,7 +126,7 @@ def final_figures(final: Mapping[str, Any]) -> tuple[Stage3Accuracy | None, Merg
 
 
 @dataclass(frozen=True)
-class StudyRow(_Record):
+class StudyRow(Record):
     """One plate of the false-boundary study (``bench.run.study.study_row``): the plate (its case's
     parameters), the loop's outcome and verdict, ground truth's visibility (``gt_*``, for scoring
     only), each detector's verdict at the stage-2 pose (``detectors``: name -> fired, None where it
@@ -182,7 +201,7 @@ class StudyRow(_Record):
 
 
 @dataclass(frozen=True)
-class StudyTargets(_Record):
+class StudyTargets(Record):
     """The study's targets (``bench.run.study.targets``): silent = 0, errors = 0, the final poses
     see the whole boundary on >= 90 % of the curable plates, verified >= 90 % of the verifiable
     ones, false alarms <= 2 % of the plates with nothing hidden; the counts they are computed from,
@@ -210,7 +229,50 @@ def study_rows(doc: Mapping[str, Any]) -> list[StudyRow]:
 
 
 @dataclass(frozen=True)
-class MethodFigures(_Record):
+class LFormulaRow(Record):
+    """The paper's L formula at one convex cylindrical bend (``bench.run.study.l_formula_table``):
+    the bend (deg), the sensing distance L (m) and the rig distance it predicts (L plus the height
+    of AB, m), and for a baseline along the bend's axis and along the bend the ground-truth smallest
+    rig distance at which both cameras see the whole true boundary (m; infinite: never) and its
+    ratio to the prediction (None where undefined). None: not computed."""
+
+    bend_deg: float
+    L_m: float | None = None
+    predicted_distance_m: float | None = None
+    gt_distance_baseline_along_axis_m: float | None = None
+    ratio_gt_over_predicted_baseline_along_axis: float | None = None
+    gt_distance_baseline_along_bend_m: float | None = None
+    ratio_gt_over_predicted_baseline_along_bend: float | None = None
+
+    def to_dict(self) -> dict:
+        """The row's keys; an infinite ground-truth distance stays infinite (never fully visible)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "LFormulaRow":
+        def number(v):
+            return None if v is None or isinstance(v, bool) or not isinstance(v, (int, float)) else float(v)
+        if number(d.get("bend_deg")) is None:
+            raise ValueError("an LFormulaRow record without 'bend_deg'")
+        return cls(**{f.name: number(d.get(f.name)) for f in fields(cls)})
+
+
+def study_extras(doc: Mapping[str, Any]) -> tuple[dict[str, float | None], list[LFormulaRow]]:
+    """study.json's (or an older study's) L-formula part: the smallest bend (deg) that hides part
+    of the boundary from the straight-down rig, per bend direction (None: none up to 350 deg), and
+    the L-formula rows; both empty where the study did not compute them."""
+    sh = doc.get("smallest_hiding_bend_deg")
+    lf = []
+    for r in doc.get("l_formula") or []:
+        try:
+            lf.append(LFormulaRow.from_dict(r))
+        except (ValueError, TypeError, AttributeError):  # not a row of a bend: nothing to show
+            continue
+    return (dict(sh) if isinstance(sh, Mapping) else {}), lf
+
+
+@dataclass(frozen=True)
+class MethodFigures(Record):
     """One method's key figures in ``compare`` (its table, compare.json, the report's comparison):
     how it is measured (``measure``: "centres" for the paper's sparse square centres, "disparity"
     or "depth" for a map over the plate's pixels, "cloud", "mesh"), its images per camera and times,

@@ -129,7 +129,7 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
                 "false_boundary_gt": any(v.false_boundary for v in s.visibility.values()),
                 "images": {n: hashlib.sha256(s.digital[n].tobytes()).hexdigest() for n in IMAGE_NAMES}}
         if getattr(s, "acquisition", None) is not None:
-            meta["acquisition"] = s.acquisition
+            meta["acquisition"] = s.acquisition.to_dict()
         write_json(d / "sample.json", meta)
         if not into:  # a command's staged output gets its stamp when the whole output is complete
             write_stamp(d, "sample")

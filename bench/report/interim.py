@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from platebench.bench.io.records import study_extras
 from platebench.bench.report import plots as P
 from platebench.bench.report.inputs import load_sensing, load_study
 from platebench.bench.report.page import column_label
@@ -66,8 +67,8 @@ def _study_figures(rows: list[dict]) -> list[dict]:
 
 def _study_tables(doc: dict, rows: list[dict]) -> list[dict]:
     tables = []
-    sh = doc.get("smallest_hiding_bend_deg")
-    if isinstance(sh, dict) and sh:
+    sh, lf = study_extras(doc)
+    if sh:
         tables.append({"title": "Smallest hiding bend",
                        "caption": "Smallest cylindrical bend (degrees) at which the straight-down reference rig "
                                   "misses part of the true boundary (ground-truth visibility); a dash: no bend up to "
@@ -86,8 +87,8 @@ def _study_tables(doc: dict, rows: list[dict]) -> list[dict]:
                                   "fractions 0..1, a dash where undefined.",
                        "columns": ["flag", *keys],
                        "rows": [{"flag": f, **{k: (v or {}).get(k) for k in keys}} for f, v in pr.items()]})
-    lf = [r for r in doc.get("l_formula") or [] if isinstance(r, dict)]
     if lf:
+        lf = [r.to_dict() for r in lf]  # the table's rows, by column
         tables.append({"title": "L formula", "columns": _columns(_L_COLUMNS, lf), "rows": lf,
                        "caption": "The paper's sensing distance L (from the tangents at the ends of the most-bent "
                                   "curve) plus the height of AB, against the ground-truth smallest rig distance at "
@@ -105,11 +106,10 @@ def _study_tables(doc: dict, rows: list[dict]) -> list[dict]:
 def _study_plots(doc: dict, rows: list[dict], out_dir: Path) -> list[dict]:
     out_dir = Path(out_dir)
     plots = []
-    sh = doc.get("smallest_hiding_bend_deg")
+    sh, lf = study_extras(doc)
     if rows:
         plots.append({"file": P.plot_hidden_fraction_vs_bend(
-            rows, out_dir / "hidden_fraction_vs_bend.png", series=_series(rows),
-            smallest_hiding=sh if isinstance(sh, dict) else None).name,
+            rows, out_dir / "hidden_fraction_vs_bend.png", series=_series(rows), smallest_hiding=sh or None).name,
             "caption": "Top: fraction (0..1) of the true boundary hidden from the worse camera at the default pose "
                        "against the bend angle (degrees), per bend direction; small hollow triangles: left (<) and "
                        "right (>) camera; dotted verticals: smallest hiding bend. Bottom: per case, the ground truth "
@@ -132,7 +132,6 @@ def _study_plots(doc: dict, rows: list[dict], out_dir: Path) -> list[dict]:
                           "caption": "Depth RMS error of the square centres (mm) and mean boundary distance (mm) "
                                      "against the bend angle (degrees), solid/dashed per bend direction; red crosses "
                                      "mark cases whose reconstruction failed."})
-    lf = [r for r in doc.get("l_formula") or [] if isinstance(r, dict)]
     if lf:
         plots.append({"file": P.plot_l_formula(lf, out_dir / "l_formula.png").name,
                       "caption": "Left: the L formula's predicted rig distance (m) and the ground-truth distance of "

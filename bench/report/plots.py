@@ -13,7 +13,7 @@ fractions in 0..1 (as the table columns name them).
 from __future__ import annotations
 
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,7 @@ from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label, metri
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
-           "plot_metric_vs_axis", "error_map_data", "bend_bins", "compare_error_figure", "plot_output_error_map",
+           "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "bend_bins", "compare_error_figure", "plot_output_error_map",
            "output_file", "plot_accuracy_study"]
 
 DPI = 100
@@ -387,13 +387,13 @@ def plot_cure_success_vs_bend(rows, path, title: str | None = None) -> Path:
 def plot_l_formula(rows, path, title: str | None = None) -> Path:
     """Left: the L formula's predicted rig distance (m) and the ground-truth distance of complete
     visibility (m) against bend (deg), for both baselines. Right: ground truth against prediction
-    (m) with the identity line."""
-    rows = [r for r in (rows or []) if _bend_key(r.get("bend_deg")) is not None]
+    (m) with the identity line. ``rows``: ``bench.io.records.LFormulaRow``s."""
+    rows = [r for r in (rows or []) if _bend_key(r.bend_deg) is not None]
     fig = _figure(10.0, 4.2)
     a1, a2 = fig.subplots(1, 2)
-    series = [("gt_distance_baseline_along_axis_m", "GT, baseline along the bend axis", "s"),
-              ("gt_distance_baseline_along_bend_m", "GT, baseline along the bend", "^")]
-    pred = [(_bend_key(r["bend_deg"]), _num(r.get("predicted_distance_m"))) for r in rows]
+    series = [(lambda r: r.gt_distance_baseline_along_axis_m, "GT, baseline along the bend axis", "s"),
+              (lambda r: r.gt_distance_baseline_along_bend_m, "GT, baseline along the bend", "^")]
+    pred = [(_bend_key(r.bend_deg), _num(r.predicted_distance_m)) for r in rows]
     pred = sorted((b, p) for b, p in pred if p is not None)
     if not pred:
         for ax in (a1, a2):
@@ -403,11 +403,12 @@ def plot_l_formula(rows, path, title: str | None = None) -> Path:
     b, p = np.array(pred).T
     a1.plot(b, p, "k-o", ms=4, lw=1.6, label="predicted: L + height of AB")
     lo = hi = None
-    for j, (key, label, mk) in enumerate(series):
-        pts = sorted(((_bend_key(r["bend_deg"]), _num(r.get(key)), _num(r.get("predicted_distance_m")))
-                      for r in rows), key=lambda t: t[0])
+    for j, (gt, label, mk) in enumerate(series):
+        pts = sorted(((_bend_key(r.bend_deg), _num(gt(r)), _num(r.predicted_distance_m)) for r in rows),
+                     key=lambda t: t[0])
         good = [(x, g, q) for x, g, q in pts if g is not None and q is not None]
-        never = sorted({x for x, g, q in pts if g is None and _has(rows, x, key)})
+        # an infinite distance: never fully visible (None: not computed)
+        never = sorted({_bend_key(r.bend_deg) for r in rows if gt(r) is not None and _num(gt(r)) is None})
         if good:
             x, g, q = np.array(good).T
             a1.plot(x, g, mk + "--", ms=5, lw=1.2, color=f"C{j}", label=label)
@@ -438,11 +439,6 @@ def plot_l_formula(rows, path, title: str | None = None) -> Path:
     fig.suptitle(title or "The paper's L formula: distance at which the whole boundary is visible", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
-
-
-def _has(rows, bend, key) -> bool:
-    """Whether a row at ``bend`` has ``key`` present (None or inf = never visible, vs column missing)."""
-    return any(_bend_key(r.get("bend_deg")) == bend and key in r for r in rows)
 
 
 # ----------------------------------------------------------------------------- method comparison
@@ -682,13 +678,33 @@ def _null_formatter():
 
 
 # ----------------------------------------------------------------------------- error map
-def error_map_data(sample_dir, recon_dir) -> dict:
-    """What the error map shows, from a sample directory and a reconstruction directory (metres in,
-    millimetres out): the GT outline, the reconstructed surface's vertices and faces with their
-    exact distance to the GT mesh, the reconstructed boundary, and the square centres with their
-    3D error against the true centre (projector ray through the feature centre cut with the mesh;
-    identity from the GT feature map at the left pixel), or, where the identity is unknown, their
-    distance to the true surface (``centre_kind`` says which)."""
+@dataclass(frozen=True, eq=False)
+class ErrorMapData:
+    """What the error map shows (world frame, metres; errors in millimetres): the true outline (N,3;
+    None: not in the sample), the reconstructed boundary (M,3; None: none), the reconstructed
+    surface's vertices (V,3), faces (F,3) and each vertex's exact distance to the true mesh (V,; all
+    None: no surface), the square centres (P,3), their error (P,) and its kind per centre (P,:
+    "3d", the 3D error against the true centre, or "surface", the distance to the true surface where
+    the identity is unknown), and the centres' feature ids."""
+
+    gt_boundary: np.ndarray | None
+    rec_boundary: np.ndarray | None
+    centres: np.ndarray
+    feature_id: np.ndarray | None = None
+    surface_vertices: np.ndarray | None = None
+    surface_faces: np.ndarray | None = None
+    surface_dist_mm: np.ndarray | None = None
+    centre_err_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    centre_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="<U7"))
+
+
+def error_map_data(sample_dir, recon_dir) -> ErrorMapData:
+    """What the error map shows (``ErrorMapData``), from a sample directory and a reconstruction
+    directory (metres in, millimetres out): the GT outline, the reconstructed surface's vertices
+    and faces with their exact distance to the GT mesh, the reconstructed boundary, and the square
+    centres with their 3D error against the true centre (projector ray through the feature centre
+    cut with the mesh; identity from the GT feature map at the left pixel), or, where the identity
+    is unknown, their distance to the true surface (``centre_kind`` says which)."""
     from platebench.bench.io.images import read_npy, read_png  # noqa: PLC0415
     from platebench.bench.io.recon_files import load_reconstruction  # noqa: PLC0415
     from platebench.bench.io.sample_files import read_mesh  # noqa: PLC0415
@@ -699,10 +715,8 @@ def error_map_data(sample_dir, recon_dir) -> dict:
     gt_boundary = read_npy(sample_dir / "boundary.npy", (None, 3)) if (sample_dir / "boundary.npy").is_file() \
         else None
     rec = load_reconstruction(recon_dir)
-    out = {"gt_boundary": gt_boundary, "rec_boundary": rec.boundary if len(rec.boundary) else None,
-           "surface_vertices": None, "surface_faces": None, "surface_dist_mm": None,
-           "centres": rec.points, "centre_err_mm": np.zeros(0), "centre_kind": np.zeros(0, dtype="<U7"),
-           "feature_id": rec.feature_id}
+    out = dict(gt_boundary=gt_boundary, rec_boundary=rec.boundary if len(rec.boundary) else None, centres=rec.points,
+               feature_id=rec.feature_id)
     if rec.surface is not None and len(rec.surface.vertices):
         v = np.asarray(rec.surface.vertices, float)
         out.update(surface_vertices=v, surface_faces=np.asarray(rec.surface.faces, int),
@@ -732,24 +746,24 @@ def error_map_data(sample_dir, recon_dir) -> dict:
         except (OSError, ValueError, KeyError):  # no GT feature map / pattern: distances to the surface only
             pass
         out.update(centre_err_mm=err, centre_kind=kind)
-    return out
+    return ErrorMapData(**out)
 
 
-def _outline(ax, d: dict) -> None:
+def _outline(ax, d: ErrorMapData) -> None:
     """The true boundary (black), closed, in mm."""
-    if d["gt_boundary"] is not None and len(d["gt_boundary"]):
-        b = np.vstack([d["gt_boundary"], d["gt_boundary"][:1]]) * 1e3
+    if d.gt_boundary is not None and len(d.gt_boundary):
+        b = np.vstack([d.gt_boundary, d.gt_boundary[:1]]) * 1e3
         ax.plot(b[:, 0], b[:, 1], "k-", lw=1.2, label="true boundary")
 
 
-def _draw_surface_panel(fig, ax, d: dict) -> None:
+def _draw_surface_panel(fig, ax, d: ErrorMapData) -> None:
     """The reconstructed surface coloured by its distance to the true mesh (mm), both boundaries."""
     from matplotlib.tri import Triangulation  # noqa: PLC0415
-    if d["surface_vertices"] is not None and len(d["surface_faces"]):
-        v = d["surface_vertices"] * 1e3
-        dist = d["surface_dist_mm"]
+    if d.surface_vertices is not None and len(d.surface_faces):
+        v = d.surface_vertices * 1e3
+        dist = d.surface_dist_mm
         vmax = float(np.percentile(dist, 99)) if dist.size else 1.0
-        im = ax.tripcolor(Triangulation(v[:, 0], v[:, 1], d["surface_faces"]), dist, shading="gouraud",
+        im = ax.tripcolor(Triangulation(v[:, 0], v[:, 1], d.surface_faces), dist, shading="gouraud",
                           cmap="viridis", vmin=0.0, vmax=max(vmax, _MIN_COLOUR_RANGE_MM))
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
         ax.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
@@ -757,17 +771,17 @@ def _draw_surface_panel(fig, ax, d: dict) -> None:
     else:
         ax.set_title("no reconstructed surface", fontsize=9)
     _outline(ax, d)
-    if d["rec_boundary"] is not None:
-        rb = np.vstack([d["rec_boundary"], d["rec_boundary"][:1]]) * 1e3
+    if d.rec_boundary is not None:
+        rb = np.vstack([d.rec_boundary, d.rec_boundary[:1]]) * 1e3
         ax.plot(rb[:, 0], rb[:, 1], "--", color="red", lw=1.1, label="reconstructed boundary")
     ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
 
 
-def _draw_centres_panel(fig, ax, d: dict) -> None:
+def _draw_centres_panel(fig, ax, d: ErrorMapData) -> None:
     """The square centres coloured by their 3D error against the true centres (mm; diamonds: identity
     unknown, distance to the surface), values printed above each when there are few."""
     _outline(ax, d)
-    pts, err, kind = d["centres"], d["centre_err_mm"], d["centre_kind"]
+    pts, err, kind = d.centres, d.centre_err_mm, d.centre_kind
     if not len(pts):
         ax.set_title("no triangulated square centres", fontsize=9)
         return
@@ -791,9 +805,9 @@ def _draw_centres_panel(fig, ax, d: dict) -> None:
     ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
 
 
-def _same_window(axes, d: dict) -> None:
+def _same_window(axes, d: ErrorMapData) -> None:
     """The same window on every panel, equal scales, world X/Y in mm, headroom for the legend."""
-    xy = [a[:, :2] for a in (d["gt_boundary"], d["rec_boundary"], d["surface_vertices"], d["centres"])
+    xy = [a[:, :2] for a in (d.gt_boundary, d.rec_boundary, d.surface_vertices, d.centres)
           if a is not None and len(a)]
     for ax in axes:
         if xy:
@@ -808,7 +822,7 @@ def _same_window(axes, d: dict) -> None:
         ax.grid(True, alpha=0.25)
 
 
-def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: dict | None = None) -> Path:
+def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: ErrorMapData | None = None) -> Path:
     """Error map over the plate, top view in world X/Y (mm): left, the reconstructed surface
     coloured by its exact distance to the ground-truth mesh (mm), with the true boundary (black)
     and the reconstructed one (red dashed); right, the triangulated square centres coloured by
@@ -974,28 +988,27 @@ def compare_error_figure(cmp) -> bytes:
 
 
 # ----------------------------------------------------------------------------- accuracy study
-def plot_accuracy_study(doc: dict, path) -> Path:
-    """The accuracy study (``bench.run.accuracy``): per target, each draw's worst corner with every source
-    on beside the paper's bound (top), and the error budget: the median worst corner of each budget row
-    with its 5-95 % spread over the draws (bottom). Millimetres."""
-    targets = list(doc.get("summary", {}))
-    paper = doc.get("paper", {})
+def plot_accuracy_study(study, path) -> Path:
+    """The accuracy study (``bench.run.accuracy``, an ``AccuracyStudy``): per target, each draw's worst
+    corner with every source on beside the paper's bound (top), and the error budget: the median worst
+    corner of each budget row with its 5-95 % spread over the draws (bottom). Millimetres."""
+    targets = list(study.summary)
+    paper = study.paper
     fig = _figure(6.5 * max(len(targets), 1), 9.0)
     if not targets:
         ax = fig.add_subplot(1, 1, 1)
         ax.text(0.5, 0.5, "no trials", ha="center", va="center")
         ax.set_axis_off()
         return _save(fig, path)
-    rows = doc.get("rows", [])
     grid = fig.add_gridspec(2, len(targets), height_ratios=[1.0, 1.6])
     for j, target in enumerate(targets):
-        summary = doc["summary"][target]
+        summary = study.summary[target]
         top = fig.add_subplot(grid[0, j])
-        allc = [c for c, v in summary.items() if v.get("kind") == "all"]
-        trials = [r for r in rows if r["target"] == target and allc and r["config"] == allc[0] and r["status"] == "ok"]
-        for k, (key, label, color, bound) in enumerate((("worst_depth_mm", "depth", "C0", paper.get("depth_mm")),
-                                                         ("worst_xy_mm", "x/y", "C1", paper.get("xy_mm")))):
-            v = np.array([r[key] for r in trials], float)
+        allc = [c for c, v in summary.items() if v.kind == "all"]
+        trials = [r for r in study.rows if r.target == target and allc and r.config == allc[0] and r.ok]
+        for k, (worst, label, color, bound) in enumerate(((lambda r: r.worst_depth_mm, "depth", "C0", paper.depth_mm),
+                                                           (lambda r: r.worst_xy_mm, "x/y", "C1", paper.xy_mm))):
+            v = np.array([worst(r) for r in trials], float)
             x = np.full(v.size, float(k)) + np.linspace(-0.25, 0.25, max(v.size, 1))[:v.size]
             top.plot(x, v, "o", color=color, ms=4, alpha=0.7)
             if v.size:
@@ -1011,13 +1024,14 @@ def plot_accuracy_study(doc: dict, path) -> Path:
         labels = list(summary)
         y = np.arange(len(labels))
         for k, (m, color, dy) in enumerate((("depth", "C0", -0.18), ("xy", "C1", 0.18))):
-            med = np.array([summary[c].get(m, {}).get("worst_median_mm", np.nan) for c in labels], float)
-            lo = np.array([summary[c].get(m, {}).get("worst_quantiles_mm", {}).get("q05", np.nan) for c in labels])
-            hi = np.array([summary[c].get(m, {}).get("worst_quantiles_mm", {}).get("q95", np.nan) for c in labels])
+            stats = [summary[c].stats(m) for c in labels]
+            med = np.array([np.nan if s is None else s.worst_median_mm for s in stats], float)
+            lo = np.array([np.nan if s is None else s.worst_quantiles_mm.get("q05", np.nan) for s in stats], float)
+            hi = np.array([np.nan if s is None else s.worst_quantiles_mm.get("q95", np.nan) for s in stats], float)
             ax.barh(y + dy, med, height=0.34, color=color, label="depth" if m == "depth" else "x/y")
             ax.errorbar(med, y + dy, xerr=[np.nan_to_num(med - lo), np.nan_to_num(hi - med)], fmt="none",
                         ecolor="k", lw=0.8, capsize=2)
-        for bound, style in ((paper.get("depth_mm"), "--"), (paper.get("xy_mm"), ":")):
+        for bound, style in ((paper.depth_mm, "--"), (paper.xy_mm, ":")):
             if bound:
                 ax.axvline(bound, color="k", ls=style, lw=1)
         ax.set_yticks(y, labels, fontsize=8)
@@ -1025,7 +1039,7 @@ def plot_accuracy_study(doc: dict, path) -> Path:
         ax.set_xlabel("worst corner, median over draws (mm); whiskers 5-95 %\npaper: -- depth, : x/y")
         ax.set_title(f"{target}: error budget", fontsize=10)
         ax.legend(fontsize=8, loc="lower right")
-    rz = doc.get("settings", {}).get("realism", {}).get("preset", "")
+    rz = study.settings.realism.name
     fig.suptitle(f"Accuracy test (paper V-D) under realism {rz}", fontsize=11)
     fig.tight_layout()
     return _save(fig, path)

@@ -43,6 +43,7 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass, replace
+from typing import Mapping
 
 import numpy as np
 import trimesh
@@ -51,6 +52,17 @@ from platebench.bench.config import SampleConfig
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET
 from platebench.bench.config.presets import with_realism
 from platebench.bench.config.realism import SOURCES, Realism
+from platebench.bench.io.accuracy_records import (
+    AccuracyCamera,
+    AccuracyPaper,
+    AccuracyRobot,
+    AccuracySettings,
+    AccuracyStudy,
+    AccuracyTargetBlock,
+    AccuracyTrial,
+    ConfigSummary,
+    ErrorStats,
+)
 from platebench.bench.run.realism import RealismSetup, realise
 from platebench.bench.run.render import render_images
 from platebench.evaluation.truth import true_feature_points
@@ -75,25 +87,6 @@ PAPER_XY_MM = 1.0  # paper V-D: "the error in the x and y coordinates is within 
 TARGETS = ("block", "plate")
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
 MATCH_M = 5e-3  # a measured plate centre is compared with the nearest true one, if within 5 mm (centres lie 16 mm+ apart)
-
-
-@dataclass(frozen=True)
-class AccuracySettings:
-    """What the study runs: the realism preset, the number of draws (seeds ``seed0 .. seed0 + draws -
-    1``), the targets, whether to run the error budget (else only every source on), samples per pixel,
-    the Mitsuba variant."""
-
-    realism: Realism
-    draws: int = 30
-    targets: tuple = ("block",)
-    budget: bool = True
-    spp: int = 16
-    seed0: int = 0
-    variant: str | None = None
-
-    def to_dict(self) -> dict:
-        return {"realism": self.realism.to_dict(), "draws": self.draws, "targets": list(self.targets),
-                "budget": self.budget, "spp": self.spp, "seed0": self.seed0, "variant": self.variant}
 
 
 @dataclass(frozen=True)
@@ -136,7 +129,16 @@ class SquareTarget:
 
 
 # -- one trial -------------------------------------------------------------------------
-def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> dict:
+@dataclass(frozen=True, eq=False)
+class TrialErrors:
+    """What one trial measured: each point's error (measured minus true, metres, (N, 3): x, y, z in
+    the block's frame or the world's) and the points compared."""
+
+    errors_m: np.ndarray
+    points: int
+
+
+def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> TrialErrors:
     scene = cfg.scene.build().with_rig(acq.taken)
     square = SquareTarget.of(acq.T_world_block, TARGET.square_block())
     renderer.set_scene(scene)
@@ -156,10 +158,10 @@ def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> 
     # the true corners in the order the images give them (TL, TR, BR, BL in the true left image)
     true_uv = acq.taken.left.project(square.corners_world)
     order = [int(np.argmin(np.linalg.norm(true_uv - c, axis=1))) for c in order_corners(true_uv)]
-    return {"errors_m": p_block - TARGET.square_block()[order], "points": 4}
+    return TrialErrors(p_block - TARGET.square_block()[order], 4)
 
 
-def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: int) -> dict:
+def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: int) -> TrialErrors:
     base = cfg.scene.build()
     scene = base.with_rig(acq.taken)
     proj = base.projector
@@ -178,50 +180,52 @@ def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: i
     if not ok.any():
         raise ReconstructionError(f"no square centre lies within {MATCH_M * 1e3:g} mm of a true one")
     errs = rec.points[ok] - truth[near[ok]]
-    return {"errors_m": errs, "points": int(ok.sum()), "matched": int(len(rec.points))}
+    return TrialErrors(errs, int(ok.sum()))
 
 
-def _trial_row(target: str, conf: BudgetConfig, seed: int, out: dict | None, error: str | None) -> dict:
-    row = {"target": target, "config": conf.label, "kind": conf.kind, "realism": conf.realism.name,
-           "sources": " ".join(conf.realism.sources), "seed": seed}
+def _trial_row(target: str, conf: BudgetConfig, seed: int, out: TrialErrors | None, error: str | None,
+               time_s: float | None, acquisition) -> AccuracyTrial:
+    row = dict(target=target, config=conf.label, kind=conf.kind, realism=conf.realism.name,
+               sources=" ".join(conf.realism.sources), seed=seed, time_s=time_s, acquisition=acquisition)
     if out is None:
-        return {**row, "status": "failed", "error": error}
-    e = np.asarray(out["errors_m"], float)
-    row.update(status="ok", error=None, points=int(out["points"]),
-               worst_depth_mm=float(np.max(np.abs(e[:, 2])) * 1e3),
-               worst_xy_mm=float(np.max(np.abs(e[:, :2])) * 1e3),
-               rms_depth_mm=float(np.sqrt(np.mean(e[:, 2] ** 2)) * 1e3),
-               rms_xy_mm=float(np.sqrt(np.mean(e[:, :2] ** 2)) * 1e3),
-               mean_depth_mm=float(np.mean(e[:, 2]) * 1e3),
-               errors_mm=np.round(e * 1e3, 5).tolist())
-    return row
+        return AccuracyTrial(**row, status="failed", error=error)
+    e = np.asarray(out.errors_m, float)
+    return AccuracyTrial(**row, status="ok", error=None, points=int(out.points),
+                         worst_depth_mm=float(np.max(np.abs(e[:, 2])) * 1e3),
+                         worst_xy_mm=float(np.max(np.abs(e[:, :2])) * 1e3),
+                         rms_depth_mm=float(np.sqrt(np.mean(e[:, 2] ** 2)) * 1e3),
+                         rms_xy_mm=float(np.sqrt(np.mean(e[:, :2] ** 2)) * 1e3),
+                         mean_depth_mm=float(np.mean(e[:, 2]) * 1e3),
+                         errors_mm=tuple(map(tuple, np.round(e * 1e3, 5).tolist())))
 
 
 # -- statistics ------------------------------------------------------------------------
-def summarise(rows: list[dict]) -> dict:
-    """Statistics of one configuration's trials (see the module doc); millimetres."""
-    ok = [r for r in rows if r["status"] == "ok"]
-    out = {"draws": len(rows), "failed": len(rows) - len(ok)}
+def summarise(rows: list[AccuracyTrial], kind: str = "", sources: tuple = ()) -> ConfigSummary:
+    """Statistics of one configuration's trials (see the module doc; millimetres), of a budget
+    row of ``kind`` with ``sources`` on."""
+    ok = [r for r in rows if r.ok]
     if not ok:
-        return out
-    e = np.concatenate([np.asarray(r["errors_mm"], float) for r in ok])
+        return ConfigSummary(kind, tuple(sources), len(rows), len(rows))
+    e = np.concatenate([np.asarray(r.errors_mm, float) for r in ok])
     depth, xy = np.abs(e[:, 2]), np.abs(e[:, :2]).ravel()
-    for name, worst, pooled in (("depth", [r["worst_depth_mm"] for r in ok], depth),
-                                ("xy", [r["worst_xy_mm"] for r in ok], xy)):
+    stats = {}
+    for name, worst, pooled in (("depth", [r.worst_depth_mm for r in ok], depth),
+                                ("xy", [r.worst_xy_mm for r in ok], xy)):
         w = np.asarray(worst)
-        out[name] = {"worst_median_mm": float(np.median(w)),
-                     "worst_quantiles_mm": {f"q{int(q * 100):02d}": float(np.quantile(w, q)) for q in QUANTILES},
-                     "rms_mm": float(np.sqrt(np.mean(pooled ** 2))), "p95_mm": float(np.quantile(pooled, 0.95)),
-                     "max_mm": float(pooled.max()),
-                     "within_paper_frac": float(np.mean(w <= (PAPER_DEPTH_MM if name == "depth" else PAPER_XY_MM)))}
-    out["depth"]["mean_signed_mm"] = float(np.mean(e[:, 2]))
-    return out
+        stats[name] = ErrorStats(
+            worst_median_mm=float(np.median(w)),
+            worst_quantiles_mm={f"q{int(q * 100):02d}": float(np.quantile(w, q)) for q in QUANTILES},
+            rms_mm=float(np.sqrt(np.mean(pooled ** 2))), p95_mm=float(np.quantile(pooled, 0.95)),
+            max_mm=float(pooled.max()),
+            within_paper_frac=float(np.mean(w <= (PAPER_DEPTH_MM if name == "depth" else PAPER_XY_MM))),
+            mean_signed_mm=float(np.mean(e[:, 2])) if name == "depth" else None)
+    return ConfigSummary(kind, tuple(sources), len(rows), len(rows) - len(ok), **stats)
 
 
 # -- the study ---------------------------------------------------------------------------
-def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
-    """Run every budget configuration on every target for every draw; the study's JSON document.
-    ``progress(row)`` is called after each trial with its row."""
+def run_accuracy_study(settings: AccuracySettings, progress=None) -> AccuracyStudy:
+    """Run every budget configuration on every target for every draw; the study (accuracy.json's
+    record). ``progress(trial)`` is called after each trial with its ``AccuracyTrial``."""
     t0 = time.perf_counter()
     rz = settings.realism
     start = SampleConfig(render=RenderSettings(settings.spp, settings.seed0), variant=settings.variant)
@@ -251,8 +255,7 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
                 acq = realise(setup, rig, seed)
             except (CalibrationError, HandEyeError) as e:  # the draw's estimates cannot be used: said, not hidden
                 for target in settings.targets:
-                    row = _trial_row(target, conf, seed, None, str(e).splitlines()[0])
-                    row.update(time_s=0.0, acquisition=None)
+                    row = _trial_row(target, conf, seed, None, str(e).splitlines()[0], 0.0, None)
                     rows.append(row)
                     if progress:
                         progress(row)
@@ -262,57 +265,55 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> dict:
                 try:
                     out = _block_trial(cfg, acq, renderer, seed) if target == "block" else \
                         _plate_trial(cfg, acq, renderer, plate, seed)
-                    row = _trial_row(target, conf, seed, out, None)
+                    error = None
                 except ReconstructionError as e:
-                    row = _trial_row(target, conf, seed, None, str(e).splitlines()[0])
-                row["time_s"] = time.perf_counter() - t
-                row["acquisition"] = acq.report
+                    out, error = None, str(e).splitlines()[0]
+                row = _trial_row(target, conf, seed, out, error, time.perf_counter() - t, acq.report)
                 rows.append(row)
                 if progress:
                     progress(row)
-    summary = {t: {c.label: {"kind": c.kind, "sources": list(c.realism.sources),
-                             **summarise([r for r in rows if r["target"] == t and r["config"] == c.label])}
+    summary = {t: {c.label: summarise([r for r in rows if r.target == t and r.config == c.label], c.kind,
+                                      c.realism.sources)
                    for c in confs} for t in settings.targets}
-    return {"study": "accuracy", "settings": settings.to_dict(),
-            "paper": {"depth_mm": PAPER_DEPTH_MM, "xy_mm": PAPER_XY_MM, "distance_m": base.scene.distance_m,
-                      "what": "one trial's worst corner of a square on the hand/eye target block, in the block's frame "
-                              "(paper section V-D)"},
-            "camera": _camera_dict(base),
-            "target_block": {"squares_x": TARGET.squares_x, "squares_y": TARGET.squares_y,
-                             "square_m": TARGET.square_m, "yaw_rad": CELL.target_yaw_rad},
-            "robot": None if rz.robot is None else {"name": rz.robot, "description": ROBOTS[rz.robot].description,
-                                                   **_model_dict(setups[confs[-1].label])},
-            "corner_noise_px": {c.label: setups[c.label].corner_noise_px for c in confs if c.realism.estimates},
-            "sources": {s: SOURCES[s] for s in rz.sources},
-            "summary": summary, "rows": rows, "time_s": time.perf_counter() - t0}
+    return AccuracyStudy(
+        settings=settings,
+        paper=AccuracyPaper(PAPER_DEPTH_MM, PAPER_XY_MM, base.scene.distance_m,
+                            "one trial's worst corner of a square on the hand/eye target block, in the block's frame "
+                            "(paper section V-D)"),
+        camera=_camera(base),
+        target_block=AccuracyTargetBlock(TARGET.squares_x, TARGET.squares_y, TARGET.square_m, CELL.target_yaw_rad),
+        robot=None if rz.robot is None else _robot(rz.robot, setups[confs[-1].label]),
+        corner_noise_px={c.label: setups[c.label].corner_noise_px for c in confs if c.realism.estimates},
+        sources={s: SOURCES[s] for s in rz.sources}, summary=summary, rows=tuple(rows),
+        time_s=time.perf_counter() - t0)
 
 
-def _camera_dict(cfg: SampleConfig) -> dict:
+def _camera(cfg: SampleConfig) -> AccuracyCamera:
     scene = cfg.scene.build()
     left = scene.rig.left
-    return {"name": cfg.realism.camera, "width_px": left.width, "height_px": left.height, "fx_px": float(left.K[0, 0]),
-            "fy_px": float(left.K[1, 1]), "baseline_m": scene.rig.baseline_m, "distance_m": cfg.scene.distance_m,
-            "distortion_k1_k2_p1_p2_k3": None if left.distortion is None else left.distortion.as_opencv().tolist(),
-            "aperture_radius_m": scene.aperture_radius_m, "line_jitter_px": cfg.sensor.line_jitter_px,
-            "full_well_e": cfg.sensor.full_well_e, "read_noise_dn": cfg.sensor.read_noise_dn,
-            "bit_depth": cfg.sensor.bit_depth}
+    return AccuracyCamera(
+        name=cfg.realism.camera, width_px=left.width, height_px=left.height, fx_px=float(left.K[0, 0]),
+        fy_px=float(left.K[1, 1]), baseline_m=scene.rig.baseline_m, distance_m=cfg.scene.distance_m,
+        distortion_k1_k2_p1_p2_k3=None if left.distortion is None else tuple(left.distortion.as_opencv().tolist()),
+        aperture_radius_m=scene.aperture_radius_m, line_jitter_px=cfg.sensor.line_jitter_px,
+        full_well_e=cfg.sensor.full_well_e, read_noise_dn=cfg.sensor.read_noise_dn, bit_depth=cfg.sensor.bit_depth)
 
 
-def _model_dict(setup: RealismSetup) -> dict:
+def _robot(name: str, setup: RealismSetup) -> AccuracyRobot:
     m = setup.robot_model
     if m is None:
-        return {}
-    return {"joint_sigma_rad": m.joint_sigma_rad, "kinematic_sigma_angle_rad": m.sigma_angle_rad,
-            "kinematic_sigma_length_m": m.sigma_length_m}
+        return AccuracyRobot(name, ROBOTS[name].description)
+    return AccuracyRobot(name, ROBOTS[name].description, joint_sigma_rad=m.joint_sigma_rad,
+                         kinematic_sigma_angle_rad=m.sigma_angle_rad, kinematic_sigma_length_m=m.sigma_length_m)
 
 
-def dominant_sources(summary: dict, measure: str = "depth") -> list[tuple[str, float]]:
+def dominant_sources(summary: Mapping[str, ConfigSummary], measure: str = "depth") -> list[tuple[str, float]]:
     """Sources ranked by what each adds alone to the method's own floor (median worst error of the
     source alone minus that of no source, mm), largest first."""
-    floor = next((v[measure]["worst_median_mm"] for v in summary.values() if v.get("kind") == "none" and measure in v),
-                 0.0)
-    alone = [(c.replace(" alone", ""), v[measure]["worst_median_mm"] - floor) for c, v in summary.items()
-             if v.get("kind") == "alone" and measure in v]
+    floor = next((s.stats(measure).worst_median_mm for s in summary.values()
+                  if s.kind == "none" and s.stats(measure) is not None), 0.0)
+    alone = [(c.replace(" alone", ""), s.stats(measure).worst_median_mm - floor) for c, s in summary.items()
+             if s.kind == "alone" and s.stats(measure) is not None]
     return sorted(alone, key=lambda t: -t[1])
 
 
@@ -320,7 +321,7 @@ CSV_FIELDS = ("target", "config", "kind", "realism", "sources", "seed", "status"
               "worst_xy_mm", "rms_depth_mm", "rms_xy_mm", "mean_depth_mm", "time_s", "error")
 
 
-def accuracy_csv(rows: list[dict]) -> str:
+def accuracy_csv(rows: list[AccuracyTrial]) -> str:
     """One line per trial: the realism preset, the draw's seed and the errors (mm)."""
     import csv  # noqa: PLC0415
     import io  # noqa: PLC0415
@@ -329,5 +330,6 @@ def accuracy_csv(rows: list[dict]) -> str:
     w = csv.DictWriter(buf, fieldnames=CSV_FIELDS, extrasaction="ignore", lineterminator="\n")
     w.writeheader()
     for r in rows:
-        w.writerow({k: r.get(k) for k in CSV_FIELDS})
+        d = r.to_dict()
+        w.writerow({k: d.get(k) for k in CSV_FIELDS})
     return buf.getvalue()

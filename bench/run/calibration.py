@@ -42,6 +42,17 @@ import numpy as np
 import trimesh
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.calibration_records import (
+    CalibrationEstimate,
+    CalibrationReport,
+    CalibrationSetup,
+    CalibrationTimings,
+    CameraFigures,
+    IntrinsicsErrors,
+    RayFigures,
+    StereoFigures,
+    TargetPlaneFigures,
+)
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.sample_files import read_json
 from platebench.bench.run.render import render_sample
@@ -116,7 +127,7 @@ class CalibrationResult:
     structured_light: StructuredLightCalibration  # rays from the estimated stereo (the chosen model)
     structured_light_true_stereo: StructuredLightCalibration  # same images, true stereo: the method's own error
     rig_estimate: StereoRig
-    report: dict
+    report: CalibrationReport
     distortion_model: str = "fixed_distortion"  # the model of the estimate: a key of ``stereo``
 
     @property
@@ -199,7 +210,17 @@ def rotation_angle_rad(Ra: np.ndarray, Rb: np.ndarray) -> float:
     return float(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
-def ray_errors(est: FeatureRays, true: FeatureRays, plane_z_m: float = PLATE_PLANE_Z_M) -> dict:
+@dataclass(frozen=True, eq=False)
+class RayErrors:
+    """Per feature (``ids``, (F,)): the angle between an estimated and a true ray (rad, (F,)) and
+    the distance between their cuts with a plane z = const (metres, (F,))."""
+
+    ids: np.ndarray
+    angle_rad: np.ndarray
+    distance_at_plane_m: np.ndarray
+
+
+def ray_errors(est: FeatureRays, true: FeatureRays, plane_z_m: float = PLATE_PLANE_Z_M) -> RayErrors:
     """Per feature (matched by id): angle between the rays (rad) and the distance between
     their cuts with the plane z = ``plane_z_m`` (metres)."""
     idx = {int(i): k for k, i in enumerate(true.ids)}
@@ -212,12 +233,12 @@ def ray_errors(est: FeatureRays, true: FeatureRays, plane_z_m: float = PLATE_PLA
         return o + d * s[:, None]
 
     dist = np.linalg.norm(cut(est.origins, de) - cut(true.origins[k], dt), axis=1)
-    return {"ids": est.ids.astype(int), "angle_rad": ang, "distance_at_plane_m": dist}
+    return RayErrors(est.ids.astype(int), ang, dist)
 
 
-def _stats(name: str, unit: str, v) -> dict:
+def _rms_max(v) -> tuple[float, float]:
     v = np.abs(np.asarray(v, float))
-    return {f"{name}_rms_{unit}": float(np.sqrt(np.mean(v ** 2))), f"{name}_max_{unit}": float(v.max())}
+    return float(np.sqrt(np.mean(v ** 2))), float(v.max())
 
 
 def _image_grid(width: int, height: int) -> np.ndarray:
@@ -243,55 +264,57 @@ def _lens_model_error_px(K: np.ndarray, dist: np.ndarray, true_cam) -> float:
 
 
 def _intrinsics_errors(K: np.ndarray, K_true: np.ndarray) -> dict:
-    return {"fx_px": float(K[0, 0]), "fy_px": float(K[1, 1]), "cx_px": float(K[0, 2]), "cy_px": float(K[1, 2]),
-            "fx_error_px": float(K[0, 0] - K_true[0, 0]), "fy_error_px": float(K[1, 1] - K_true[1, 1]),
-            "fx_error_pct": float((K[0, 0] / K_true[0, 0] - 1) * 100),
-            "fy_error_pct": float((K[1, 1] / K_true[1, 1] - 1) * 100),
-            "cx_error_px": float(K[0, 2] - K_true[0, 2]), "cy_error_px": float(K[1, 2] - K_true[1, 2]),
-            "principal_point_error_px": float(np.hypot(K[0, 2] - K_true[0, 2], K[1, 2] - K_true[1, 2]))}
+    """The fields of ``IntrinsicsErrors`` (px, %) of the estimate ``K`` against ``K_true``."""
+    return dict(fx_px=float(K[0, 0]), fy_px=float(K[1, 1]), cx_px=float(K[0, 2]), cy_px=float(K[1, 2]),
+                fx_error_px=float(K[0, 0] - K_true[0, 0]), fy_error_px=float(K[1, 1] - K_true[1, 1]),
+                fx_error_pct=float((K[0, 0] / K_true[0, 0] - 1) * 100),
+                fy_error_pct=float((K[1, 1] / K_true[1, 1] - 1) * 100),
+                cx_error_px=float(K[0, 2] - K_true[0, 2]), cy_error_px=float(K[1, 2] - K_true[1, 2]),
+                principal_point_error_px=float(np.hypot(K[0, 2] - K_true[0, 2], K[1, 2] - K_true[1, 2])))
 
 
-def _stereo_errors(st: StereoCalibration, rig: StereoRig) -> dict:
+def _stereo_errors(st: StereoCalibration, rig: StereoRig) -> StereoFigures:
     true = StereoCalibration.from_rig(rig)
     C_est = -st.R_world.T @ st.t_world
-    d = {
-        "baseline_m": st.baseline_m,
-        "baseline_error_mm": (st.baseline_m - rig.baseline_m) * 1e3,
-        "baseline_error_pct": (st.baseline_m / rig.baseline_m - 1) * 100,
-        "rotation_between_cameras_error_deg": float(np.degrees(rotation_angle_rad(st.R, true.R))),
-        "translation_direction_error_deg": float(np.degrees(np.arccos(np.clip(
+    return StereoFigures(
+        baseline_m=float(st.baseline_m),
+        baseline_error_mm=float((st.baseline_m - rig.baseline_m) * 1e3),
+        baseline_error_pct=float((st.baseline_m / rig.baseline_m - 1) * 100),
+        rotation_between_cameras_error_deg=float(np.degrees(rotation_angle_rad(st.R, true.R))),
+        translation_direction_error_deg=float(np.degrees(np.arccos(np.clip(
             np.dot(st.T, true.T) / (np.linalg.norm(st.T) * np.linalg.norm(true.T)), -1, 1)))),
-        "f_times_baseline_error_pct": (st.K_left[0, 0] * st.baseline_m / (rig.left.K[0, 0] * rig.baseline_m) - 1) * 100,
-        "stereo_reprojection_rms_px": st.rms_px,
-        "registration_residual_rms_mm": st.registration_rms_m * 1e3,
-        "left_center_error_mm": ((C_est - rig.left.center) * 1e3).tolist(),
-        "left_center_error_norm_mm": float(np.linalg.norm(C_est - rig.left.center) * 1e3),
-        "left_rotation_error_deg": float(np.degrees(rotation_angle_rad(st.R_world, rig.left.R))),
-        "K_left": _intrinsics_errors(st.K_left, rig.left.K),
-        "K_right": _intrinsics_errors(st.K_right, rig.right.K),
-        "conventional_deviation": st.conventional_deviation(),
-    }
-    return {k: (float(v) if isinstance(v, (np.floating, float)) else v) for k, v in d.items()}
+        f_times_baseline_error_pct=float((st.K_left[0, 0] * st.baseline_m / (rig.left.K[0, 0] * rig.baseline_m) - 1)
+                                         * 100),
+        stereo_reprojection_rms_px=float(st.rms_px),
+        registration_residual_rms_mm=float(st.registration_rms_m * 1e3),
+        left_center_error_mm=tuple(((C_est - rig.left.center) * 1e3).tolist()),
+        left_center_error_norm_mm=float(np.linalg.norm(C_est - rig.left.center) * 1e3),
+        left_rotation_error_deg=float(np.degrees(rotation_angle_rad(st.R_world, rig.left.R))),
+        K_left=IntrinsicsErrors(**_intrinsics_errors(st.K_left, rig.left.K)),
+        K_right=IntrinsicsErrors(**_intrinsics_errors(st.K_right, rig.right.K)),
+        conventional_deviation=st.conventional_deviation())
 
 
 def _rays_report(sl: StructuredLightCalibration, true_rays: FeatureRays, true_center: np.ndarray,
-                 target_z_m) -> dict:
+                 target_z_m) -> RayFigures:
     e = ray_errors(sl.rays, true_rays)
-    out = {"ids": e["ids"].tolist(),
-           "angle_error_mrad": (e["angle_rad"] * 1e3).tolist(),
-           "distance_at_plate_plane_mm": (e["distance_at_plane_m"] * 1e3).tolist(),
-           "line_fit_residual_um": (sl.residual_rms_m * 1e6).tolist(),
-           "projector_center_error_mm": ((sl.projector_center - true_center) * 1e3).tolist(),
-           "projector_center_error_norm_mm": float(np.linalg.norm(sl.projector_center - true_center) * 1e3),
-           "ray_miss_of_common_center_rms_mm": float(np.sqrt(np.mean(sl.center_miss_m ** 2)) * 1e3),
-           "target_planes": [{"known_z_mm": z * 1e3, "measured_z_mm": float(np.mean(p.points[:, 2]) * 1e3),
-                              "depth_error_mm": float((np.mean(p.points[:, 2]) - z) * 1e3),
-                              "tilt_deg": float(np.degrees(np.arccos(min(1.0, abs(p.plane_normal[2]))))),
-                              "flatness_rms_um": p.flatness_rms_m * 1e6}
-                             for z, p in zip(target_z_m, sl.planes)]}
-    out.update(_stats("angle_error", "mrad", e["angle_rad"] * 1e3))
-    out.update(_stats("distance_at_plate_plane", "mm", e["distance_at_plane_m"] * 1e3))
-    return out
+    angle_rms, angle_max = _rms_max(e.angle_rad * 1e3)
+    dist_rms, dist_max = _rms_max(e.distance_at_plane_m * 1e3)
+    return RayFigures(
+        ids=tuple(e.ids.tolist()),
+        angle_error_mrad=tuple((e.angle_rad * 1e3).tolist()),
+        distance_at_plate_plane_mm=tuple((e.distance_at_plane_m * 1e3).tolist()),
+        line_fit_residual_um=tuple((sl.residual_rms_m * 1e6).tolist()),
+        projector_center_error_mm=tuple(((sl.projector_center - true_center) * 1e3).tolist()),
+        projector_center_error_norm_mm=float(np.linalg.norm(sl.projector_center - true_center) * 1e3),
+        ray_miss_of_common_center_rms_mm=float(np.sqrt(np.mean(sl.center_miss_m ** 2)) * 1e3),
+        target_planes=tuple(TargetPlaneFigures(known_z_mm=z * 1e3, measured_z_mm=float(np.mean(p.points[:, 2]) * 1e3),
+                                               depth_error_mm=float((np.mean(p.points[:, 2]) - z) * 1e3),
+                                               tilt_deg=float(np.degrees(np.arccos(min(1.0, abs(p.plane_normal[2]))))),
+                                               flatness_rms_um=p.flatness_rms_m * 1e6)
+                            for z, p in zip(target_z_m, sl.planes)),
+        angle_error_rms_mrad=angle_rms, angle_error_max_mrad=angle_max,
+        distance_at_plate_plane_rms_mm=dist_rms, distance_at_plate_plane_max_mm=dist_max)
 
 
 def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = BoardSpec(),
@@ -312,51 +335,45 @@ def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = Board
     sl_true = calibrate_structured_light(images.target_images, rig, projector.pattern)
     t_cal = time.perf_counter() - t
     true_rays = projector_feature_rays(projector.camera, projector.pattern)
-    report = {
-        "config": {"width_px": W, "height_px": H, "f_px": rig.left.f_px, "fy_px": float(rig.left.K[1, 1]),
-                   "baseline_m": rig.baseline_m,
-                   "distance_m": cfg.scene.distance_m, "spp": cfg.render.spp, "seed": cfg.render.seed,
-                   "board": board.to_dict(), "board_poses": [p.to_dict() for p in images.poses],
-                   "registration_pose": images.poses[0].name, "target_z_m": list(images.target_z_m),
-                   "target_size_m": TARGET_SIZE_M, "plate_plane_z_m": PLATE_PLANE_Z_M},
-        "cameras": {}, "stereo": {},
-    }
+    setup = CalibrationSetup(width_px=W, height_px=H, f_px=rig.left.f_px, fy_px=float(rig.left.K[1, 1]),
+                             baseline_m=rig.baseline_m, distance_m=cfg.scene.distance_m, spp=cfg.render.spp,
+                             seed=cfg.render.seed, board=board.to_dict(),
+                             board_poses=tuple(p.to_dict() for p in images.poses),
+                             registration_pose=images.poses[0].name, target_z_m=tuple(images.target_z_m),
+                             target_size_m=TARGET_SIZE_M, plate_plane_z_m=PLATE_PLANE_Z_M)
+    camera_figures = {}
     for key in cameras:
-        report["cameras"][key] = {}
+        camera_figures[key] = {}
         for cam, cal in cameras[key].items():
-            e = _intrinsics_errors(cal.K, rig.cameras[cam].K)
             true_cam = rig.cameras[cam]
             true_dist = np.zeros(5) if true_cam.distortion is None else true_cam.distortion.as_opencv()
-            e.update({"reprojection_rms_px": cal.rms_px, "views_used": len(cal.views),
-                      "dist_k1_k2_p1_p2_k3": cal.dist.tolist(),
-                      "true_dist_k1_k2_p1_p2_k3": true_dist.tolist(),
-                      "max_distortion_displacement_px": _max_distortion_px(cal.K, cal.dist, W, H),
-                      "true_max_distortion_displacement_px": _max_distortion_px(true_cam.K, true_dist, W, H),
-                      "lens_model_error_max_px": _lens_model_error_px(cal.K, cal.dist, true_cam)})
-            report["cameras"][key][cam] = e
-        report["stereo"][key] = _stereo_errors(stereo[key], rig)
-    report["projector_rays"] = _rays_report(sl, true_rays, projector.camera.center, images.target_z_m)
-    report["projector_rays_true_stereo"] = _rays_report(sl_true, true_rays, projector.camera.center,
-                                                        images.target_z_m)
-    report["estimate"] = {"stereo": stereo[chosen].to_dict(), "rays": sl.to_dict(),
-                          "distortion_model": chosen,
-                          "distortion_model_choice": distortion_model,
-                          "reprojection_rms_px": {k: {c: cal.rms_px for c, cal in cams.items()}
-                                                  for k, cams in cameras.items()},
-                          "distortion_explained_px": {c: distortion_explained_px(cameras["fixed_distortion"][c],
-                                                                                 cameras["free_distortion"][c])
-                                                      for c in ("left", "right")}}
-    report["truth"] = {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
-                       "projector": projector.to_dict(),
-                       "rays": {"origins_m": true_rays.origins.tolist(), "directions": true_rays.directions.tolist(),
-                                "ids": true_rays.ids.tolist()}}
-    report["timings_s"] = dict(images.timings_s, calibrate_s=t_cal, total_s=time.perf_counter() - t0)
+            camera_figures[key][cam] = CameraFigures(
+                **_intrinsics_errors(cal.K, true_cam.K), reprojection_rms_px=cal.rms_px, views_used=len(cal.views),
+                dist_k1_k2_p1_p2_k3=tuple(cal.dist.tolist()), true_dist_k1_k2_p1_p2_k3=tuple(true_dist.tolist()),
+                max_distortion_displacement_px=_max_distortion_px(cal.K, cal.dist, W, H),
+                true_max_distortion_displacement_px=_max_distortion_px(true_cam.K, true_dist, W, H),
+                lens_model_error_max_px=_lens_model_error_px(cal.K, cal.dist, true_cam))
+    estimate = CalibrationEstimate(
+        stereo=stereo[chosen], rays=sl.to_dict(), distortion_model=chosen, distortion_model_choice=distortion_model,
+        reprojection_rms_px={k: {c: cal.rms_px for c, cal in cams.items()} for k, cams in cameras.items()},
+        distortion_explained_px={c: distortion_explained_px(cameras["fixed_distortion"][c],
+                                                            cameras["free_distortion"][c]) for c in ("left", "right")})
+    truth = {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
+             "projector": projector.to_dict(),
+             "rays": {"origins_m": true_rays.origins.tolist(), "directions": true_rays.directions.tolist(),
+                      "ids": true_rays.ids.tolist()}}
+    report = CalibrationReport(
+        setup, camera_figures, {key: _stereo_errors(stereo[key], rig) for key in cameras},
+        _rays_report(sl, true_rays, projector.camera.center, images.target_z_m),
+        _rays_report(sl_true, true_rays, projector.camera.center, images.target_z_m), estimate, truth,
+        CalibrationTimings(**images.timings_s, calibrate_s=t_cal, total_s=time.perf_counter() - t0))
     result = CalibrationResult(cameras, stereo, sl, sl_true, stereo[chosen].to_rig(), report, chosen)
     return result, renderer
 
 
-def estimated_calibration(cfg: SampleConfig = SampleConfig(), **kw) -> tuple[StereoRig, FeatureRays, dict]:
-    """(conventional rig estimate, estimated feature rays, report dict) for ``cfg``'s scene."""
+def estimated_calibration(cfg: SampleConfig = SampleConfig(), **kw) -> tuple[StereoRig, FeatureRays,
+                                                                             CalibrationReport]:
+    """(conventional rig estimate, estimated feature rays, report) for ``cfg``'s scene."""
     result, _ = run_calibration(cfg, **kw)
     return result.rig_estimate, result.rays, result.report
 
@@ -391,13 +408,8 @@ def load_estimated_calibration(path: Path) -> tuple[StereoRig, FeatureRays]:
     path = Path(path)
     doc = read_json(path)  # missing, not a regular file, too large, not JSON: one line naming it
     try:
-        est = doc["estimate"]
-        st, ry = est["stereo"], est["rays"]
-        cal = StereoCalibration(np.array(st["K_left"]), np.array(st["K_right"]), np.array(st["dist_left"]),
-                                np.array(st["dist_right"]), np.array(st["R_right_from_left"]),
-                                np.array(st["T_right_from_left_m"]), np.array(st["R_world_left"]),
-                                np.array(st["t_world_left_m"]), int(st["width"]), int(st["height"]))
-        rays = FeatureRays(np.array(ry["ray_origins_m"]), np.array(ry["ray_directions"]), np.array(ry["ids"], int))
+        est = CalibrationEstimate.from_dict(doc["estimate"])
+        rays = est.feature_rays
     except (KeyError, ValueError, TypeError, json.JSONDecodeError) as e:
         raise DatasetError(f"{path}: not a platebench calibration ({type(e).__name__}: {e})") from None
-    return cal.to_rig(), rays
+    return est.stereo.to_rig(), rays

@@ -18,6 +18,7 @@ import numpy as np
 
 from platebench.bench.config import SampleConfig, with_overrides
 from platebench.bench.io.atomic import write_json
+from platebench.bench.io.cut_records import CutRow, CutStudy, CutTotals
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.run.render import render_sample
 from platebench.bench.run.score import truth_from_sample
@@ -52,38 +53,36 @@ def outside_bound(errors_mm: np.ndarray) -> np.ndarray:
     return ~((e[:, 0] <= PAPER_DEPTH_MM) & (e[:, 1] <= PAPER_XY_MM))
 
 
-def cut_row(cfg: SampleConfig, renderer=None) -> tuple[dict, object]:
+def cut_row(cfg: SampleConfig, renderer=None) -> tuple[CutRow, object]:
     """One plate: rendered, reconstructed with the cut squares set apart and kept, each centre
     scored (``centre_errors_mm``). Returns (row, renderer)."""
     s, renderer = render_sample(cfg, renderer)
     sc = s.scene
     rays = projector_feature_rays(sc.projector.camera, sc.projector.pattern)
     d = cfg.plate.deformation
-    row = {"bend_deg": round(float(np.degrees(d.angle_rad)), 6), "direction": d.direction,
-           "axis_deg": round(float(np.degrees(d.axis_rad)), 6), "distance_m": cfg.scene.distance_m}
+    plate = dict(bend_deg=round(float(np.degrees(d.angle_rad)), 6), direction=d.direction,
+                 axis_deg=round(float(np.degrees(d.axis_rad)), 6), distance_m=cfg.scene.distance_m)
     try:
         rec = reconstruct(s.digital, sc.rig, rays, sc.projector.pattern)
         kept_all = reconstruct(s.digital, sc.rig, rays, sc.projector.pattern, PipelineOptions(keep_cut_squares=True))
     except ReconstructionError as e:
-        row.update(error=str(e).splitlines()[0])
-        return row, renderer
+        return CutRow(**plate, error=str(e).splitlines()[0]), renderer
     kept = centre_errors_mm(s, rec.points, rec.uv_left)
     before = centre_errors_mm(s, kept_all.points, kept_all.uv_left)
     cut = centre_errors_mm(s, rec.cut.points, rec.cut.uv_left)
-    row.update(centres=len(kept_all.points), kept=len(rec.points), cut=len(rec.cut),
-               cut_by_outline=sum("outline" in r for r in rec.cut.reasons),
-               cut_by_threshold=sum("threshold" in r and "outline" not in r for r in rec.cut.reasons),
-               outside_before=int(outside_bound(before).sum()), outside_kept=int(outside_bound(kept).sum()),
-               outside_cut=int(outside_bound(cut).sum()),
-               kept_depth_max_mm=float(np.nanmax(kept[:, 0])) if len(kept) else None,
-               kept_xy_max_mm=float(np.nanmax(kept[:, 1])) if len(kept) else None)
-    return row, renderer
+    return CutRow(**plate, centres=len(kept_all.points), kept=len(rec.points), cut=len(rec.cut),
+                  cut_by_outline=sum("outline" in r for r in rec.cut.reasons),
+                  cut_by_threshold=sum("threshold" in r and "outline" not in r for r in rec.cut.reasons),
+                  outside_before=int(outside_bound(before).sum()), outside_kept=int(outside_bound(kept).sum()),
+                  outside_cut=int(outside_bound(cut).sum()),
+                  kept_depth_max_mm=float(np.nanmax(kept[:, 0])) if len(kept) else None,
+                  kept_xy_max_mm=float(np.nanmax(kept[:, 1])) if len(kept) else None), renderer
 
 
 def run_cut_study(base: SampleConfig, bends_deg=CUT_BENDS_DEG, axes_deg=CUT_AXES_DEG, distances_m=CUT_DISTANCES_M,
-                  progress=None) -> dict:
+                  progress=None, settings: dict | None = None) -> CutStudy:
     """``cut_row`` on every bend convex and concave about every axis at every distance; the rows and
-    the totals (cut_study.json's dict)."""
+    the totals (cut_study.json's record; ``settings``: what it ran with, as the command was given it)."""
     t0 = time.perf_counter()
     rows, renderer = [], None
     for b in bends_deg:
@@ -96,46 +95,37 @@ def run_cut_study(base: SampleConfig, bends_deg=CUT_BENDS_DEG, axes_deg=CUT_AXES
                     rows.append(row)
                     if progress is not None:
                         progress(row)
-    ok = [r for r in rows if "error" not in r]
-
-    def total(k):
-        return int(sum(r[k] for r in ok))
-    totals = {"plates": len(rows), "errors": len(rows) - len(ok), **{k: total(k) for k in (
-        "centres", "kept", "cut", "cut_by_outline", "cut_by_threshold", "outside_before", "outside_kept", "outside_cut")},
-        "plates_outside_before": sum(r["outside_before"] > 0 for r in ok),
-        "plates_outside_kept": sum(r["outside_kept"] > 0 for r in ok)}
-    return {"kind": "cut-squares study", "rows": rows, "totals": totals, "time_s": time.perf_counter() - t0}
+    return CutStudy(tuple(rows), CutTotals.of(rows), time.perf_counter() - t0, dict(settings or {}))
 
 
 def write_cut_study(out: Path, base: SampleConfig, overwrite: bool = False, progress=None, settings: dict | None = None,
-                    **axes) -> dict:
+                    **axes) -> CutStudy:
     """Run the study (``run_cut_study``) and write ``out/cut_study.json`` (complete or not at all)."""
     with output_dir(out, "cut-squares study", overwrite=overwrite) as stage:
-        doc = run_cut_study(base, progress=progress, **axes)
-        doc["settings"] = dict(settings or {})
-        write_json(stage / "cut_study.json", doc)
-    return doc
+        study = run_cut_study(base, progress=progress, settings=settings, **axes)
+        write_json(stage / "cut_study.json", study.to_dict())
+    return study
 
 
-def table_lines(doc: dict) -> list[str]:
+def table_lines(study: CutStudy) -> list[str]:
     """The per-plate table and the totals as text lines."""
     out = [f"{'plate':32s} {'centres':>7s} {'kept':>4s} {'cut':>3s} {'outside before':>14s} {'kept':>4s} "
            f"{'cut':>3s} {'kept depth/xy max mm':>21s}"]
-    for r in doc["rows"]:
-        name = f"{r['bend_deg']:g} {r['direction']} axis {r['axis_deg']:g} at {r['distance_m']:g} m"
-        if "error" in r:
-            out.append(f"{name:32s} error: {r['error']}")
+    for r in study.rows:
+        name = f"{r.bend_deg:g} {r.direction} axis {r.axis_deg:g} at {r.distance_m:g} m"
+        if not r.ok:
+            out.append(f"{name:32s} error: {r.error}")
             continue
-        worst = "-" if r["kept_depth_max_mm"] is None else f"{r['kept_depth_max_mm']:.2f} / {r['kept_xy_max_mm']:.2f}"
-        out.append(f"{name:32s} {r['centres']:7d} {r['kept']:4d} {r['cut']:3d} {r['outside_before']:14d} "
-                   f"{r['outside_kept']:4d} {r['outside_cut']:3d} {worst:>21s}")
-    t = doc["totals"]
-    out.append(f"totals: {t['plates']} plates ({t['errors']} failed); {t['centres']} matched centres, {t['cut']} set apart "
-               f"as cut ({t['cut_by_outline']} by the outline, {t['cut_by_threshold']} by the threshold alone); outside the "
-               f"paper's bound (depth {PAPER_DEPTH_MM:g} mm, x/y {PAPER_XY_MM:g} mm) or on no square: {t['outside_before']} "
-               f"with the cut ones kept (on {t['plates_outside_before']} plates), {t['outside_kept']} of the kept (on "
-               f"{t['plates_outside_kept']} plates), {t['outside_cut']} of those set apart")
-    out.append(f"time: {doc['time_s']:.0f} s")
+        worst = "-" if r.kept_depth_max_mm is None else f"{r.kept_depth_max_mm:.2f} / {r.kept_xy_max_mm:.2f}"
+        out.append(f"{name:32s} {r.centres:7d} {r.kept:4d} {r.cut:3d} {r.outside_before:14d} "
+                   f"{r.outside_kept:4d} {r.outside_cut:3d} {worst:>21s}")
+    t = study.totals
+    out.append(f"totals: {t.plates} plates ({t.errors} failed); {t.centres} matched centres, {t.cut} set apart "
+               f"as cut ({t.cut_by_outline} by the outline, {t.cut_by_threshold} by the threshold alone); outside the "
+               f"paper's bound (depth {PAPER_DEPTH_MM:g} mm, x/y {PAPER_XY_MM:g} mm) or on no square: {t.outside_before} "
+               f"with the cut ones kept (on {t.plates_outside_before} plates), {t.outside_kept} of the kept (on "
+               f"{t.plates_outside_kept} plates), {t.outside_cut} of those set apart")
+    out.append(f"time: {study.time_s:.0f} s")
     return out
 
 

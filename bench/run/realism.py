@@ -40,6 +40,7 @@ from scipy.spatial.transform import Rotation
 
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET, Cell, TargetBlock, nominal_arm, robot_error_model
 from platebench.bench.config.realism import Realism
+from platebench.bench.io.realism_records import DrawReport, HandEyeEstimate, IntrinsicsEstimate, ViewPoseError
 from platebench.reconstruction.calibration.hand_eye import solve_hand_eye
 from platebench.reconstruction.calibration.stereo import (
     BoardDetection,
@@ -114,7 +115,7 @@ class Acquisition:
     taken: StereoRig | PosedPair
     T_world_block_est: np.ndarray
     T_world_block: np.ndarray
-    report: dict = field(default_factory=dict)
+    report: DrawReport = field(default_factory=DrawReport)
 
 
 def _rng(seed: int, stream: int) -> np.random.Generator:
@@ -173,7 +174,7 @@ class RigDraw:
     T_block_est: np.ndarray
     T_world_block: np.ndarray
     moves: np.random.Generator
-    report: dict
+    report: DrawReport
     exact: bool = False  # the robot goes where it is told and the method is told the truth
 
     def told(self, rig: StereoRig) -> StereoRig:
@@ -204,7 +205,7 @@ class RigDraw:
         ``yaw_rad``: the cell turned about the world's vertical axis through the origin (``reach_yaw``)."""
         told = self.told(rig)
         if not self.moves_camera:
-            return Acquisition(told, rig, self.T_block_est, self.T_world_block, dict(self.report))
+            return Acquisition(told, rig, self.T_block_est, self.T_world_block, self.report)
         head = None
         if self.realism.rigid_head:
             head = invert_pose(camera_pose(rig.left)) @ camera_pose(rig.right)  # the head's true left -> right pose
@@ -216,10 +217,9 @@ class RigDraw:
             turned = self.eye().executed_pair(PosedPair(_moved(back, rig.left), _moved(back, rig.right)), self.moves,
                                               head)
             taken = PosedPair(_moved(turn, turned.left), _moved(turn, turned.right))
-        report = {**self.report,
-                  "views": {c: dict(zip(("position_error_m", "rotation_error_rad"),
-                                        pose_difference(camera_pose(taken.cameras[c]), camera_pose(rig.cameras[c]))))
-                            for c in ("left", "right")}}
+        report = self.report.with_views({c: ViewPoseError(*pose_difference(camera_pose(taken.cameras[c]),
+                                                                          camera_pose(rig.cameras[c])))
+                                         for c in ("left", "right")})
         return Acquisition(told, taken, self.T_block_est, self.T_world_block, report)
 
     def reach_yaw(self, rig: StereoRig, yaws_rad=None) -> float | None:
@@ -266,8 +266,8 @@ def draw_rig(setup: RealismSetup, camera: Camera, seed: int) -> RigDraw:
     move_rng = _rng(seed, STREAM_MOVES)
     if not moves and not rz.estimates:  # the robot goes where it is told, the method is told the truth
         return RigDraw(rz, cell, camera, None, K_true, camera.distortion, cell.mount, T_world_block, T_world_block,
-                       move_rng, {"exact": True}, exact=True)
-    report: dict = {"exact": False}
+                       move_rng, DrawReport(exact=True), exact=True)
+    calibration = hand_eye = None
     robot = None
     if moves:
         hw = ROBOTS[rz.robot]
@@ -293,13 +293,13 @@ def draw_rig(setup: RealismSetup, camera: Camera, seed: int) -> RigDraw:
             lens_est = None if cal.fix_distortion else BrownConrady.from_opencv(cal.dist)
             poses = [pose_matrix(cv2.Rodrigues(r)[0], t) for r, t in zip(cal.rvecs, cal.tvecs)]
             used = list(cal.views)
-            report["calibration"] = {"fx_error_px": float(K_est[0, 0] - K_true[0, 0]),
-                                     "fy_error_px": float(K_est[1, 1] - K_true[1, 1]),
-                                     "cx_error_px": float(K_est[0, 2] - K_true[0, 2]),
-                                     "cy_error_px": float(K_est[1, 2] - K_true[1, 2]),
-                                     "reprojection_rms_px": cal.rms_px, "views": len(used),
-                                     "distortion_estimated": not cal.fix_distortion,
-                                     "distortion_k1_k2_p1_p2_k3": cal.dist.tolist()}
+            calibration = IntrinsicsEstimate(fx_error_px=float(K_est[0, 0] - K_true[0, 0]),
+                                             fy_error_px=float(K_est[1, 1] - K_true[1, 1]),
+                                             cx_error_px=float(K_est[0, 2] - K_true[0, 2]),
+                                             cy_error_px=float(K_est[1, 2] - K_true[1, 2]),
+                                             reprojection_rms_px=cal.rms_px, views=len(used),
+                                             distortion_estimated=not cal.fix_distortion,
+                                             distortion_k1_k2_p1_p2_k3=tuple(cal.dist.tolist()))
         else:
             poses = []
             for i in used:
@@ -311,11 +311,12 @@ def draw_rig(setup: RealismSetup, camera: Camera, seed: int) -> RigDraw:
             mount_est, T_block_est = he.T_flange_camera, he.T_base_target
             dp, da = pose_difference(mount_est, cell.mount)
             bp, ba = pose_difference(T_block_est, T_world_block)
-            report["hand_eye"] = {"mount_position_error_m": dp, "mount_rotation_error_rad": da,
-                                  "target_position_error_m": bp, "target_rotation_error_rad": ba,
-                                  "residual_rotation_rms_rad": he.rotation_rms_rad,
-                                  "residual_translation_rms_m": he.translation_rms_m, "views": len(used)}
-        report["corner_noise_px"] = setup.corner_noise_px
+            hand_eye = HandEyeEstimate(mount_position_error_m=dp, mount_rotation_error_rad=da,
+                                       target_position_error_m=bp, target_rotation_error_rad=ba,
+                                       residual_rotation_rms_rad=he.rotation_rms_rad,
+                                       residual_translation_rms_m=he.translation_rms_m, views=len(used))
+    report = DrawReport(exact=False, calibration=calibration, hand_eye=hand_eye,
+                        corner_noise_px=setup.corner_noise_px if rz.estimates else None)
     return RigDraw(rz, cell, camera, robot, K_est, lens_est, mount_est, T_block_est, T_world_block, move_rng, report)
 
 

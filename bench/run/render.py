@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from platebench.bench.config import SampleConfig
+from platebench.bench.config import RigPose, SampleConfig
+from platebench.bench.io.realism_records import DrawReport
 from platebench.bench.run.realism import realise_sample
 from platebench.plates import Plate, build_plate
 from platebench.scenes.naming import IMAGE_NAMES, image_seed
@@ -49,7 +50,7 @@ class RenderedSample:
     timings_s: dict
     variant: str
     told: StereoRig | None = None  # the rig the method is told, when it is not the one rendered (realism)
-    acquisition: dict | None = None  # what the realism's draw missed by (``bench.run.realism.Acquisition.report``)
+    acquisition: DrawReport | None = None  # what the realism's draw missed by (``bench.run.realism.Acquisition.report``)
 
     @property
     def calibration_rig(self) -> StereoRig:
@@ -109,10 +110,12 @@ def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, prog
 
 def posed_scene(scene: SceneSpec, distance_m: float, pose: dict) -> SceneSpec:
     """``scene`` with the rig tilted by ``tilt_deg`` from vertical toward azimuth ``azimuth_deg``
-    (from +X around +Z), its mid-baseline point ``distance_m`` from the plate centre, looking at
-    it; the baseline stays as close to the reference baseline direction as the tilt allows."""
-    tilt = math.radians(float(pose.get("tilt_deg", 0.0)))
-    az = math.radians(float(pose.get("azimuth_deg", 0.0)))
+    (from +X around +Z; ``pose``: a sweep sample's pose table, ``config.RigPose``), its mid-baseline
+    point ``distance_m`` from the plate centre, looking at it; the baseline stays as close to the
+    reference baseline direction as the tilt allows."""
+    p = RigPose.from_dict(pose)
+    tilt = math.radians(p.tilt_deg)
+    az = math.radians(p.azimuth_deg)
     center = distance_m * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
     baseline_dir = np.asarray(scene.rig.left.R[0], float)  # camera +x (the baseline) in the world frame
     return scene_for_pose(center, np.zeros(3), baseline_dir, scene)

@@ -17,13 +17,14 @@ import traceback
 import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.outputs import output_dir
-from platebench.bench.io.records import StudyRow, StudyTargets
+from platebench.bench.io.records import LFormulaRow, StudyRow, StudyTargets, file_form
 from platebench.bench.run.journal import StudyJournal, case_key, code_digest
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
 from platebench.evaluation.detection import detection_score
@@ -114,7 +115,7 @@ def analytic_L(spec: PlateSpec) -> tuple[float, float]:
     return tangent_intersection_distance(curve), float(P[0, 2])
 
 
-def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None = None) -> list[dict]:
+def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None = None) -> list[LFormulaRow]:
     """L-formula prediction vs the ground-truth distance of complete visibility (convex bends).
 
     Predicted rig distance above the plate centre = L + height of AB. Two baselines: across the
@@ -126,12 +127,12 @@ def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None 
         plate = bent_plate(cfg, b, "down")
         L, ab_height = analytic_L(plate.spec)
         predicted = L + ab_height
-        row = {"bend_deg": float(b), "L_m": L, "predicted_distance_m": predicted}
-        for name, bdir in (("baseline_along_axis", (0.0, 1.0, 0.0)), ("baseline_along_bend", (1.0, 0.0, 0.0))):
-            gt = visibility_distance(probe, plate, bdir)
-            row[f"gt_distance_{name}_m"] = gt
-            row[f"ratio_gt_over_predicted_{name}"] = gt / predicted if predicted > 0 and math.isfinite(gt) else None
-        rows.append(row)
+        gt = [visibility_distance(probe, plate, bdir) for bdir in ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0))]
+        ratio = [g / predicted if predicted > 0 and math.isfinite(g) else None for g in gt]
+        rows.append(LFormulaRow(float(b), L, predicted, gt_distance_baseline_along_axis_m=gt[0],
+                                ratio_gt_over_predicted_baseline_along_axis=ratio[0],
+                                gt_distance_baseline_along_bend_m=gt[1],
+                                ratio_gt_over_predicted_baseline_along_bend=ratio[1]))
     return rows
 
 
@@ -407,6 +408,28 @@ def targets(rows: list[StudyRow]) -> StudyTargets:
 
 
 @dataclass(frozen=True)
+class StudyRealism:
+    """The real rig a study measured with (its part of the study's settings; all None: ideal): the
+    realism preset's name, the error sources on, how each plate's draw is seeded and the corner noise
+    of the calibration views (px per axis, measured once for every plate)."""
+
+    realism: str | None = None
+    realism_sources: tuple = ()
+    realism_seeds: str | None = None
+    corner_noise_px: float | None = None
+
+    def to_dict(self) -> dict:
+        return {"realism": self.realism, "realism_sources": list(self.realism_sources),
+                "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px}
+
+    @classmethod
+    def from_dict(cls, settings: Mapping) -> "StudyRealism":
+        """The realism part of a study's settings (the other settings are left alone)."""
+        return cls(settings.get("realism"), tuple(settings.get("realism_sources") or ()),
+                   settings.get("realism_seeds"), settings.get("corner_noise_px"))
+
+
+@dataclass(frozen=True)
 class StudyResult:
     """Per-plate rows (``StudyRow``), the outcome counts, the detectors' scores and the targets;
     ``to_dict`` is study.json."""
@@ -445,7 +468,8 @@ class StudyResult:
                 "outcomes": self.outcomes(), "outcomes_by_family": self.outcomes("family"),
                 "outcomes_by_bend": self.outcomes("bend"),
                 "detectors": detector_scores_dict(detector_scores(list(self.rows))),
-                "targets": self.targets.to_dict(), "settings": self.settings, "time_s": self.time_s, **self.extra}
+                "targets": self.targets.to_dict(), "settings": self.settings, "time_s": self.time_s,
+                **file_form(self.extra)}
 
 
 def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOptions = SensingOptions(),

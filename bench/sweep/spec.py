@@ -245,9 +245,23 @@ def _set_path(*path):
     return apply
 
 
+@dataclass(frozen=True)
+class _PlateSize:
+    """A plate's length and width (m), as a sample's configuration table holds them while the
+    sweep's axes change it (its deformation may not fit the new size yet)."""
+
+    length_m: float
+    width_m: float
+
+    @classmethod
+    def from_dict(cls, plate: dict) -> "_PlateSize":
+        return cls(plate["length_m"], plate["width_m"])
+
+
 def _apply_family(d: dict, v, state: dict) -> None:
     plate = d["plate"]
-    new = family_defaults(v, plate["length_m"], plate["width_m"])
+    size = _PlateSize.from_dict(plate)
+    new = family_defaults(v, size.length_m, size.width_m)
     old = _deformation(d)
     for k in ("angle_rad", "direction", "axis_rad"):
         if k in new and k in old:

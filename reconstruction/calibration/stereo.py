@@ -295,6 +295,19 @@ class StereoCalibration:
                 "triangulation_model": self.model,
                 "conventional_deviation": self.conventional_deviation()}
 
+    @classmethod
+    def from_dict(cls, d) -> "StereoCalibration":
+        """The calibration ``to_dict`` wrote (its derived figures, baseline and deviation, are
+        computed again; the per-view RMS is not in the file)."""
+        return cls(np.array(d["K_left"], float), np.array(d["K_right"], float), np.array(d["dist_left"], float),
+                   np.array(d["dist_right"], float), np.array(d["R_right_from_left"], float),
+                   np.array(d["T_right_from_left_m"], float), np.array(d["R_world_left"], float),
+                   np.array(d["t_world_left_m"], float), int(d["width"]), int(d["height"]),
+                   float("nan") if d.get("stereo_rms_px") is None else float(d["stereo_rms_px"]),
+                   registration_rms_m=float("nan") if d.get("registration_rms_m") is None
+                   else float(d["registration_rms_m"]),
+                   model=str(d.get("triangulation_model", "general")))
+
 
 def stereo_calibrate(det_left, det_right, cal_left: CameraCalibration, cal_right: CameraCalibration,
                      image_size: tuple[int, int], registration_view: int, registration_pose,

@@ -60,8 +60,7 @@ class StructuredLightCalibration:
     center_miss_m: np.ndarray  # (F,) distance of each ray to that point
 
     def to_dict(self) -> dict:
-        return {"ray_origins_m": self.rays.origins.tolist(), "ray_directions": self.rays.directions.tolist(),
-                "ids": self.rays.ids.tolist(), "residual_rms_m": self.residual_rms_m.tolist(),
+        return {**self.rays.to_dict(), "residual_rms_m": self.residual_rms_m.tolist(),
                 "projector_center_m": self.projector_center.tolist(), "center_miss_m": self.center_miss_m.tolist(),
                 "planes": [{"offset_m": p.plane_offset_m, "normal": p.plane_normal.tolist(),
                             "flatness_rms_m": p.flatness_rms_m} for p in self.planes]}

@@ -36,6 +36,15 @@ class FeatureRays:
     directions: np.ndarray
     ids: np.ndarray
 
+    def to_dict(self) -> dict:
+        return {"ray_origins_m": self.origins.tolist(), "ray_directions": self.directions.tolist(),
+                "ids": self.ids.tolist()}
+
+    @classmethod
+    def from_dict(cls, d) -> "FeatureRays":
+        """The rays of ``to_dict`` (or of a structured-light calibration's, which holds them)."""
+        return cls(np.array(d["ray_origins_m"], float), np.array(d["ray_directions"], float), np.array(d["ids"], int))
+
 
 @dataclass(frozen=True)
 class FalseBoundaryTest:

@@ -39,16 +39,31 @@ class CameraGroundTruth:
 
 
 @dataclass(frozen=True)
+class HiddenRun:
+    """A cyclic run of hidden points of the true boundary polyline: its first and last point's
+    index, its points and its length along the boundary (m)."""
+
+    start: int
+    end: int
+    count: int
+    length_m: float
+
+    def to_dict(self) -> dict:
+        return {"start": self.start, "end": self.end, "count": self.count, "length_m": self.length_m}
+
+
+@dataclass(frozen=True)
 class BoundaryVisibility:
     """Visibility of the true boundary polyline from one camera."""
 
     visible: np.ndarray  # (N,) bool per boundary point
     visible_fraction: float  # by arc length
-    hidden_segments: tuple  # ({start, end, count, length_m}, ...) cyclic index runs
+    hidden_segments: tuple[HiddenRun, ...]  # cyclic index runs of hidden points
     false_boundary: bool
 
     def to_dict(self) -> dict:
-        return {"visible_fraction": self.visible_fraction, "hidden_segments": list(self.hidden_segments),
+        return {"visible_fraction": self.visible_fraction,
+                "hidden_segments": [h.to_dict() for h in self.hidden_segments],
                 "false_boundary": self.false_boundary, "n_points": int(self.visible.size),
                 "n_visible": int(self.visible.sum())}
 
@@ -234,7 +249,7 @@ def summarise_visibility(P: np.ndarray, visible: np.ndarray) -> BoundaryVisibili
     runs = []
     n = len(P)
     if hidden.all():
-        runs.append({"start": 0, "end": n - 1, "count": n, "length_m": float(seg.sum())})
+        runs.append(HiddenRun(0, n - 1, n, float(seg.sum())))
     elif hidden.any():
         start_idx = int(np.argmax(visible))  # rotate so we start on a visible point
         order = (np.arange(n) + start_idx) % n
@@ -246,8 +261,7 @@ def summarise_visibility(P: np.ndarray, visible: np.ndarray) -> BoundaryVisibili
                 while j + 1 < n and h[j + 1]:
                     j += 1
                 idx = order[i:j + 1]
-                runs.append({"start": int(idx[0]), "end": int(idx[-1]), "count": int(idx.size),
-                             "length_m": float(w[idx].sum())})
+                runs.append(HiddenRun(int(idx[0]), int(idx[-1]), int(idx.size), float(w[idx].sum())))
                 i = j + 1
             else:
                 i += 1

@@ -533,7 +533,7 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
     if options.ground_truth_reach:
         reach, verif = reach_visibility(P, reach_poses, sensor.baseline_m, sensor.boundary_visibility_masks(reach_poses))
         reach_vis, verif_vis = gt_visibility_dict(reach), gt_visibility_dict(verif)
-        unconfirmable = max([h["length_m"] for h in verif["left"].hidden_segments], default=0.0)
+        unconfirmable = max([h.length_m for h in verif["left"].hidden_segments], default=0.0)
     accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None
     merged = merged_accuracy(sensor.plate, m.merged(), poses=len(m.views))
     return FinalRecord(first.pose2, "stage3", None if rec is None else rec.false_boundary,

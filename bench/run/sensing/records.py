@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.io.records import MergedFigures, Stage3Accuracy
+from platebench.bench.io.records import MergedFigures, Stage3Accuracy, file_form
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 from platebench.reconstruction.strategy.detectors import DetectorResult
@@ -243,8 +243,9 @@ class SensingResult:
     views: tuple[ViewOutline, ...] = ()  # every measuring pose's outline (not in sensing.json: multiview.npz)
     # the projected patterns (``Pattern.description``): stage 3's, and the verification views' and cures'
     patterns: dict = field(default_factory=dict)
-    # a real rig (``cfg.realism`` not ideal): what its draw's estimates missed by
-    # (``bench.run.realism.RigDraw.report``) and every move, commanded vs really posed; None: ideal
+    # a real rig (``cfg.realism`` not ideal): "realism" (its file form), "estimates": what its draw's
+    # estimates missed by (``bench.run.realism.RigDraw.report``, a ``DrawReport``) and "moves": every
+    # move, commanded vs really posed (``RobotMove``s); None: ideal
     acquisition: dict | None = None
 
     @property
@@ -258,4 +259,4 @@ class SensingResult:
                 "cures": self.cures, "cure_views": [v.to_dict() for v in self.cure_views],
                 "verdict": self.verdict.to_dict(), "notes": list(self.notes),
                 "patterns": self.patterns, "final": self.final.to_dict(), "time_s": self.time_s,
-                **({} if self.acquisition is None else {"acquisition": self.acquisition})}
+                **({} if self.acquisition is None else {"acquisition": file_form(self.acquisition)})}

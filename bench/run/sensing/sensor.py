@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from platebench.bench.config import SampleConfig, parse_grid
+from platebench.bench.io.realism_records import RobotMove
 from platebench.bench.run.realism import RealismSetup, draw_rig
 from platebench.bench.run.render import ground_truth_at, render_images
 from platebench.bench.run.sensing.records import auto_verify_grid
@@ -108,7 +109,7 @@ class SimulatedSensor:
         # a real rig (``cfg.realism`` not ideal): one draw of the robot and the estimates for the whole run
         self.rig_draw = None if cfg.realism.is_ideal else draw_rig(
             RealismSetup.prepare(cfg.realism, cfg, corner_noise_px=corner_noise_px), built.rig.left, cfg.realism.seed)
-        self.moves: list[dict] = []  # each acquisition of a real rig: commanded vs really posed (``_acquire``)
+        self.moves: list[RobotMove] = []  # each acquisition of a real rig: commanded vs really posed (``_acquire``)
         self._last = None  # (commanded rig, Acquisition) of the last move: a shot at the same pose reuses it
         proj = self.base.projector
         if verify_grid == "auto":
@@ -179,8 +180,7 @@ class SimulatedSensor:
                             "from any turn of the cell")
         acq = self.rig_draw.acquire(rig, yaw)
         self._last = (rig, acq)
-        self.moves.append({"view": label, "cell_turn_deg": float(np.degrees(yaw)), **{
-            f"{c}_{k}": v for c, e in acq.report.get("views", {}).items() for k, v in e.items()}})
+        self.moves.append(RobotMove(label, float(np.degrees(yaw)), acq.report.views))
         return acq
 
     def dense_ground_truth(self) -> tuple[dict, dict]:
