@@ -354,11 +354,11 @@ def test_steep_concave_edges_that_no_pose_hides_are_verified_without_a_cure(bend
     """Concave cylinders whose edges rise steeply (120 degrees about axis 60, a 180-degree trough
     across the width) hide nothing from the stage-2 pose (ground truth). The squares near their
     rising corners and rims are cut by the outline or stretched apart, so the front there is read
-    from the measured surface (``Measurements.front_side``); the verification views then verify the
+    from the centres' sparse front (``Measurements.front_side``); the verification views then verify the
     boundary with no cure: outcome clean (a cure here is a false alarm). 640 x 480, as the study.
     With the square centres alone for the front, these four took 3-14 cures (false alarms); of ten
-    such plates (axes +-1 degree, distances +-5 mm, seeds 0-2) the measured-surface front verifies
-    all ten with no cure."""
+    such plates (axes +-1 degree, distances +-5 mm, seeds 0-2) the loop verifies all ten with no
+    cure."""
     cfg = _bent_cfg(SampleConfig(scene=SceneParams(width=640, height=480), render=RenderSettings(spp=2, seed=seed)),
                     bend_deg, "up", axis_deg)
     s = run_sensing(cfg, None, SensingOptions(working_distance_m=distance_m))

@@ -162,16 +162,6 @@ class SurfaceModel:
         mesh = trimesh.util.concatenate(meshes) if meshes else None
         return cls(ms, S, np.concatenate(idx) if idx else np.zeros(0, int), N, mesh)
 
-    def thinned(self, spacing_m: float) -> np.ndarray:
-        """(T,3) the samples thinned to one per cube of ``spacing_m`` (the first sample in each, in
-        membrane order): the measured surface up to the outlines, at a spacing fit for fitting
-        normals over neighbours."""
-        if not len(self.samples):
-            return np.zeros((0, 3))
-        keys = np.floor(self.samples / spacing_m).astype(np.int64)
-        _, first = np.unique(keys, axis=0, return_index=True)
-        return self.samples[np.sort(first)]
-
     def normals_near(self, points: np.ndarray, toward: np.ndarray, exclude_view: str | None = None,
                      radius_m: float = NORMAL_RADIUS_M, neighbours: int = 24) -> np.ndarray:
         """(N,3) unit normals of the model near each point: the mean of the triangle normals of the

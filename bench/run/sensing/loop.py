@@ -315,17 +315,18 @@ class Measurements:
             self.meshes.append(membrane_mesh(self.surfaces[-1]))
 
     def front_side(self) -> FrontSide:
-        """The plate's front (``sides``) over every pose's checked square centres and the surface
-        the poses measured (``model``'s samples, one per ``FRONT_SAMPLE_SPACING_M`` cube). The
-        outline points alone are left out (along an edge their neighbours lie on a line, which
-        fits no plane); the membranes' samples reach the edges with the surface beside them. With
-        the centres alone, the front was unknown within 15 mm of many edges (the squares there
-        cut by the outline, or stretched apart by a steep wall), no pair could confirm them
-        (``KNOWN_FRONT_RAD``), and the loop took cures on plates where nothing was hidden (the
-        rims of a concave 180-degree trough about axis 90)."""
+        """The plate's front (``sides``) over every pose's checked square centres (outline points
+        are left out: along an edge their neighbours lie on a line, which fits no plane). Where it
+        knows no side (more than ``SIDE_RADIUS_M`` from an oriented centre, or off its tangent
+        plane: the rising corners and rims of steep concave plates, whose squares are cut by the
+        outline or stretched apart), the same centres' sparse front is read (``sparse_front_side``:
+        normals fitted over 20 mm, read within 40 mm), unless its joined normals turn by more than
+        ``SPARSE_MAX_TURN_RAD`` (a crease or a tight curl, which it may orient the wrong way).
+        With the dense front alone, no pair could confirm those edges (a confirmation needs one
+        pose seeing the known front), and the loop took cures on plates where nothing was hidden."""
         centres = np.vstack([a.points for a in self.actives])
-        samples = self.model.thinned(FRONT_SAMPLE_SPACING_M) if self.model is not None else np.zeros((0, 3))
-        return replace(front_side(centres), fallback=front_side(np.vstack([centres, samples])))
+        dense, sparse = front_side(centres), sparse_front_side(centres)
+        return replace(dense, fallback=sparse) if sparse.max_turn_rad <= SPARSE_MAX_TURN_RAD else dense
 
     def update(self) -> BoundaryVerdict:
         """Rebuild the surface model and the verdict from every pose measured so far (points a pose
@@ -386,7 +387,6 @@ class Measurements:
                 **u.to_dict()} for u in again.unconfirmed if not u.covered])
 
 
-FRONT_SAMPLE_SPACING_M = 3e-3  # the measured surface's samples join the centres at this spacing (``front_side``)
 SPARSE_FRONT_NOTE = "when the front is not asked for"  # in a verdict the sparse front check overturned
 
 
