@@ -4,6 +4,7 @@ pinhole cameras, with the depth noise a stereo outline has, over small perturbat
 geometry and other seeds."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -225,6 +226,22 @@ def test_a_row_of_centres_cut_off_near_a_steep_corner_is_oriented_with_the_plate
     assert fs.known[row].mean() >= 0.8 and fs.known.mean() > 0.95
     agree = np.einsum("ij,ij->i", fs.normals, N) > 0
     assert agree[row & fs.known].all() and agree[fs.known].mean() > 0.97
+
+
+def test_a_front_reads_its_fallback_only_where_it_knows_no_side():
+    """``FrontSide.fallback``: the sensing loop's front is the square centres' and, where they
+    tell nothing (more than ``SIDE_RADIUS_M`` away), the measured surface's."""
+    spec = PlateSpec(0.1165, 0.0735, deformation=CylindricalBend(math.radians(60.0), "up"))
+    P, _ = _samples(spec, 7e-3, np.random.default_rng(3))
+    middle = np.abs(P[:, 0]) < 0.02
+    dense = front_side(P)
+    sparse = front_side(P[middle])
+    both = dataclasses.replace(sparse, fallback=dense)
+    ends = np.abs(P[:, 0]) > 0.045
+    assert np.isnan(sparse.normals_at(P[ends])).all()
+    assert np.allclose(both.normals_at(P[ends]), dense.normals_at(P[ends]))
+    assert np.allclose(both.normals_at(P[middle]), sparse.normals_at(P[middle]))
+    assert sparse.oriented_share(P) < both.oriented_share(P) == 1.0
 
 
 @pytest.mark.parametrize("seed", [0, 1])

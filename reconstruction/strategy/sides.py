@@ -83,13 +83,22 @@ class FrontSide:
     radius_m: float = SIDE_RADIUS_M  # ``normals_at``: how far from a point its side is read
     same_sheet_m: float = SAME_SHEET_M  # ``normals_at``: how close to the point the tangent plane passes
     max_turn_rad: float = 0.0  # the largest angle between the normals of neighbours joined in the oriented part
+    fallback: "FrontSide | None" = None  # read where this one knows no side (``normals_at``)
 
     def normals_at(self, points: np.ndarray) -> np.ndarray:
         """(N,3) the front's unit normal at ``points`` (N,3): that of the nearest oriented surface
         point within ``radius_m`` whose tangent plane passes within ``same_sheet_m`` of the
-        point (on a tight fold the nearest measured point can lie on the other face); NaN where
-        there is none."""
+        point (on a tight fold the nearest measured point can lie on the other face); where there
+        is none, the ``fallback``'s; NaN where neither has one."""
         P = np.atleast_2d(np.asarray(points, float))
+        out = self._own_normals_at(P)
+        if self.fallback is not None:
+            miss = ~np.all(np.isfinite(out), axis=1)
+            if miss.any():
+                out[miss] = self.fallback.normals_at(P[miss])
+        return out
+
+    def _own_normals_at(self, P: np.ndarray) -> np.ndarray:
         out = np.full((len(P), 3), np.nan)
         if not self.known.any() or not len(P):
             return out

@@ -316,13 +316,17 @@ class Measurements:
 
     def front_side(self) -> FrontSide:
         """The plate's front (``sides``) over every pose's checked square centres (outline points
-        are left out: along an edge their neighbours lie on a line, which fits no plane). Read
-        farther from the centres it misleads: the centres' sparse front (normals fitted over
-        20 mm, read within 40 mm) where this one knows no side verified the concave 180-degree
-        troughs about axis 90 with no cure, but under the 1995 rig it called the concave
-        300-degree curl about axis 60 verified with 1.6 % of its boundary hidden (its tips lie
-        beyond the centres, turned past the vertical): left out."""
-        return front_side(np.vstack([a.points for a in self.actives]))
+        are left out: along an edge their neighbours lie on a line, which fits no plane). Where it
+        knows no side (more than ``SIDE_RADIUS_M`` from an oriented centre, or off its tangent
+        plane: the rising corners and rims of steep concave plates, whose squares are cut by the
+        outline or stretched apart), the same centres' sparse front is read (``sparse_front_side``:
+        normals fitted over 20 mm, read within 40 mm), unless its joined normals turn by more than
+        ``SPARSE_MAX_TURN_RAD`` (a crease or a tight curl, which it may orient the wrong way).
+        With the dense front alone, no pair could confirm those edges (a confirmation needs one
+        pose seeing the known front), and the loop took cures on plates where nothing was hidden."""
+        centres = np.vstack([a.points for a in self.actives])
+        dense, sparse = front_side(centres), sparse_front_side(centres)
+        return replace(dense, fallback=sparse) if sparse.max_turn_rad <= SPARSE_MAX_TURN_RAD else dense
 
     def update(self) -> BoundaryVerdict:
         """Rebuild the surface model and the verdict from every pose measured so far (points a pose
