@@ -77,6 +77,34 @@ def test_a_view_the_solution_cannot_fit_is_left_out_of_the_camera_calibration(se
     assert np.allclose(np.diag(cal.K)[:2], np.diag(K)[:2], rtol=5e-3)
 
 
+@pytest.mark.parametrize("fix_distortion", [True, False])
+def test_the_same_detections_calibrate_to_the_same_bytes_on_every_thread_count(fix_distortion):
+    """cv2.calibrateCamera on OpenCV's thread pool sums its steps in the order the threads finish:
+    12 calibrations of one set of detections gave 12 lenses differing in their last bits, and a
+    sensing run under a real rig then took other poses from run to run. ``opencv_serial`` runs the
+    solver on one thread; the caller's thread count is put back after."""
+    from platebench.reconstruction.calibration import BoardDetection, calibrate_camera
+    rng = np.random.default_rng(3)
+    K = np.array([[930.0, 0.0, 320.0], [0.0, 940.0, 240.0], [0.0, 0.0, 1.0]])
+    dist = np.array([-0.2, 0.1, 0.001, -0.001, 0.0])
+    gx, gy = np.meshgrid(np.arange(9) * 0.015, np.arange(6) * 0.015)
+    obj = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    dets = []
+    for _ in range(12):
+        uv, _ = cv2.projectPoints(obj, rng.normal(0, 0.3, 3), np.array([-0.06, -0.04, 0.4]) + rng.normal(0, 0.01, 3),
+                                  K, dist)
+        dets.append(BoardDetection(np.arange(len(obj)), uv.reshape(-1, 2) + rng.normal(0, 0.15, (len(obj), 2)), obj))
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(max(2, before))
+    try:
+        runs = [calibrate_camera(dets, (640, 480), fix_distortion=fix_distortion) for _ in range(8)]
+        assert cv2.getNumThreads() == max(2, before)  # the caller's thread count is put back
+    finally:
+        cv2.setNumThreads(before)
+    for r in runs[1:]:
+        assert r.K.tobytes() == runs[0].K.tobytes() and r.dist.tobytes() == runs[0].dist.tobytes()
+
+
 def test_true_rig_calibration_triangulates_like_the_pipeline():
     rig = reference_scene(width=640, height=480, f_px=1000.0).rig
     pts = np.array([[0.01, -0.02, 0.0], [-0.03, 0.015, 0.012], [0.0, 0.0, -0.03]])

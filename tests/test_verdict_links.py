@@ -175,3 +175,21 @@ def test_a_piece_overshooting_a_corner_after_a_jump_links_to_the_next_edge(overs
     vb = ViewOutline("b", P.copy(), np.ones(len(P), bool), eye, P[:, :2] * 1e4, "synthetic")
     v = verify([va, vb], None, [conf_a, ~_bottom(-12.5, 50)])
     assert v.verified and not v.gaps, v.reason
+
+
+@pytest.mark.parametrize("island_mm, at_mm", [(3.0, 18.0), (3.0, 17.0), (3.5, 20.0), (5.0, 16.0)])
+def test_a_short_island_on_a_pose_whose_sense_lies_cannot_link_back(island_mm, at_mm):
+    """The islands are confirmed by a pose whose outline runs the other way round in 3D while its
+    image keeps the first pose's orientation (one edge seen from outside a curl by one pose and from
+    inside it by the other: ``outline_sense`` then tells the wrong way). Walking the first pose's
+    outline "away" by the senses went back over the island to the big piece, and the loop closed
+    over the 2 x ``at_mm`` stretch between them (a 300-degree curl under the 1995 rig: a silent
+    verdict). A short piece's walk now also needs the outline's own points to leave the piece that
+    way (``_leaving_step``): no link, and the stretch is a gap."""
+    a, b = _views()
+    rev = np.arange(len(P))[::-1]
+    b = ViewOutline("b", P[rev], np.ones(len(P), bool), b.camera_center, P[:, :2] * 1e4, "synthetic")
+    big = ~_bottom(-30, 30)
+    islands = _bottom(-at_mm - island_mm, -at_mm) | _bottom(at_mm, at_mm + island_mm)
+    v = verify([a, b], None, [big, islands[rev]])
+    assert not v.verified and v.gaps, v.reason

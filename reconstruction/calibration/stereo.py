@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 
 from platebench.errors import UserValueError
+from platebench.reconstruction.calibration.serial import opencv_serial
 from platebench.scenes.camera import Camera
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import StereoRig
@@ -152,8 +153,9 @@ def calibrate_camera(detections, image_size: tuple[int, int], fix_distortion: bo
     for _ in range(len(views)):
         obj = [detections[i].object_points.astype(np.float32) for i in views]
         img = [detections[i].image_points.astype(np.float32) for i in views]
-        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(int(v) for v in image_size), None,
-                                                         np.zeros(5), flags=flags, criteria=_CRIT)
+        with opencv_serial():  # the same detections, the same bytes (``serial``)
+            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(int(v) for v in image_size), None,
+                                                             np.zeros(5), flags=flags, criteria=_CRIT)
         dist = np.asarray(dist, float).ravel()[:5]
         per = np.array([_view_rms(o, m, r, t, K, dist) for o, m, r, t in zip(obj, img, rvecs, tvecs)])
         bad = (per > OUTLIER_VIEW_PX) & (per > OUTLIER_VIEW_FACTOR * np.median(per))
@@ -350,8 +352,10 @@ def stereo_calibrate(det_left, det_right, cal_left: CameraCalibration, cal_right
     dist_flags = FIXED_DISTORTION_FLAGS if cal_left.fix_distortion else FREE_DISTORTION_FLAGS
     flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_SAME_FOCAL_LENGTH | dist_flags) if joint \
         else cv2.CALIB_FIX_INTRINSIC
-    out = cv2.stereoCalibrate(obj, il, ir, cal_left.K.copy(), cal_left.dist.copy(), cal_right.K.copy(),
-                              cal_right.dist.copy(), tuple(int(v) for v in image_size), flags=flags, criteria=_CRIT)
+    with opencv_serial():  # the same detections, the same bytes (``serial``)
+        out = cv2.stereoCalibrate(obj, il, ir, cal_left.K.copy(), cal_left.dist.copy(), cal_right.K.copy(),
+                                  cal_right.dist.copy(), tuple(int(v) for v in image_size), flags=flags,
+                                  criteria=_CRIT)
     rms, K1, d1, K2, d2, R, T = out[:7]
     K1, K2 = np.asarray(K1, float), np.asarray(K2, float)
     d1, d2 = np.asarray(d1, float).ravel()[:5], np.asarray(d2, float).ravel()[:5]

@@ -77,7 +77,11 @@ cylinder 300 down axis 60 closed over a 32 mm stretch that way: a silent verdict
 study's renders (outcome for outcome equal to the study): cured 15/23, false alarms
 1/31, silent 0, against 12/23, 1/31, 0 with both ways walked. Dropping pieces under ``LINK_M``
 instead cured 10/23 with 3/31 false alarms, and walking only the piece's own outline 10/23 with
-3/31: short pieces carry true links, mostly through other poses' outlines.
+3/31: short pieces carry true links, mostly through other poses' outlines. The senses fail on a
+curled plate (one edge seen from outside the curl by one pose and from inside by another: the images
+keep their orientation while the 3D walks run opposite ways; a 300-degree curl under the 1995 rig
+closed its loop over a hidden corner that way, a silent verdict), so another pose's outline is walked
+only where its own points leave the piece the same way (``_leaving_step``).
 World frame, metres, radians.
 """
 from __future__ import annotations
@@ -108,6 +112,10 @@ END_SPAN_M = 8e-3  # a piece's direction out of an end: the chord from its point
 # or to one reached along some pose's measured outline within this arc length (16 mm, measured on the
 # study with the off-the-end lead rule: 1 more plate cured, and a silent verdict on cylinder 300 up axis 30)
 OUTLINE_BRIDGE_M = 12e-3
+# a short piece's end walks another pose's outline only the way that leaves the piece: walked this
+# much arc, the outline lies this much farther from the piece than walked the other way
+LEAVE_PROBE_M = LINK_M
+LEAVE_MARGIN_M = 1e-3
 LOOP_MIN_FRACTION = 0.7  # a closed group of pieces is the boundary when at least this x the first pose's outline
 LOOP_MAX_ANGLE_GAP_RAD = float(np.radians(60.0))  # ... and goes round its centroid (seen from the first pose)
 OVERLAP_POINTS = 3  # pieces sharing this many points (within LINK_M) run along the same edge: one group
@@ -504,7 +512,13 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
         k = int(np.argmin(d))
         if d[k] > LINK_M:
             continue
-        steps = (int(away * outline_sense(v)),) if short else (1, -1)
+        if short:
+            step = int(away * outline_sense(v))
+            if v.name != piece.view and _leaving_step(v, k, trees[own]) != step:
+                continue  # the senses say one way, the outline's own points the other (or neither): no walk
+            steps = (step,)
+        else:
+            steps = (1, -1)
         arc, n = v.arc_m, len(v.points)
         for step in steps:
             walked, j = 0.0, k
@@ -516,6 +530,27 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
                 if hit:
                     return hit
     return []
+
+
+def _leaving_step(view: ViewOutline, k: int, piece_tree: cKDTree) -> int | None:
+    """+1 or -1: the index step along ``view``'s outline from its point ``k`` that leaves the piece
+    whose points ``piece_tree`` holds: walked ``LEAVE_PROBE_M`` of arc that way, the outline lies at
+    least ``LEAVE_MARGIN_M`` farther from the piece than walked the other way. None when neither
+    way does (a short piece's "away" is then not told by this outline's points). ``outline_sense``
+    tells the same from the images' orientations, which a curled plate breaks: seen from inside
+    and outside the curl, one edge is walked the same way in 3D by outlines of opposite senses."""
+    arc, n = view.arc_m, len(view.points)
+    far = {}
+    for step in (1, -1):
+        walked, j = 0.0, k
+        while walked < LEAVE_PROBE_M and abs(j - k) < n:
+            nxt = (j + step) % n
+            walked += arc[j if step > 0 else nxt]
+            j = nxt
+        far[step] = float(piece_tree.query(view.points[j])[0])
+    if abs(far[1] - far[-1]) < LEAVE_MARGIN_M:
+        return None
+    return 1 if far[1] > far[-1] else -1
 
 
 def _merge_points(ps: list[Piece]) -> np.ndarray:
