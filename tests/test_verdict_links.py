@@ -184,8 +184,8 @@ def test_a_short_island_on_a_pose_whose_sense_lies_cannot_link_back(island_mm, a
     inside it by the other: ``outline_sense`` then tells the wrong way). Walking the first pose's
     outline "away" by the senses went back over the island to the big piece, and the loop closed
     over the 2 x ``at_mm`` stretch between them (a 300-degree curl under the 1995 rig: a silent
-    verdict). A short piece's walk now also needs the outline's own points to leave the piece that
-    way (``_leaving_step``): no link, and the stretch is a gap."""
+    verdict). A short piece's walk is refused where the outline's own points leave the piece the
+    other way (``_leaving_step``): no link, and the stretch is a gap."""
     a, b = _views()
     rev = np.arange(len(P))[::-1]
     b = ViewOutline("b", P[rev], np.ones(len(P), bool), b.camera_center, P[:, :2] * 1e4, "synthetic")

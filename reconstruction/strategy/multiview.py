@@ -81,7 +81,7 @@ instead cured 10/23 with 3/31 false alarms, and walking only the piece's own out
 curled plate (one edge seen from outside the curl by one pose and from inside by another: the images
 keep their orientation while the 3D walks run opposite ways; a 300-degree curl under the 1995 rig
 closed its loop over a hidden corner that way, a silent verdict), so another pose's outline is walked
-only where its own points leave the piece the same way (``_leaving_step``).
+only where its own points do not leave the piece the other way (``_leaving_step``).
 World frame, metres, radians.
 """
 from __future__ import annotations
@@ -514,8 +514,8 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
             continue
         if short:
             step = int(away * outline_sense(v))
-            if v.name != piece.view and _leaving_step(v, k, trees[own]) != step:
-                continue  # the senses say one way, the outline's own points the other (or neither): no walk
+            if v.name != piece.view and _leaving_step(v, k, trees[own]) == -step:
+                continue  # the senses say one way, the outline's own points the other: no walk
             steps = (step,)
         else:
             steps = (1, -1)
@@ -536,9 +536,12 @@ def _leaving_step(view: ViewOutline, k: int, piece_tree: cKDTree) -> int | None:
     """+1 or -1: the index step along ``view``'s outline from its point ``k`` that leaves the piece
     whose points ``piece_tree`` holds: walked ``LEAVE_PROBE_M`` of arc that way, the outline lies at
     least ``LEAVE_MARGIN_M`` farther from the piece than walked the other way. None when neither
-    way does (a short piece's "away" is then not told by this outline's points). ``outline_sense``
-    tells the same from the images' orientations, which a curled plate breaks: seen from inside
-    and outside the curl, one edge is walked the same way in 3D by outlines of opposite senses."""
+    way does (the outline's points do not tell; ``outline_sense`` then decides alone).
+    ``outline_sense`` tells the same from the images' orientations, which a curled plate breaks:
+    seen from inside and outside the curl, one edge is walked the same way in 3D by outlines of
+    opposite senses, and where the points say the other way, the outline is not walked. (Walking
+    only where the points also say the same way, a cylinder bent 240 degrees down at 0.5 m lost its
+    cure: its short pieces' links ran through outlines whose points did not tell.)"""
     arc, n = view.arc_m, len(view.points)
     far = {}
     for step in (1, -1):
