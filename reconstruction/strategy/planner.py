@@ -13,7 +13,9 @@ stage-2 outline's two main directions (``outline_axes``: a rectangle's sides, wh
 an oblique axis leaves oblique to ``g`` and ``e``), so that edges along either cross the image
 rows and are matched on the rows, not interpolated. (Measured on the study: a baseline chosen per
 view for the whole outline, or one across each diagonal turn's axis, gave 4 to 6 false alarms of
-31 against 0 to 1.)
+31 against 0 to 1; so did one chosen per view to keep both sides of the outline steepest in that
+view's own perspective, 4 of 31, the flat plate among them, although it row-matched the long edges
+of the S-curve bent 120 degrees about axis 90 that the diagonal leaves 28 degrees from the rows.)
 
 Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
 already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the
