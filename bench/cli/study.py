@@ -117,6 +117,11 @@ def add_parser(sub) -> None:
                         "plate's 16 square centres, four renders a draw: about twice the time) or block,plate")
     a.add_argument("--no-budget", action="store_true",
                    help="run only every source on (the budget runs 2N+2 rows for N sources)")
+    a.add_argument("--corners", choices=("edges", "pixels"), default="edges",
+                   help="how the block's corners are located: edges (default), the intersections of lines "
+                        "fitted to the square's edges, sub-pixel; pixels, the vertices of the polygon fitted to "
+                        "its binary outline, on the pixel grid, as the paper's contour following and corner "
+                        "detection found them (its [11], no sub-pixel step)")
     p.set_defaults(run=run)
 
 
@@ -266,7 +271,7 @@ def run_accuracy(args) -> int:
         RenderSettings(spp=spp, seed=args.seed)
     except ValueError as e:
         raise UserValueError(f"--{e}") from None
-    settings = AccuracySettings(realism, args.draws, targets, not args.no_budget, spp, args.seed)
+    settings = AccuracySettings(realism, args.draws, targets, not args.no_budget, spp, args.seed, corners=args.corners)
     confs = budget_configs(realism, settings.budget)
     total = len(confs) * args.draws * len(targets)
     with output_dir(args.out, "accuracy study", overwrite=args.overwrite) as stage:
@@ -314,6 +319,10 @@ def accuracy_lines(study) -> list[str]:
            f"fx/fy {cam.fx_px:.1f}/{cam.fy_px:.1f} px, baseline {cam.baseline_m * 1e3:.0f} mm, distance "
            f"{cam.distance_m * 1e3:.0f} mm; {st.draws} draws per row; paper (V-D): depth <= "
            f"{paper.depth_mm:g} mm, x/y <= {paper.xy_mm:g} mm (one trial's worst corner)"]
+    if "block" in study.summary:
+        out.append("block corners: " + ("the vertices of the polygon fitted to the square's binary outline, on the "
+                                        "pixel grid (the paper's method, its [11])" if st.corners == "pixels" else
+                                        "the intersections of lines fitted to the square's edges (sub-pixel)"))
     if study.robot:
         r = study.robot
         out.append(f"robot {r.name}: {r.description}")

@@ -33,15 +33,20 @@ class AccuracySettings:
     spp: int = 16
     seed0: int = 0
     variant: str | None = None
+    # how the block's corners are located (``bench.run.accuracy.CORNER_METHODS``): "edges", the
+    # intersections of lines fitted to the square's edges (sub-pixel); "pixels", the vertices of the
+    # polygon of its binary outline, on the pixel grid (the paper's contour and corner method, its [11])
+    corners: str = "edges"
 
     def to_dict(self) -> dict:
         return {"realism": self.realism.to_dict(), "draws": self.draws, "targets": list(self.targets),
-                "budget": self.budget, "spp": self.spp, "seed0": self.seed0, "variant": self.variant}
+                "budget": self.budget, "spp": self.spp, "seed0": self.seed0, "variant": self.variant,
+                "corners": self.corners}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "AccuracySettings":
         return cls(Realism.from_dict(dict(d["realism"])), int(d["draws"]), tuple(d["targets"]), bool(d["budget"]),
-                   int(d["spp"]), int(d["seed0"]), d.get("variant"))
+                   int(d["spp"]), int(d["seed0"]), d.get("variant"), str(d.get("corners", "edges")))
 
 
 _MEASURED = ("points", "worst_depth_mm", "worst_xy_mm", "rms_depth_mm", "rms_xy_mm", "mean_depth_mm", "errors_mm")

@@ -9,8 +9,10 @@ trial here does the same under a realism preset (``bench.config.realism``):
   (``bench.run.realism.realise``) places the camera where the robot really puts it for each view,
   with the estimates of the mount, the block's pose and the intrinsics; the passive pair is rendered
   from the poses really taken and digitised by the camera's sensor. The paper's pipeline pieces find
-  the square (``reconstruction.paper.squares.extract_squares``: Tsai's moment-preserving threshold,
-  contour following, corners by ``approxPolyDP`` refined by ``cornerSubPix``); its corners are
+  the square (``reconstruction.paper.plate_region``: Tsai's moment-preserving threshold, contour
+  following) and its corners (``block_corners``: the intersections of lines fitted to its edges, or,
+  with ``AccuracySettings.corners`` "pixels", the vertices of its binary outline's polygon on the
+  pixel grid, as the paper's own method found them); its corners are
   triangulated in the commanded conventional geometry (``triangulate_rectified``: Z = f B / d) into
   the world, and taken into the block's frame through the block pose the calibration estimated.
   Error = measured minus true corner in the block frame: depth = z, and x, y.
@@ -79,12 +81,13 @@ from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.robot import invert_pose
 from platebench.scenes.scene_spec import RenderSettings
 
-__all__ = ["PAPER_DEPTH_MM", "PAPER_XY_MM", "TARGETS", "AccuracySettings", "BudgetConfig", "budget_configs",
+__all__ = ["PAPER_DEPTH_MM", "PAPER_XY_MM", "TARGETS", "CORNER_METHODS", "block_corners", "AccuracySettings", "BudgetConfig", "budget_configs",
            "run_accuracy_study", "SquareTarget", "summarise", "dominant_sources", "accuracy_csv"]
 
 PAPER_DEPTH_MM = 2.0  # paper V-D: "the error in depth ... is within 2 mm"
 PAPER_XY_MM = 1.0  # paper V-D: "the error in the x and y coordinates is within 1 mm"
 TARGETS = ("block", "plate")
+CORNER_METHODS = ("edges", "pixels")  # how the block's corners are located (``block_corners``)
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
 MATCH_M = 5e-3  # a measured plate centre is compared with the nearest true one, if within 5 mm (centres lie 16 mm+ apart)
 
@@ -138,7 +141,20 @@ class TrialErrors:
     points: int
 
 
-def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> TrialErrors:
+def block_corners(image: np.ndarray, name: str, method: str = "edges") -> np.ndarray:
+    """(4,2) the square's corners (TL, TR, BR, BL) in ``image`` (pixels) by ``method``
+    (``CORNER_METHODS``): "edges", the intersections of the lines fitted to its four edges
+    (``passive_boundary.outline_edges``: sub-pixel); "pixels", the vertices of the polygon
+    ``approxPolyDP`` fits to its binary outline (Tsai's threshold, border following), which lie on
+    outline pixels: the paper's contour following and corner detection (its [11], Cabrelli and
+    Molter's representation of binary images), with no sub-pixel step."""
+    if method not in CORNER_METHODS:
+        raise ValueError(f"corner method {method!r} is not one of {', '.join(CORNER_METHODS)}")
+    region = extract_plate_region(image, name)
+    return region.corners.astype(float) if method == "pixels" else outline_edges(image, region).corners
+
+
+def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int, corner_method: str = "edges") -> TrialErrors:
     scene = cfg.scene.build().with_rig(acq.taken)
     square = SquareTarget.of(acq.T_world_block, TARGET.square_block())
     renderer.set_scene(scene)
@@ -149,8 +165,7 @@ def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int) -> 
     images, told = undistort_views(images, acq.told)  # through the lens the method is told, as the pipeline does
     corners = {}
     for cam in ("left", "right"):
-        img = images[f"{cam}_passive"]
-        corners[cam] = outline_edges(img, extract_plate_region(img, f"{cam}_passive")).corners  # TL, TR, BR, BL
+        corners[cam] = block_corners(images[f"{cam}_passive"], f"{cam}_passive", corner_method)  # TL, TR, BR, BL
     ul, ur = corners["left"], corners["right"]
     p_world = triangulate_rectified(ul[:, 0], 0.5 * (ul[:, 1] + ur[:, 1]), ur[:, 0], told.left, told.baseline_m)
     T_block_world = invert_pose(acq.T_world_block_est)
@@ -263,7 +278,7 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> AccuracyStu
             for target in settings.targets:
                 t = time.perf_counter()
                 try:
-                    out = _block_trial(cfg, acq, renderer, seed) if target == "block" else \
+                    out = _block_trial(cfg, acq, renderer, seed, settings.corners) if target == "block" else \
                         _plate_trial(cfg, acq, renderer, plate, seed)
                     error = None
                 except ReconstructionError as e:
