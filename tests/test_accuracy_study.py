@@ -128,7 +128,7 @@ def test_block_corners_by_edges_are_sub_pixel_and_by_pixels_lie_on_the_pixel_gri
 def test_the_paper_corner_method_runs_in_the_study_and_is_recorded(tmp_path):
     """``--corners pixels``: the block's corners on the pixel grid; with every source off the worst
     corner stays within the grid's half pixel in each image (1 px is 0.43 mm across, 0.34 mm down at
-    0.40 m), above the sub-pixel method's floor; the settings record the method."""
+    0.40 m); the settings record the method."""
     study = run_accuracy_study(AccuracySettings(REALISM_PRESETS["ideal"], draws=2, targets=("block",), spp=4,
                                                 corners="pixels"))
     block = study.summary["block"]["no source"]

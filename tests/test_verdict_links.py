@@ -193,3 +193,18 @@ def test_a_short_island_on_a_pose_whose_sense_lies_cannot_link_back(island_mm, a
     islands = _bottom(-at_mm - island_mm, -at_mm) | _bottom(at_mm, at_mm + island_mm)
     v = verify([a, b], None, [big, islands[rev]])
     assert not v.verified and v.gaps, v.reason
+
+
+def test_a_walk_along_an_outline_stops_after_one_lap():
+    """An outline shorter than the walk (here: every point at one place, no arc at all) is walked
+    once round, not forever; its points then tell no way out of a piece."""
+    from scipy.spatial import cKDTree
+
+    from platebench.reconstruction.strategy.multiview import _leaving_step, _walk
+    still = ViewOutline("c", np.zeros((12, 3)), np.ones(12, bool), np.array([0.0, 0.0, 0.4]),
+                        np.zeros((12, 2)), "synthetic")
+    assert list(_walk(still, 3, 1, 1.0)) == [4, 5, 6, 7, 8, 9, 10, 11, 0, 1, 2]
+    assert _leaving_step(still, 3, cKDTree(np.zeros((1, 3)))) is None
+    a, _ = _views()
+    walked = list(_walk(a, 0, -1, 2.5e-3))  # 1 mm apart: the points 1 and 2 mm on, and the first past 2.5 mm
+    assert walked == [len(P) - 1, len(P) - 2, len(P) - 3]

@@ -113,9 +113,10 @@ END_SPAN_M = 8e-3  # a piece's direction out of an end: the chord from its point
 # study with the off-the-end lead rule: 1 more plate cured, and a silent verdict on cylinder 300 up axis 30)
 OUTLINE_BRIDGE_M = 12e-3
 # a short piece's end walks another pose's outline only the way that leaves the piece: walked this
-# much arc, the outline lies this much farther from the piece than walked the other way
+# much arc, the outline lies farther from the piece than walked the other way, by more than the
+# outline stereo's own point error
 LEAVE_PROBE_M = LINK_M
-LEAVE_MARGIN_M = 1e-3
+LEAVE_MARGIN_M = CONFIRM_TOL_M
 LOOP_MIN_FRACTION = 0.7  # a closed group of pieces is the boundary when at least this x the first pose's outline
 LOOP_MAX_ANGLE_GAP_RAD = float(np.radians(60.0))  # ... and goes round its centroid (seen from the first pose)
 OVERLAP_POINTS = 3  # pieces sharing this many points (within LINK_M) run along the same edge: one group
@@ -519,17 +520,27 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
             steps = (step,)
         else:
             steps = (1, -1)
-        arc, n = v.arc_m, len(v.points)
         for step in steps:
-            walked, j = 0.0, k
-            while walked <= OUTLINE_BRIDGE_M:
-                nxt = (j + step) % n
-                walked += arc[j if step > 0 else nxt]
-                j = nxt
+            for j in _walk(v, k, step, OUTLINE_BRIDGE_M):
                 hit = hits(v.points[j])
                 if hit:
                     return hit
     return []
+
+
+def _walk(view: ViewOutline, k: int, step: int, length_m: float):
+    """The indices of ``view``'s outline from its point ``k`` (not included) the way ``step`` (+1 or
+    -1), while the arc walked before each is at most ``length_m`` (so the first point past it is
+    the last); at most once round."""
+    arc, n = view.arc_m, len(view.points)
+    walked, j = 0.0, k
+    for _ in range(n - 1):
+        if walked > length_m:
+            return
+        nxt = (j + step) % n
+        walked += arc[j if step > 0 else nxt]
+        j = nxt
+        yield j
 
 
 def _leaving_step(view: ViewOutline, k: int, piece_tree: cKDTree) -> int | None:
@@ -542,14 +553,11 @@ def _leaving_step(view: ViewOutline, k: int, piece_tree: cKDTree) -> int | None:
     opposite senses, and where the points say the other way, the outline is not walked. (Walking
     only where the points also say the same way, a cylinder bent 240 degrees down at 0.5 m lost its
     cure: its short pieces' links ran through outlines whose points did not tell.)"""
-    arc, n = view.arc_m, len(view.points)
     far = {}
     for step in (1, -1):
-        walked, j = 0.0, k
-        while walked < LEAVE_PROBE_M and abs(j - k) < n:
-            nxt = (j + step) % n
-            walked += arc[j if step > 0 else nxt]
-            j = nxt
+        j = k
+        for j in _walk(view, k, step, LEAVE_PROBE_M):
+            pass
         far[step] = float(piece_tree.query(view.points[j])[0])
     if abs(far[1] - far[-1]) < LEAVE_MARGIN_M:
         return None

@@ -193,10 +193,11 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, r
                 normals[i] = -normals[i]
         todo[order] = False
         parts.append((order, pred))
-    on_table = (np.abs(normals @ u) >= SEED_VERTICAL_COS) & (np.abs(P @ u - TABLE_Z_M) <= SEED_TABLE_M)
+    is_level = np.abs(normals @ u) >= SEED_VERTICAL_COS
+    on_table = is_level & (np.abs(P @ u - TABLE_Z_M) <= SEED_TABLE_M)
     # the plate's middle: the part with most level points on the table (else the largest); they vote which way is up
     main, pred = max(parts, key=lambda p: (int(on_table[p[0]].sum()), len(p[0])))
-    level = main[on_table[main]] if on_table[main].any() else main[np.abs(normals[main] @ u) >= SEED_VERTICAL_COS]
+    level = main[on_table[main] if on_table[main].any() else is_level[main]]
     turn = 0.0
     if len(main) >= NEIGHBOURS and len(level):
         if np.sum(np.sign(normals[level] @ u)) < 0:
