@@ -32,6 +32,9 @@ __all__ = [
 
 # 2-point Gauss-Legendre abscissae on [0, 1] (exact for linear integrands).
 _GL = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
+# A Newton step is kept unless it raises the exact objective by more than this fraction,
+# the rounding of a sum of ~10^3 terms in float64 (near the optimum the change is below it).
+_ROUNDING = 1e-13
 
 
 @dataclass(frozen=True)
@@ -188,6 +191,68 @@ def _arc_length_median(ha, hb, lengths, atom_tol):
     return float(pos[k])
 
 
+def _newton_step(a, b, lengths, centroid, n, d):
+    """One Newton step on the exact ∮|D| ds about (n, d), or None where it has no descent.
+
+    ∮|D| ds is continuously differentiable in the plane's parameters wherever the
+    polyline crosses the plane transversally (|D| is integrated across its kink), so
+    Newton converges quadratically near the optimum where IRLS converges linearly.
+    Parameters: the normal turned in its tangent plane, n(u, v) = (n + u e1 + v e2) /
+    sqrt(1 + u² + v²), and the offset about the arc-length centroid c, D = n · (x - c) - δ.
+    With g(x) = (e1 · (x - c), e2 · (x - c), -1), exactly on the polyline:
+
+        gradient = ∮ sign(D) g ds,
+        Hessian  = Σ_crossings 2 g gᵀ / |dD/ds|  -  ∮ sign(D) n · (x - c) ds · diag(1, 1, 0),
+
+    the first term from d sign(D)/dD = 2 δ(D) (each crossing weighted by the inverse
+    slope of D along the arc there), the second from ∂²n/∂u² = ∂²n/∂v² = -n.
+
+    Args:
+        a, b: (M, 3) segment start and end points (m); lengths: (M,) their lengths (m).
+        centroid: (3,) the arc-length centroid c (m); n: (3,) unit normal; d: offset (m).
+
+    Returns:
+        (3,) the new unit normal, or None where the Hessian is not positive definite.
+    """
+    seed = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = seed - (seed @ n) * n
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    basis = np.stack([e1, e2])
+    ra, rb = a - centroid, b - centroid
+    delta = d - n @ centroid
+    da, db = ra @ n - delta, rb @ n - delta
+    cross = da * db < 0
+    t = np.where(cross, np.divide(da, da - db, out=np.zeros_like(da), where=cross), 1.0)
+    # pieces [0, t] (sign of da) and [t, 1] (sign of db); a piece of zero length adds nothing
+    sign_a = np.sign(np.where(cross | (da != 0), da, db))
+    sign_b = np.sign(np.where(cross | (db != 0), db, da))
+    mid_a = ra + 0.5 * t[:, None] * (rb - ra)
+    mid_b = ra + 0.5 * (1.0 + t)[:, None] * (rb - ra)
+    wa, wb = sign_a * t * lengths, sign_b * (1.0 - t) * lengths
+    grad = np.empty(3)
+    grad[:2] = basis @ (wa @ mid_a + wb @ mid_b)
+    grad[2] = -(wa.sum() + wb.sum())
+    curvature = wa @ (mid_a @ n) + wb @ (mid_b @ n)
+    hess = np.diag([-curvature, -curvature, 0.0])
+    if cross.any():
+        xc = (ra + t[:, None] * (rb - ra))[cross]
+        g = np.c_[xc @ basis.T, -np.ones(len(xc))]
+        weight = 2.0 * lengths[cross] / np.abs(db[cross] - da[cross])
+        hess += (weight[:, None] * g).T @ g
+    for trial in (hess, hess + np.diag([curvature, curvature, 0.0])):
+        try:
+            factor = np.linalg.cholesky(trial)
+            break
+        except np.linalg.LinAlgError:
+            continue
+    else:
+        return None
+    step = -np.linalg.solve(factor.T, np.linalg.solve(factor, grad))
+    n_new = n + step[0] * e1 + step[1] * e2
+    return n_new / np.linalg.norm(n_new)
+
+
 def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converged,
                        max_iterations: int = 500) -> BoundaryPlane:
     """The paper's boundary plane: minimises ∮|D(s)| ds along the closed polyline.
@@ -199,9 +264,13 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
     squares plane (weighted PCA) with node weights ds / max(|D|, eps), and (3) resets
     the offset to the exact arc-length median of n · x(s), the exact L1-optimal
     offset for that normal. A fixed point satisfies the exact optimality conditions
-    of ∮|D| ds; iteration stops when the normal moves less than ``tol`` (radians)
-    and the offset less than ``tol`` times the boundary's size. The iterate with the
-    smallest exact objective is returned.
+    of ∮|D| ds. IRLS converges linearly (about 24 iterations a decade on a plate's
+    boundary), so each iteration first tries a Newton step on the exact objective
+    (:func:`_newton_step`, quadratic near the optimum) and keeps it, with the exact
+    median offset, where it does not raise the objective beyond its rounding; else the
+    IRLS step is taken. Iteration stops when the normal moves less than ``tol``
+    (radians) and the offset less than ``tol`` times the boundary's size. The iterate
+    with the smallest exact objective is returned.
 
     Args:
         boundary: (N, 3) closed polyline in metres, first point not repeated.
@@ -235,7 +304,21 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
     d = _arc_length_median(a @ n, b @ n, lengths, atom_tol)
     best = (objective(n, d), n, d)
     iterations = 0
+    value_now = best[0]
     for iterations in range(1, int(max_iterations) + 1):
+        n_newton = _newton_step(a, b, lengths, centroid, n, d)
+        if n_newton is not None:
+            d_newton = _arc_length_median(a @ n_newton, b @ n_newton, lengths, atom_tol)
+            value = objective(n_newton, d_newton)
+            if value <= value_now + _ROUNDING * max(value_now, eps * lengths.sum()):
+                step = float(np.arctan2(np.linalg.norm(np.cross(n, n_newton)), n @ n_newton))
+                moved = abs(d_newton - d)
+                n, d, value_now = n_newton, d_newton, value
+                if value < best[0]:
+                    best = (value, n, d)
+                if step < tol and moved < tol * scale:
+                    break
+                continue
         da, db = a @ n - d, b @ n - d
         cross = da * db < 0
         t_split = np.where(cross, np.divide(da, da - db, out=np.full_like(da, 0.5), where=cross), 0.5)
@@ -254,7 +337,7 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
         step = float(np.arctan2(np.linalg.norm(np.cross(n, n_new)), n @ n_new))
         moved = abs(d_new - d)
         n, d = n_new, d_new
-        value = objective(n, d)
+        value = value_now = objective(n, d)
         if value < best[0]:
             best = (value, n, d)
         if step < tol and moved < tol * scale:
