@@ -143,7 +143,14 @@ def test_sample_flags_set_bend_direction_axis_and_grid(tmp_path):
 # ---------------------------------------------------------------- pure: outcome classes, verdict, planner
 from platebench.bench.run.sensing import OUTCOMES, SensingOptions, outcome_class, run_sensing  # noqa: E402
 from platebench.reconstruction.strategy.multiview import ViewOutline, confirm, verify  # noqa: E402
-from platebench.reconstruction.strategy.planner import PlannedView, decide, verification_views  # noqa: E402
+from platebench.reconstruction.strategy.planner import (  # noqa: E402
+    VERIFY_TURNS_DEG,
+    PlannedView,
+    decide,
+    reachable_turn_deg,
+    turned_views,
+    verification_views,
+)
 from platebench.reconstruction.strategy.poses import Reach, rotated_pose  # noqa: E402
 from platebench.reconstruction.strategy.surface_model import SurfaceModel, view_membrane  # noqa: E402
 
@@ -271,6 +278,32 @@ def test_every_plate_gets_twelve_verification_views_turned_about_g_e_and_the_dia
         turn = math.degrees(math.acos(np.clip(v.pose.view_dir @ first.view_dir, -1, 1)))
         assert abs(turn - abs(float(v.name.split()[2]))) < 1.0, v.name
 
+
+
+@pytest.mark.parametrize("tilt_deg", [46.0, 47.0, 48.0])
+def test_a_verification_turn_past_the_reach_is_held_where_the_robot_reaches(tilt_deg):
+    """A stage-2 pose already 46-48 degrees from the vertical: turned another 30 degrees about g
+    it would look 76-78 degrees from the vertical, past the robot's 75. It is taken as far as the
+    robot reaches (27-29 degrees, still a confirming turn), once, though the 60-degree turn the same
+    way ends there too; no view leaves the reach."""
+    t = math.radians(tilt_deg)
+    first = SensorPose(np.array([0.0, -0.4 * math.sin(t), 0.4 * math.cos(t)]), np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    g, e = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    cam = Camera(intrinsics(1000, 640, 480), np.eye(3), np.zeros(3), 640, 480)
+    reach = Reach()
+    further = 30.0 if rotated_pose(first, g, math.radians(30.0)).view_dir[2] > first.view_dir[2] else -30.0
+    held = reachable_turn_deg(first, g, further, reach)
+    assert abs(held) == pytest.approx(75.0 - tilt_deg, abs=1.0) and np.sign(held) == np.sign(further)
+    views, skipped = verification_views(first, g, e, reach, _rectangle(), cam, 0.1)
+    names = [v.name for v in views]
+    assert f"turn g {held:+.0f}" in names and f"turn g {further:+.0f}" not in names
+    assert sum(n.startswith("turn g ") and abs(float(n.split()[2])) < 30 for n in names) == 1
+    for v in views:
+        assert math.degrees(math.acos(-v.pose.view_dir[2])) <= 75.0 + 1e-6, v.name
+    assert any("taken at" in s for s in skipped)
+    # without holding, the turn is left out
+    plain, _ = turned_views(first, g, e, VERIFY_TURNS_DEG, "verification", reach, _rectangle(), cam, 0.1)
+    assert f"turn g {held:+.0f}" not in [v.name for v in plain]
 
 # ---------------------------------------------------------------- rendered: outcomes over small families
 SENSE = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2))

@@ -16,6 +16,21 @@ view for the whole outline, or one across each diagonal turn's axis, gave 4 to 6
 31 against 0 to 1; so did one chosen per view to keep both sides of the outline steepest in that
 view's own perspective, 4 of 31, the flat plate among them, although it row-matched the long edges
 of the S-curve bent 120 degrees about axis 90 that the diagonal leaves 28 degrees from the rows.)
+A turn that would tilt the view past the robot's reach (``Reach.max_tilt_rad``) is taken as far as
+the robot reaches, where that is still a turn of ``CONFIRM_ANGLE_RAD`` or more and no other
+verification view lies there (``reachable_turn_deg``; the view is named by the turn taken). A
+stage-2 pose low over a steep plate otherwise loses the very turns that would confirm the edges
+it sees: the S-curve bent 120 degrees down about axis 90 at aspect 1.3, its stage-2 pose 47
+degrees from the vertical, lost its turns +30 about g and +45 about both diagonals, and no pair of
+the poses left could confirm its long edges (18 loose ends after the verification views; held at
++28, +35 and +37 degrees: 2; at aspect 2.2 the long edges confirm too, but the loose ends go from
+13 to 23, all at its corners: more views end more pieces there). Measured with ``platebench study false-boundary``: on the 61 plates
+3 stage-2 poses held a turn and no outcome moved (the 120-degree fold up: 3 cures, was 7); moved
++1 degree and +5 mm, the same rates; on the 63 plates outside them (README) no outcome moved, the
+120-degree fold up at aspect 1.3 took 1 cure (was 12) and the 120-degree S-curves 4 and 18 (were
+14 and 18). Those two S-curves, verified before after their cures, now end unverified: their last
+loose ends sit at corners where the front is not known (``sides``), and the planner predicts no
+reachable view past them: it stops and names them.
 
 Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
 already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the
@@ -226,11 +241,28 @@ def outline_axes(points: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np
     return a, np.cross(n, a)
 
 
+def reachable_turn_deg(first: SensorPose, axis: np.ndarray, deg: float, reach: Reach) -> float:
+    """The largest whole-degree turn of ``first`` about ``axis`` toward ``deg`` whose view stays within
+    the robot's tilt (``Reach.max_tilt_rad``) all the way from 0 (0 when the first degree leaves it)."""
+    step = 1.0 if deg > 0 else -1.0
+    best = 0.0
+    for k in range(1, int(abs(deg)) + 1):
+        p = rotated_pose(first, axis, np.radians(k * step))
+        if float(np.arccos(np.clip(-p.view_dir[2], -1.0, 1.0))) > reach.max_tilt_rad + tol.angle_rad:
+            break
+        best = k * step
+    return best
+
+
 def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, measured: np.ndarray,
-                 camera: Camera, baseline_m: float, edges=None) -> tuple[list[PlannedView], list[str]]:
+                 camera: Camera, baseline_m: float, edges=None,
+                 clamp_min_deg: float | None = None) -> tuple[list[PlannedView], list[str]]:
     """The stage-2 pose turned as listed ((axis name, degrees)), kept in view, with a diagonal
     baseline (at 45 degrees between ``edges``, the outline's two main directions, default g and
-    e); unreachable ones are left out and named in the second list."""
+    e); unreachable ones are left out and named in the second list. With ``clamp_min_deg``, a turn
+    whose view tilts past the robot's reach is taken as far as the robot reaches
+    (``reachable_turn_deg``) where that is still at least ``clamp_min_deg`` and no view already
+    planned lies there (``_close``), and named so."""
     views, skipped = [], []
     ea, eb = edges if edges is not None else (g, e)
     for ax, deg in turns:
@@ -239,6 +271,17 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
         p = replace(p, baseline_dir=diagonal_baseline(p.view_dir, ea, eb),
                     reason=f"stage-2 pose turned {deg:+.0f} deg about {ax} through the boundary centre")
         p, why = _placed(p, reach, measured, camera, baseline_m)
+        if why and clamp_min_deg is not None and why.startswith("view "):
+            held = reachable_turn_deg(first, _axis(ax, g, e), deg, reach)
+            if abs(held) >= clamp_min_deg:
+                q = rotated_pose(first, _axis(ax, g, e), np.radians(held))
+                q = replace(q, baseline_dir=diagonal_baseline(q.view_dir, ea, eb),
+                            reason=f"stage-2 pose turned {held:+.0f} deg about {ax} through the boundary centre, "
+                                   f"as far toward {deg:+.0f} deg as the robot reaches")
+                q, why_q = _placed(q, reach, measured, camera, baseline_m)
+                if not why_q and not any(_close(q, v.pose) for v in views):
+                    skipped.append(f"{name}: {why}; taken at {held:+.0f} deg")
+                    name, p, why = f"turn {ax} {held:+.0f}", q, None
         if why:
             skipped.append(f"{name}: {why}")
             continue
@@ -252,7 +295,7 @@ def verification_views(first: SensorPose, g, e, reach: Reach, measured: np.ndarr
     """The views every plate gets (module doc); ``measured``: the stage-2 outline (N,3, in order),
     whose main directions set the baselines (``outline_axes``)."""
     return turned_views(first, g, e, VERIFY_TURNS_DEG, "verification", reach, measured, camera, baseline_m,
-                        outline_axes(measured, -first.view_dir))
+                        outline_axes(measured, -first.view_dir), clamp_min_deg=float(np.degrees(CONFIRM_ANGLE_RAD)))
 
 
 def _close(a: SensorPose, b: SensorPose) -> bool:
