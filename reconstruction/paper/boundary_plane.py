@@ -46,7 +46,7 @@ class BoundaryPlane:
     offset: d in n · x = d (m).
     objective_m2: the fitted objective: ∮|D| ds (m², method "irls") or ∮D² ds
         (m³, method "least_squares"), evaluated exactly on the polyline.
-    iterations: IRLS iterations run (0 for least squares).
+    iterations: iterations run, Newton and IRLS steps together (0 for least squares).
     method: "irls" or "least_squares".
     """
 
@@ -191,15 +191,15 @@ def _arc_length_median(ha, hb, lengths, atom_tol):
     return float(pos[k])
 
 
-def _newton_step(a, b, lengths, centroid, n, d):
-    """One Newton step on the exact ∮|D| ds about (n, d), or None where it has no descent.
+def _newton_terms(a, b, lengths, centroid, n, d):
+    """Exact gradient and Hessian of ∮|D| ds about the plane (n, d), in tangent coordinates.
 
     ∮|D| ds is continuously differentiable in the plane's parameters wherever the
-    polyline crosses the plane transversally (|D| is integrated across its kink), so
-    Newton converges quadratically near the optimum where IRLS converges linearly.
-    Parameters: the normal turned in its tangent plane, n(u, v) = (n + u e1 + v e2) /
-    sqrt(1 + u² + v²), and the offset about the arc-length centroid c, D = n · (x - c) - δ.
-    With g(x) = (e1 · (x - c), e2 · (x - c), -1), exactly on the polyline:
+    polyline crosses the plane transversally (|D| is integrated across its kink), and
+    twice differentiable but for a vertex or a segment lying on the plane. Parameters:
+    the normal turned in its tangent plane, n(u, v) = (n + u e1 + v e2) / sqrt(1 + u² + v²),
+    and the offset about the arc-length centroid c, D = n · (x - c) - δ. With
+    g(x) = (e1 · (x - c), e2 · (x - c), -1), exactly on the polyline:
 
         gradient = ∮ sign(D) g ds,
         Hessian  = Σ_crossings 2 g gᵀ / |dD/ds|  -  ∮ sign(D) n · (x - c) ds · diag(1, 1, 0),
@@ -212,13 +212,13 @@ def _newton_step(a, b, lengths, centroid, n, d):
         centroid: (3,) the arc-length centroid c (m); n: (3,) unit normal; d: offset (m).
 
     Returns:
-        (3,) the new unit normal, or None where the Hessian is not positive definite.
+        (gradient (3,) in m² per (rad, rad, m), crossing term (3, 3), curvature term (3, 3),
+        basis (2, 3) = (e1, e2)); the Hessian is the sum of the two terms.
     """
     seed = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     e1 = seed - (seed @ n) * n
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-    basis = np.stack([e1, e2])
+    basis = np.stack([e1, np.cross(n, e1)])
     ra, rb = a - centroid, b - centroid
     delta = d - n @ centroid
     da, db = ra @ n - delta, rb @ n - delta
@@ -234,13 +234,32 @@ def _newton_step(a, b, lengths, centroid, n, d):
     grad[:2] = basis @ (wa @ mid_a + wb @ mid_b)
     grad[2] = -(wa.sum() + wb.sum())
     curvature = wa @ (mid_a @ n) + wb @ (mid_b @ n)
-    hess = np.diag([-curvature, -curvature, 0.0])
+    crossing = np.zeros((3, 3))
     if cross.any():
         xc = (ra + t[:, None] * (rb - ra))[cross]
         g = np.c_[xc @ basis.T, -np.ones(len(xc))]
         weight = 2.0 * lengths[cross] / np.abs(db[cross] - da[cross])
-        hess += (weight[:, None] * g).T @ g
-    for trial in (hess, hess + np.diag([curvature, curvature, 0.0])):
+        crossing = (weight[:, None] * g).T @ g
+    return grad, crossing, np.diag([-curvature, -curvature, 0.0]), basis
+
+
+def _newton_step(a, b, lengths, centroid, n, d, scale_m: float):
+    """The normal after one Newton step on the exact ∮|D| ds (:func:`_newton_terms`), or None.
+
+    Where the Hessian is not positive definite (far from the optimum, on a deep bend) the
+    step takes the crossing term alone, positive semi-definite, as long as the gradient
+    is more than its rounding (``_ROUNDING`` times the arc length times the boundary's
+    size): at a saddle (a symmetric curl's least-squares plane) that step would follow the
+    rounding, so None is returned and the caller takes the reweighting step.
+
+    Args:
+        a, b, lengths, centroid, n, d: as :func:`_newton_terms`; scale_m: the boundary's size (m).
+    """
+    grad, crossing, curvature, basis = _newton_terms(a, b, lengths, centroid, n, d)
+    trials = [crossing + curvature]
+    if np.linalg.norm(grad[:2]) > _ROUNDING * lengths.sum() * scale_m:
+        trials.append(crossing)
+    for trial in trials:
         try:
             factor = np.linalg.cholesky(trial)
             break
@@ -249,7 +268,7 @@ def _newton_step(a, b, lengths, centroid, n, d):
     else:
         return None
     step = -np.linalg.solve(factor.T, np.linalg.solve(factor, grad))
-    n_new = n + step[0] * e1 + step[1] * e2
+    n_new = n + step[:2] @ basis
     return n_new / np.linalg.norm(n_new)
 
 
@@ -264,20 +283,22 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
     squares plane (weighted PCA) with node weights ds / max(|D|, eps), and (3) resets
     the offset to the exact arc-length median of n · x(s), the exact L1-optimal
     offset for that normal. A fixed point satisfies the exact optimality conditions
-    of ∮|D| ds. IRLS converges linearly (about 24 iterations a decade on a plate's
-    boundary), so each iteration first tries a Newton step on the exact objective
-    (:func:`_newton_step`, quadratic near the optimum) and keeps it, with the exact
-    median offset, where it does not raise the objective beyond its rounding; else the
-    IRLS step is taken. Iteration stops when the normal moves less than ``tol``
-    (radians) and the offset less than ``tol`` times the boundary's size. The iterate
-    with the smallest exact objective is returned.
+    of ∮|D| ds. IRLS converges linearly (15 to 35 iterations a decade on plate-like
+    boundaries), so each iteration first tries a Newton step on the exact objective
+    (:func:`_newton_step`; quadratic near an optimum where no vertex or segment lies on
+    the plane) and keeps it, with the exact median offset, where it does not raise the
+    objective beyond its rounding; else the IRLS step is taken. Iteration stops when the
+    normal moves less than ``tol`` (radians) and the offset about the arc-length centroid
+    less than ``tol`` times the boundary's size. The iterate with the smallest exact
+    objective is returned. The objective is not convex: on a deep curl it has two mirror
+    minima, and the fit returns the one its steps reach from the least-squares plane.
 
     Args:
         boundary: (N, 3) closed polyline in metres, first point not repeated.
         toward: optional 3-vector; the normal is oriented to have n · toward >= 0
             (default: normal[2] >= 0).
         tol: convergence tolerance (radians for the normal; relative for the offset).
-        max_iterations: IRLS iteration cap.
+        max_iterations: iteration cap (Newton and IRLS steps together).
 
     Returns:
         BoundaryPlane with method "irls" and objective_m2 = ∮|D| ds (m²).
@@ -306,13 +327,13 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
     iterations = 0
     value_now = best[0]
     for iterations in range(1, int(max_iterations) + 1):
-        n_newton = _newton_step(a, b, lengths, centroid, n, d)
+        n_newton = _newton_step(a, b, lengths, centroid, n, d, scale)
         if n_newton is not None:
             d_newton = _arc_length_median(a @ n_newton, b @ n_newton, lengths, atom_tol)
             value = objective(n_newton, d_newton)
             if value <= value_now + _ROUNDING * max(value_now, eps * lengths.sum()):
                 step = float(np.arctan2(np.linalg.norm(np.cross(n, n_newton)), n @ n_newton))
-                moved = abs(d_newton - d)
+                moved = abs((d_newton - n_newton @ centroid) - (d - n @ centroid))
                 n, d, value_now = n_newton, d_newton, value
                 if value < best[0]:
                     best = (value, n, d)
@@ -335,7 +356,7 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
         n_new = evecs[:, 0] if evecs[:, 0] @ n >= 0 else -evecs[:, 0]
         d_new = _arc_length_median(a @ n_new, b @ n_new, lengths, atom_tol)
         step = float(np.arctan2(np.linalg.norm(np.cross(n, n_new)), n @ n_new))
-        moved = abs(d_new - d)
+        moved = abs((d_new - n_new @ centroid) - (d - n @ centroid))
         n, d = n_new, d_new
         value = value_now = objective(n, d)
         if value < best[0]:

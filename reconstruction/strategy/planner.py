@@ -17,20 +17,20 @@ view for the whole outline, or one across each diagonal turn's axis, gave 4 to 6
 view's own perspective, 4 of 31, the flat plate among them, although it row-matched the long edges
 of the S-curve bent 120 degrees about axis 90 that the diagonal leaves 28 degrees from the rows.)
 A turn that would tilt the view past the robot's reach (``Reach.max_tilt_rad``) is taken as far as
-the robot reaches, where that is still a turn of ``CONFIRM_ANGLE_RAD`` or more and no other
-verification view lies there (``reachable_turn_deg``; the view is named by the turn taken). A
-stage-2 pose low over a steep plate otherwise loses the very turns that would confirm the edges
-it sees: the S-curve bent 120 degrees down about axis 90 at aspect 1.3, its stage-2 pose 47
+the robot reaches, where that still turns the view direction by ``CONFIRM_ANGLE_RAD`` or more and
+no other verification view lies there (``reachable_turn_deg``; the view is named by the turn
+taken). A stage-2 pose low over a steep plate otherwise loses the very turns that would confirm the
+edges it sees: the S-curve bent 120 degrees down about axis 90 at aspect 1.3, its stage-2 pose 47
 degrees from the vertical, lost its turns +30 about g and +45 about both diagonals, and no pair of
 the poses left could confirm its long edges (18 loose ends after the verification views; held at
 +28, +35 and +37 degrees: 2; at aspect 2.2 the long edges confirm too, but the loose ends go from
-13 to 23, all at its corners: more views end more pieces there). Measured with ``platebench study false-boundary``: on the 61 plates
-3 stage-2 poses held a turn and no outcome moved (the 120-degree fold up: 3 cures, was 7); moved
-+1 degree and +5 mm, the same rates; on the 63 plates outside them (README) no outcome moved, the
-120-degree fold up at aspect 1.3 took 1 cure (was 12) and the 120-degree S-curves 4 and 18 (were
-14 and 18). Those two S-curves, verified before after their cures, now end unverified: their last
-loose ends sit at corners where the front is not known (``sides``), and the planner predicts no
-reachable view past them: it stops and names them.
+13 to 23, all at its corners: more views end more pieces there). Measured with ``platebench study
+false-boundary``: on the 61 plates 3 stage-2 poses held a turn and no outcome moved (the 120-degree
+fold up: 3 cures, was 7); moved +1 degree and +5 mm, the same rates; on the 63 plates of two
+outside sets (README) no outcome class moved, the 120-degree fold up at aspect 1.3 took 1 cure (was
+12) and the 120-degree S-curves 4 and 18 (were 14 and 18). Those two S-curves, verified before
+after their cures, now end unverified: their last loose ends sit at corners where the front is not
+known (``sides``), and the planner predicts no reachable view past them: it stops and names them.
 
 Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
 already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the
@@ -261,8 +261,8 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
     baseline (at 45 degrees between ``edges``, the outline's two main directions, default g and
     e); unreachable ones are left out and named in the second list. With ``clamp_min_deg``, a turn
     whose view tilts past the robot's reach is taken as far as the robot reaches
-    (``reachable_turn_deg``) where that is still at least ``clamp_min_deg`` and no view already
-    planned lies there (``_close``), and named so."""
+    (``reachable_turn_deg``) where that still turns the view direction by ``clamp_min_deg`` or
+    more and no view already planned lies there (``_close``), and named by the turn taken."""
     views, skipped = [], []
     ea, eb = edges if edges is not None else (g, e)
     for ax, deg in turns:
@@ -273,8 +273,9 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
         p, why = _placed(p, reach, measured, camera, baseline_m)
         if why and clamp_min_deg is not None and why.startswith("view "):
             held = reachable_turn_deg(first, _axis(ax, g, e), deg, reach)
-            if abs(held) >= clamp_min_deg:
-                q = rotated_pose(first, _axis(ax, g, e), np.radians(held))
+            q = rotated_pose(first, _axis(ax, g, e), np.radians(held))
+            moved_deg = float(np.degrees(np.arccos(np.clip(q.view_dir @ first.view_dir, -1.0, 1.0))))
+            if moved_deg >= clamp_min_deg and not _close(q, first):
                 q = replace(q, baseline_dir=diagonal_baseline(q.view_dir, ea, eb),
                             reason=f"stage-2 pose turned {held:+.0f} deg about {ax} through the boundary centre, "
                                    f"as far toward {deg:+.0f} deg as the robot reaches")
