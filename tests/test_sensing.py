@@ -300,7 +300,7 @@ def test_a_verification_turn_past_the_reach_is_held_where_the_robot_reaches(tilt
     assert sum(n.startswith("turn g ") and abs(float(n.split()[2])) < 30 for n in names) == 1
     for v in views:
         assert math.degrees(math.acos(-v.pose.view_dir[2])) <= 75.0 + 1e-6, v.name
-    assert any("taken at" in s for s in skipped)
+    assert any(s.startswith("held at the reach: ") and s.endswith(f"taken at {held:+.0f} deg") for s in skipped)
     # without holding, the turn is left out
     plain, _ = turned_views(first, g, e, VERIFY_TURNS_DEG, "verification", reach, _rectangle(), cam, 0.1)
     assert f"turn g {held:+.0f}" not in [v.name for v in plain]

@@ -32,9 +32,6 @@ __all__ = [
 
 # 2-point Gauss-Legendre abscissae on [0, 1] (exact for linear integrands).
 _GL = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
-# A Newton step is kept unless it raises the exact objective by more than this fraction,
-# the rounding of a sum of ~10^3 terms in float64 (near the optimum the change is below it).
-_ROUNDING = 1e-13
 
 
 @dataclass(frozen=True)
@@ -215,10 +212,7 @@ def _newton_terms(a, b, lengths, centroid, n, d):
         (gradient (3,) in m² per (rad, rad, m), crossing term (3, 3), curvature term (3, 3),
         basis (2, 3) = (e1, e2)); the Hessian is the sum of the two terms.
     """
-    seed = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = seed - (seed @ n) * n
-    e1 /= np.linalg.norm(e1)
-    basis = np.stack([e1, np.cross(n, e1)])
+    basis = _tangent_basis(n)
     ra, rb = a - centroid, b - centroid
     delta = d - n @ centroid
     da, db = ra @ n - delta, rb @ n - delta
@@ -248,7 +242,7 @@ def _newton_step(a, b, lengths, centroid, n, d, scale_m: float):
 
     Where the Hessian is not positive definite (far from the optimum, on a deep bend) the
     step takes the crossing term alone, positive semi-definite, as long as the gradient
-    is more than its rounding (``_ROUNDING`` times the arc length times the boundary's
+    is more than its rounding (``tol.relative`` times the arc length times the boundary's
     size): at a saddle (a symmetric curl's least-squares plane) that step would follow the
     rounding, so None is returned and the caller takes the reweighting step.
 
@@ -257,7 +251,7 @@ def _newton_step(a, b, lengths, centroid, n, d, scale_m: float):
     """
     grad, crossing, curvature, basis = _newton_terms(a, b, lengths, centroid, n, d)
     trials = [crossing + curvature]
-    if np.linalg.norm(grad[:2]) > _ROUNDING * lengths.sum() * scale_m:
+    if np.linalg.norm(grad[:2]) > TOL.relative * lengths.sum() * scale_m:
         trials.append(crossing)
     for trial in trials:
         try:
@@ -327,44 +321,53 @@ def fit_boundary_plane(boundary, toward=None, tol: float = TOL.plane_fit_converg
     iterations = 0
     value_now = best[0]
     for iterations in range(1, int(max_iterations) + 1):
-        n_newton = _newton_step(a, b, lengths, centroid, n, d, scale)
-        if n_newton is not None:
-            d_newton = _arc_length_median(a @ n_newton, b @ n_newton, lengths, atom_tol)
-            value = objective(n_newton, d_newton)
-            if value <= value_now + _ROUNDING * max(value_now, eps * lengths.sum()):
-                step = float(np.arctan2(np.linalg.norm(np.cross(n, n_newton)), n @ n_newton))
-                moved = abs((d_newton - n_newton @ centroid) - (d - n @ centroid))
-                n, d, value_now = n_newton, d_newton, value
-                if value < best[0]:
-                    best = (value, n, d)
-                if step < tol and moved < tol * scale:
-                    break
-                continue
-        da, db = a @ n - d, b @ n - d
-        cross = da * db < 0
-        t_split = np.where(cross, np.divide(da, da - db, out=np.full_like(da, 0.5), where=cross), 0.5)
-        # pieces [0, t_split] and [t_split, 1] of every segment, 2 GL nodes each
-        t0 = np.stack([np.zeros_like(t_split), t_split], axis=1)
-        width = np.stack([t_split, 1.0 - t_split], axis=1)
-        t = (t0[:, :, None] + width[:, :, None] * _GL).reshape(len(a), 4)
-        q = (0.5 * lengths[:, None] * np.repeat(width, 2, axis=1)).ravel()
-        x = (a[:, None, :] + t[:, :, None] * (b - a)[:, None, :]).reshape(-1, 3)
-        w = q / np.maximum(np.abs(x @ n - d), eps)
-        c = (w @ x) / w.sum()
-        r = x - c
-        _, evecs = np.linalg.eigh((w[:, None] * r).T @ r)
-        n_new = evecs[:, 0] if evecs[:, 0] @ n >= 0 else -evecs[:, 0]
-        d_new = _arc_length_median(a @ n_new, b @ n_new, lengths, atom_tol)
+        n_new = _newton_step(a, b, lengths, centroid, n, d, scale)
+        if n_new is not None:  # kept unless it raises the objective beyond rounding
+            d_new = _arc_length_median(a @ n_new, b @ n_new, lengths, atom_tol)
+            value = objective(n_new, d_new)
+            if value > value_now + TOL.relative * max(value_now, eps * lengths.sum()):
+                n_new = None
+        if n_new is None:
+            n_new = _irls_normal(a, b, lengths, n, d, eps)
+            d_new = _arc_length_median(a @ n_new, b @ n_new, lengths, atom_tol)
+            value = objective(n_new, d_new)
         step = float(np.arctan2(np.linalg.norm(np.cross(n, n_new)), n @ n_new))
-        moved = abs((d_new - n_new @ centroid) - (d - n @ centroid))
-        n, d = n_new, d_new
-        value = value_now = objective(n, d)
+        moved = abs((d_new - n_new @ centroid) - (d - n @ centroid))  # the offset about the centroid
+        n, d, value_now = n_new, d_new, value
         if value < best[0]:
             best = (value, n, d)
         if step < tol and moved < tol * scale:
             break
     value, n, d = best
     return _make_plane(n, d, centroid, value, iterations, "irls", toward)
+
+
+def _irls_normal(a, b, lengths, n, d, eps):
+    """The next normal of the reweighting step about the plane (n, d) (``fit_boundary_plane``, steps
+    1 and 2): the weighted total-least-squares normal, node weights ds / max(|D|, eps), same side as n."""
+    da, db = a @ n - d, b @ n - d
+    cross = da * db < 0
+    t_split = np.where(cross, np.divide(da, da - db, out=np.full_like(da, 0.5), where=cross), 0.5)
+    # pieces [0, t_split] and [t_split, 1] of every segment, 2 GL nodes each
+    t0 = np.stack([np.zeros_like(t_split), t_split], axis=1)
+    width = np.stack([t_split, 1.0 - t_split], axis=1)
+    t = (t0[:, :, None] + width[:, :, None] * _GL).reshape(len(a), 4)
+    q = (0.5 * lengths[:, None] * np.repeat(width, 2, axis=1)).ravel()
+    x = (a[:, None, :] + t[:, :, None] * (b - a)[:, None, :]).reshape(-1, 3)
+    w = q / np.maximum(np.abs(x @ n - d), eps)
+    c = (w @ x) / w.sum()
+    r = x - c
+    _, evecs = np.linalg.eigh((w[:, None] * r).T @ r)
+    return evecs[:, 0] if evecs[:, 0] @ n >= 0 else -evecs[:, 0]
+
+
+def _tangent_basis(normal: np.ndarray) -> np.ndarray:
+    """(2,3) orthonormal (e1, e2) across the unit ``normal``, right-handed with it: e1 is the world
+    X axis projected onto the plane (world Y where X is nearly along the normal), e2 = normal x e1."""
+    seed = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = seed - (seed @ normal) * normal
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(normal, e1)])
 
 
 def plane_frame(plane: BoundaryPlane) -> tuple[np.ndarray, np.ndarray]:
@@ -383,8 +386,5 @@ def plane_frame(plane: BoundaryPlane) -> tuple[np.ndarray, np.ndarray]:
     """
     ez = np.asarray(plane.normal, dtype=np.float64)
     ez = ez / np.linalg.norm(ez)
-    seed = np.array([1.0, 0.0, 0.0]) if abs(ez[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    ex = seed - (seed @ ez) * ez
-    ex /= np.linalg.norm(ex)
-    ey = np.cross(ez, ex)
+    ex, ey = _tangent_basis(ez)
     return np.stack([ex, ey, ez]), np.asarray(plane.point, dtype=np.float64).copy()

@@ -247,8 +247,7 @@ def reachable_turn_deg(first: SensorPose, axis: np.ndarray, deg: float, reach: R
     step = 1.0 if deg > 0 else -1.0
     best = 0.0
     for k in range(1, int(abs(deg)) + 1):
-        p = rotated_pose(first, axis, np.radians(k * step))
-        if float(np.arccos(np.clip(-p.view_dir[2], -1.0, 1.0))) > reach.max_tilt_rad + tol.angle_rad:
+        if reach.tilts_past(rotated_pose(first, axis, np.radians(k * step))):
             break
         best = k * step
     return best
@@ -259,10 +258,11 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
                  clamp_min_deg: float | None = None) -> tuple[list[PlannedView], list[str]]:
     """The stage-2 pose turned as listed ((axis name, degrees)), kept in view, with a diagonal
     baseline (at 45 degrees between ``edges``, the outline's two main directions, default g and
-    e); unreachable ones are left out and named in the second list. With ``clamp_min_deg``, a turn
-    whose view tilts past the robot's reach is taken as far as the robot reaches
-    (``reachable_turn_deg``) where that still turns the view direction by ``clamp_min_deg`` or
-    more and no view already planned lies there (``_close``), and named by the turn taken."""
+    e); the second list's notes name the turns left out ("left out: ..."). With
+    ``clamp_min_deg``, a turn whose view tilts past the robot's reach is taken as far as the robot
+    reaches (``reachable_turn_deg``) where that still turns the view direction by ``clamp_min_deg``
+    or more and no view already planned lies there (``_close``), named by the turn taken, and
+    noted ("held at the reach: ...")."""
     views, skipped = [], []
     ea, eb = edges if edges is not None else (g, e)
     for ax, deg in turns:
@@ -270,8 +270,9 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
         p = rotated_pose(first, _axis(ax, g, e), np.radians(deg))
         p = replace(p, baseline_dir=diagonal_baseline(p.view_dir, ea, eb),
                     reason=f"stage-2 pose turned {deg:+.0f} deg about {ax} through the boundary centre")
+        tilts_past = reach.tilts_past(p)
         p, why = _placed(p, reach, measured, camera, baseline_m)
-        if why and clamp_min_deg is not None and why.startswith("view "):
+        if why and clamp_min_deg is not None and tilts_past:
             held = reachable_turn_deg(first, _axis(ax, g, e), deg, reach)
             q = rotated_pose(first, _axis(ax, g, e), np.radians(held))
             moved_deg = float(np.degrees(np.arccos(np.clip(q.view_dir @ first.view_dir, -1.0, 1.0))))
@@ -281,10 +282,10 @@ def turned_views(first: SensorPose, g, e, turns, purpose: str, reach: Reach, mea
                                    f"as far toward {deg:+.0f} deg as the robot reaches")
                 q, why_q = _placed(q, reach, measured, camera, baseline_m)
                 if not why_q and not any(_close(q, v.pose) for v in views):
-                    skipped.append(f"{name}: {why}; taken at {held:+.0f} deg")
+                    skipped.append(f"held at the reach: {name}: {why}; taken at {held:+.0f} deg")
                     name, p, why = f"turn {ax} {held:+.0f}", q, None
         if why:
-            skipped.append(f"{name}: {why}")
+            skipped.append(f"left out: {name}: {why}")
             continue
         views.append(PlannedView(name, p, purpose, "verification" if purpose == "verification" else "multi-view",
                                  p.reason))

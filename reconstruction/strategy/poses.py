@@ -196,11 +196,19 @@ class Reach:
     max_tilt_rad: float = float(np.radians(75.0))
     clearance_m: float = 0.02
 
+    @staticmethod
+    def tilt_rad(pose: SensorPose) -> float:
+        """The angle (rad) of ``pose``'s view from straight down."""
+        return float(np.arccos(np.clip(-pose.view_dir[2], -1.0, 1.0)))
+
+    def tilts_past(self, pose: SensorPose) -> bool:
+        """Whether ``pose``'s view tilts past ``max_tilt_rad`` from straight down."""
+        return self.tilt_rad(pose) > self.max_tilt_rad + tol.angle_rad
+
     def why_not(self, pose: SensorPose, measured: np.ndarray, baseline_m: float) -> str | None:
         """None if ``pose`` is reachable above the ``measured`` points (N,3), else the reason."""
-        tilt = float(np.arccos(np.clip(-pose.view_dir[2], -1.0, 1.0)))
-        if tilt > self.max_tilt_rad + tol.angle_rad:
-            return (f"view {np.degrees(tilt):.0f} deg from vertical (the robot reaches "
+        if self.tilts_past(pose):
+            return (f"view {np.degrees(self.tilt_rad(pose)):.0f} deg from vertical (the robot reaches "
                     f"{np.degrees(self.max_tilt_rad):.0f} deg)")
         low = float(np.min(np.asarray(measured)[:, 2])) if len(measured) else pose.target[2]
         for c in pose.camera_centers(baseline_m):

@@ -452,7 +452,7 @@ def verification_stage(sensor: SimulatedSensor, first: FirstStages, m: Measureme
         g, e = first.axes
         verif, skipped = verification_views(first.pose2, g, e, options.reach, first.view2.outline.points,
                                             sensor.camera, sensor.baseline_m)
-        notes.extend(f"verification view {'held at the reach' if 'taken at' in s else 'left out'}: {s}" for s in skipped)
+        notes.extend(f"verification view {s}" for s in skipped)
         # every verification view is known now: one batch of renders (SimulatedSensor.passive_views)
         for v, pv in zip(verif, sensor.passive_views([(v.name, v.pose) for v in verif], m.rays_for)):
             _record(v, pv, m, steps)
