@@ -195,7 +195,7 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     # the stage-2 pose's own outline, measured by the general outline stereo (as every later pose's)
     # (in undistorted pixels: its camera is the rig's pinhole)
     view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.measured, s2.digital),
-                        s2.measured.rig.left.pinhole, s2.gt_visibility)
+                        s2.measured.rig.left.pinhole, s2.gt_visibility, **s2.cameras_for_truth())
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
 
 

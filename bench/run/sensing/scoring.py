@@ -72,12 +72,13 @@ def merged_accuracy(plate, merged: MergedReconstruction, poses: int = 0) -> Merg
 def final_visibility(true_boundary: np.ndarray, measured_views) -> dict:
     """camera -> ``BoundaryVisibility`` of the true boundary (N,3) from the final poses together: a
     point counts when a pose's camera sees it (ground truth) and that pose's measured outline passes
-    within ``TRIANGULATED_PX`` of it in its left image (its pair triangulated it).
+    within ``TRIANGULATED_PX`` of where it really appears in its left image (``PassiveView.image_of``:
+    through the camera really posed, under a real rig; its pair triangulated it).
     ``measured_views``: ``sensor.PassiveView``s with an outline."""
     P = np.asarray(true_boundary, float)
     masks = {"left": [], "right": []}
     for v in measured_views:
-        uv = v.left_camera.project(P)
+        uv = v.image_of(P)
         ok = np.all(np.isfinite(uv), axis=1)
         tri = np.zeros(len(P), bool)
         tri[ok] = cKDTree(v.outline.image_points).query(uv[ok])[0] <= TRIANGULATED_PX

@@ -31,6 +31,7 @@ from platebench.reconstruction.strategy.active_views import ActivePoints, active
 from platebench.reconstruction.strategy.multiview import ViewOutline
 from platebench.reconstruction.strategy.poses import PoseError, SensorPose
 from platebench.scenes.render.ground_truth import GroundTruthCaster, combined_visibility
+from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
 from platebench.scenes.pattern import square_grid
 from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
@@ -58,6 +59,10 @@ class Shot:
         """The scene as the loop knows it: the told rig, the projector as placed."""
         return self.scene if self.told is None else self.scene.with_rig(self.told)
 
+    def cameras_for_truth(self) -> dict:
+        """``PassiveView``'s ``true_left`` and ``told_left`` for this shot (empty without rig errors)."""
+        return {} if self.told is None else {"true_left": self.scene.rig.left, "told_left": self.told.left}
+
 
 @dataclass(frozen=True)
 class PassiveView:
@@ -68,10 +73,26 @@ class PassiveView:
     name: str
     pose: SensorPose
     outline: ViewOutline | None
-    left_camera: object
+    left_camera: Camera  # the pinhole the outline's pixels are measured in (undistorted; the told camera)
     gt_visibility: dict
     error: str | None = None
     active: ActivePoints | None = None
+    # under a real rig: the left camera really posed, with its true lens, and the one the loop was told
+    # (commanded pose, estimated lens); None when the rendered camera is the told one
+    true_left: Camera | None = None
+    told_left: Camera | None = None
+
+    def image_of(self, points_world: np.ndarray) -> np.ndarray:
+        """(N,2) pixels, in the measured (undistorted) left image, where the world points (N,3)
+        really appear: projected through the camera really posed and its true lens, then undistorted
+        with the told lens into ``left_camera``'s pixels, as the images were. Without rig errors,
+        ``left_camera.project``. NaN behind the camera. Scoring only (ground truth)."""
+        if self.true_left is None or self.told_left is None:
+            return self.left_camera.project(points_world)
+        raw = self.true_left.project(points_world)
+        xy = self.told_left.normalised(raw)
+        K = self.left_camera.K
+        return xy @ K[:2, :2].T + K[:2, 2]
 
 
 def plate_masks(digital: dict) -> dict:
@@ -246,7 +267,8 @@ class SimulatedSensor:
             masks = plate_masks(digital)
             o = measure_outline(name, scene, digital, masks)
         except ReconstructionError as err:
-            return PassiveView(name, pose, None, rig.left, shot.gt_visibility, f"passive stereo failed: {err}")
+            return PassiveView(name, pose, None, rig.left, shot.gt_visibility, f"passive stereo failed: {err}",
+                               **shot.cameras_for_truth())
         active = None
         if rays_for is not None:
             try:
@@ -254,7 +276,7 @@ class SimulatedSensor:
                                        rays_for(shot.measured), shot.scene.projector.pattern)
             except ReconstructionError:  # no square inside the outline: recorded as 0 points (ViewRecord.active)
                 active = ActivePoints.empty(name)
-        return PassiveView(name, pose, o, rig.left, shot.gt_visibility, active=active)
+        return PassiveView(name, pose, o, rig.left, shot.gt_visibility, active=active, **shot.cameras_for_truth())
 
     def boundary_visibility_masks(self, poses) -> dict:
         """camera -> (P, N) bool: which true boundary points that camera of each of ``poses`` sees
