@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
-from platebench.plates.spec import Dome, Fold, Twist
+from platebench.plates.spec import Dome, Fold, SCurve, Twist
 from platebench.reconstruction.strategy.multiview import (
     CONFIRM_SLIDE_ANGLE_RAD,
     ViewOutline,
@@ -19,7 +19,7 @@ from platebench.reconstruction.strategy.multiview import (
     contour_planes,
     slide_angles,
 )
-from platebench.reconstruction.strategy.sides import SPARSE_MAX_TURN_RAD, front_side, sparse_front_side
+from platebench.reconstruction.strategy.sides import SIDE_RADIUS_M, SPARSE_MAX_TURN_RAD, front_side, sparse_front_side
 from platebench.scenes.camera import Camera
 
 
@@ -237,7 +237,7 @@ def test_a_front_reads_its_fallback_only_where_it_knows_no_side():
     dense = front_side(P)
     sparse = front_side(P[middle])
     both = dataclasses.replace(sparse, fallback=dense)
-    ends = np.abs(P[:, 0]) > 0.045
+    ends = np.abs(P[:, 0]) > 0.02 + SIDE_RADIUS_M + 3e-3  # beyond the reach of the middle's centres
     assert np.isnan(sparse.normals_at(P[ends])).all()
     assert np.allclose(both.normals_at(P[ends]), dense.normals_at(P[ends]))
     assert np.allclose(both.normals_at(P[middle]), sparse.normals_at(P[middle]))
@@ -261,3 +261,55 @@ def test_a_flap_folded_over_the_plate_never_turns_the_plates_front(aspect, angle
     agree = np.einsum("ij,ij->i", fs.normals, N) > 0
     assert fs.known[~flap & (P[:, 2] < 1e-3)].mean() > 0.95
     assert agree[fs.known].all()
+
+
+@pytest.mark.parametrize("deformation, aspect", [
+    (SCurve(math.radians(120.0), "down", math.radians(90.0)), 1.3),
+    (SCurve(math.radians(121.0), "down", math.radians(89.0)), 1.8),
+    (SCurve(math.radians(119.0), "down", math.radians(91.0)), 2.2),
+    (CylindricalBend(math.radians(120.0), "up", math.radians(60.0)), 1.5)],
+    ids=lambda d: f"{type(d).__name__}{math.degrees(d.angle_rad):.0f}" if not isinstance(d, float) else f"{d:g}")
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_corner_whose_squares_are_cut_by_both_edges_reads_the_front_of_the_plate_beside_it(deformation, aspect, seed):
+    """Square centres every 7 mm, but none within 17 mm of one corner of the plate (as the squares
+    there are cut by both edges: on the 120-degree S-curve about axis 90 the nearest measured centre
+    lies 15 mm from the corner's outline, median over the verification views): the boundary within
+    8 mm of that corner reads its front from the centres beside it (``SIDE_RADIUS_M``), the right way,
+    where a 15 mm reach knows it at under half of it."""
+    area = 0.1165 * 0.0735
+    spec = PlateSpec(math.sqrt(area * aspect), math.sqrt(area / aspect), deformation=deformation)
+    P, N, uv = _samples_uv(spec, 7e-3, np.random.default_rng(seed))
+    corner = np.array([spec.length_m / 2, -spec.width_m / 2])
+    keep = np.linalg.norm(uv - corner, axis=1) > 17e-3
+    fs = front_side(P[keep])
+    assert fs.known.mean() > 0.95
+    plate = build_plate(spec)
+    near = np.linalg.norm(np.asarray(plate.boundary_uv) - corner, axis=1) <= 8e-3
+    B = np.asarray(plate.boundary)[near]
+    exact = np.asarray(plate.surface_normal(np.asarray(plate.boundary_uv)[near]))
+    n = fs.normals_at(B)
+    known = np.all(np.isfinite(n), axis=1)
+    assert known.mean() >= 0.9, known.mean()
+    # the right way, within 60 degrees: read up to 25 mm away on a curved sheet (the tangent-plane test
+    # bounds the turn to about sqrt(2 SAME_SHEET_M / R), 26 degrees at this S-curve's 30 mm radius,
+    # and the fitted normals at the edge of the missing centres add their own)
+    assert np.all(np.einsum("ij,ij->i", n[known], exact[known]) > 0.5)
+    assert fs.oriented_share(B) > dataclasses.replace(fs, radius_m=15e-3).oriented_share(B) + 0.4
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("aspect, angle_deg", [(2.2, 170.0), (2.3, 169.0)])
+def test_the_plate_beneath_a_folded_flap_never_reads_the_flaps_side(aspect, angle_deg, seed):
+    """Within ``SIDE_RADIUS_M`` of the plate beneath a 170-degree fold's flap lie the flap's centres,
+    13 mm above and facing down: the plate there (not measured: the flap hides it) reads no side or
+    the plate's own, never the flap's (its tangent plane passes 13 mm away, ``SAME_SHEET_M``)."""
+    spec = PlateSpec(0.0735 * aspect, 0.0735, deformation=Fold(math.radians(angle_deg), 0.015, 0.02, "up"))
+    P, N, _ = _samples_uv(spec, 7e-3, np.random.default_rng(seed))
+    flap = P[:, 2] > 6e-3
+    under = ~flap & (P[:, 0] >= P[flap, 0].min()) & (P[:, 0] <= P[flap, 0].max())
+    fs = front_side(P[~under])
+    n = fs.normals_at(P[under])
+    known = np.all(np.isfinite(n), axis=1)
+    assert np.all(n[known][:, 2] > 0.9)  # the plate's own front, up
+    d = np.min(np.linalg.norm(P[under][:, None, :] - P[flap][None, :, :], axis=2), axis=1)
+    assert np.mean(d < SIDE_RADIUS_M) > 0.5  # the flap's centres are within reach of most of it

@@ -65,7 +65,13 @@ BRIDGE_JOIN_M = 25e-3
 BRIDGE_TANGENTIAL_RAD = float(np.radians(20.0))
 GRAZING_RAD = float(np.radians(10.0))  # a side is called only this far from grazing
 GRAZING_SIN = float(np.sin(GRAZING_RAD))  # normals this near the vertical vote on which way is up
-SIDE_RADIUS_M = 15e-3  # a point's side is read from the nearest measured surface point this close
+# A point's side is read from the nearest measured surface point this close whose tangent plane passes
+# within SAME_SHEET_M of it. At a plate's corner the squares are cut by both edges: on the 120-degree
+# S-curve about axis 90 (aspects 1.3-2.2) the nearest centre lay 15 mm (median) from the corner's
+# outline, and with 15 mm no pair could confirm the corner (false alarms at every aspect but the
+# paper's). The tangent-plane test, not this reach, bounds the normal's error on a curved sheet (about
+# sqrt(2 SAME_SHEET_M / R)) and keeps another layer out (a flap 13 mm over the plate).
+SIDE_RADIUS_M = 25e-3
 SPARSE_GRID_MAX_SQUARES = 24  # a projected grid of at most this many squares is sparse (the paper's: 16; the bench's: 72)
 SPARSE_FIT_M = 20e-3  # ``sparse_front_side``: normals fitted over this radius; sides read ...
 SPARSE_JOIN_M = 25e-3  # ... centres joined this far apart (a pose's squares lie about 16 mm apart) ...
