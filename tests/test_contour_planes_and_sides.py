@@ -175,8 +175,8 @@ def _paper_grid_centres(spec: PlateSpec, rng, poses: int = 8, pitch_m: float = 2
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_sparse_square_centres_orient_a_smooth_plate_out_to_its_edges(deformation, seed):
     """The paper's grid leaves centres too sparse and clustered for the dense orientation (ten
-    nearest neighbours, 12 mm joins, sides read within 15 mm): it knows the front at less of the
-    boundary (19-80 % here). Fitted over 20 mm, joined over 25 mm and read within 40 mm
+    nearest neighbours, 12 mm joins, sides read within 25 mm): it knows the front at less of the
+    boundary (62-98 % here). Fitted over 20 mm, joined over 25 mm and read within 40 mm
     (``sparse_front_side``), the same centres orient the front at three quarters of the boundary
     or more (all of it but the far ends of the 120-degree bends, which drop 40 mm away from the
     middle), never the wrong way, and their normals turn little between neighbours."""
