@@ -148,10 +148,15 @@ class Camera:
                 uvw = pc @ self.K.T
                 uv = uvw[:, :2] / z
             else:
-                xy = self.distortion.distort(pc[:, :2] / z)
-                uv = xy @ self.K[:2, :2].T + self.K[:2, 2]
+                uv = self.pixels(self.distortion.distort(pc[:, :2] / z))
         uv[(z[:, 0] <= 0)] = np.nan
         return uv
+
+    def pixels(self, normalised) -> np.ndarray:
+        """(N,2) normalised image coordinates (X/Z, Y/Z, distorted where the lens is) -> (N,2)
+        pixel coordinates (u, v) through K: the inverse of ``_normalised_distorted``."""
+        xy = np.atleast_2d(np.asarray(normalised, float))
+        return xy @ self.K[:2, :2].T + self.K[:2, 2]
 
     def _normalised_distorted(self, pixels) -> np.ndarray:
         """(N,2) pixels -> (N,2) normalised coordinates K^-1 (u, v, 1) (distorted if the lens is)."""

@@ -28,9 +28,9 @@ the poses left could confirm its long edges (18 loose ends after the verificatio
 false-boundary``: on the 61 plates 3 stage-2 poses held a turn and no outcome moved (the 120-degree
 fold up: 3 cures, was 7); moved +1 degree and +5 mm, the same rates; on the 63 plates of two
 outside sets (README) no outcome class moved, the 120-degree fold up at aspect 1.3 took 1 cure (was
-12) and the 120-degree S-curves 4 and 18 (were 14 and 18). Those two S-curves, verified before
-after their cures, now end unverified: their last loose ends sit at corners where the front is not
-known (``sides``), and the planner predicts no reachable view past them: it stops and names them.
+12) and the 120-degree S-curves 4 and 18 (were 14 and 18). Their last loose ends sat at corners
+where the front was not known; with the front read there from the centres beside the corner
+(``sides.SIDE_RADIUS_M``) both are verified by the verification views alone, with no cure.
 
 Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
 already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the

@@ -89,10 +89,7 @@ class PassiveView:
         ``left_camera.project``. NaN behind the camera. Scoring only (ground truth)."""
         if self.true_left is None or self.told_left is None:
             return self.left_camera.project(points_world)
-        raw = self.true_left.project(points_world)
-        xy = self.told_left.normalised(raw)
-        K = self.left_camera.K
-        return xy @ K[:2, :2].T + K[:2, 2]
+        return self.left_camera.pixels(self.told_left.normalised(self.true_left.project(points_world)))
 
 
 def plate_masks(digital: dict) -> dict:
