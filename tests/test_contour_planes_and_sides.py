@@ -19,7 +19,13 @@ from platebench.reconstruction.strategy.multiview import (
     contour_planes,
     slide_angles,
 )
-from platebench.reconstruction.strategy.sides import SIDE_RADIUS_M, SPARSE_MAX_TURN_RAD, front_side, sparse_front_side
+from platebench.reconstruction.strategy.sides import (
+    SIDE_RADIUS_M,
+    SPARSE_MAX_TURN_RAD,
+    fit_jets,
+    front_side,
+    sparse_front_side,
+)
 from platebench.scenes.camera import Camera
 
 
@@ -313,3 +319,63 @@ def test_the_plate_beneath_a_folded_flap_never_reads_the_flaps_side(aspect, angl
     assert np.all(n[known][:, 2] > 0.9)  # the plate's own front, up
     d = np.min(np.linalg.norm(P[under][:, None, :] - P[flap][None, :, :], axis=2), axis=1)
     assert np.mean(d < SIDE_RADIUS_M) > 0.5  # the flap's centres are within reach of most of it
+
+
+@pytest.mark.parametrize("R, seed", [(0.042, 0), (0.030, 1), (0.060, 2)])
+def test_a_centres_quadric_has_the_cylinders_curvature(R, seed):
+    """``fit_jets`` on points every 7 mm over a cylinder of radius ``R`` (0.2 mm of noise): the
+    quadric at a point away from the ends has the cylinder's curvature 1/R across its rulings (to
+    15 %) and none along them, and its normal 20 mm away along the curve is the exact one to a fifth
+    of the turn a tangent plane misses by (20 mm / R rad: 27 degrees on a 42 mm radius)."""
+    rng = np.random.default_rng(seed)
+    phi, y = np.meshgrid(np.arange(-1.2, 1.2, 7e-3 / R), np.arange(-0.03, 0.03, 7e-3))
+    phi = phi.ravel() + rng.uniform(-1e-3 / R, 1e-3 / R, phi.size)
+    y = y.ravel()
+    P = np.column_stack([R * np.sin(phi), y, R * np.cos(phi) - R]) + rng.normal(0.0, 0.2e-3, (phi.size, 3))
+    N = np.column_stack([np.sin(phi), np.zeros_like(phi), np.cos(phi)])
+    jets = fit_jets(P, N, np.ones(len(P), bool))
+    i = int(np.argmin(phi ** 2 + (y / R) ** 2))  # the top, in the middle
+    c = jets.coef(np.array([i]))[0]
+    A = np.array([[c[3], c[4]], [c[4], c[5]]])
+    k = np.linalg.eigvalsh(A)
+    assert abs(k[0] + 1.0 / R) < 0.15 / R and abs(k[1]) < 0.15 / R  # curving away from the front
+    target = np.array([R * np.sin(20e-3 / R), y[i], R * np.cos(20e-3 / R) - R])
+    n = jets.normals_at(target[None], np.array([[i]]), np.array([[True]]), 3e-3)[0]
+    exact = np.array([np.sin(20e-3 / R), 0.0, np.cos(20e-3 / R)])
+    turn = np.degrees(20e-3 / R)
+    assert np.degrees(np.arccos(np.clip(n @ exact, -1.0, 1.0))) < 0.2 * turn
+    assert np.degrees(np.arccos(N[i] @ exact)) > 0.95 * turn  # the tangent plane's normal is that far off
+
+
+@pytest.mark.parametrize("axis_deg, aspect", [(40.0, 1.8), (39.0, 1.8), (41.0, 1.75), (40.0, 1.85)])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_corner_beyond_every_tangent_plane_reads_its_front_off_the_quadric(axis_deg, aspect, seed):
+    """A 135-degree cylinder bent down about an oblique axis: two of its corners curl down, steep,
+    and here no centre lies within 21 mm of any corner (the squares there are cut by both edges and
+    stretched by the slope). The sheet leaves a tangent plane by 5 mm or more that far from it, so
+    the tangent planes tell the steep corners' boundary (within 8 mm of each corner) little: about
+    half of the four corners' together. The centres' osculating quadrics (``jets``) tell 90 % or
+    more of it, at least 0.3 more, the right way and within 25 degrees of the exact normal (the
+    normals fitted beside a missing patch add their own error, on the level corners too)."""
+    area = 0.1165 * 0.0735
+    spec = PlateSpec(math.sqrt(area * aspect), math.sqrt(area / aspect),
+                     deformation=CylindricalBend(math.radians(135.0), "down", math.radians(axis_deg)))
+    P, N, uv = _samples_uv(spec, 7e-3, np.random.default_rng(seed))
+    plate = build_plate(spec)
+    B_uv, B_all = np.asarray(plate.boundary_uv), np.asarray(plate.boundary)
+    known, planes, err = [], [], []
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            corner = np.array([sx * spec.length_m / 2, sy * spec.width_m / 2])
+            fs = front_side(P[np.linalg.norm(uv - corner, axis=1) > 21e-3])
+            near = np.linalg.norm(B_uv - corner, axis=1) <= 8e-3
+            n = fs.normals_at(B_all[near])
+            k = np.all(np.isfinite(n), axis=1)
+            exact = np.asarray(plate.surface_normal(B_uv[near]))
+            known.append(k)
+            planes.append(np.all(np.isfinite(dataclasses.replace(fs, jets=None).normals_at(B_all[near])), axis=1))
+            err.append(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", n[k], exact[k]), -1.0, 1.0))))
+    known, planes, err = np.concatenate(known), np.concatenate(planes), np.concatenate(err)
+    assert known.mean() >= 0.9, known.mean()
+    assert known.mean() >= planes.mean() + 0.3, (known.mean(), planes.mean())
+    assert err.max() < 25.0, err.max()

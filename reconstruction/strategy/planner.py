@@ -30,7 +30,10 @@ fold up: 3 cures, was 7); moved +1 degree and +5 mm, the same rates; on the 63 p
 outside sets (README) no outcome class moved, the 120-degree fold up at aspect 1.3 took 1 cure (was
 12) and the 120-degree S-curves 4 and 18 (were 14 and 18). Their last loose ends sat at corners
 where the front was not known; with the front read there from the centres beside the corner
-(``sides.SIDE_RADIUS_M``) both are verified by the verification views alone, with no cure.
+(``sides.SIDE_RADIUS_M``) both are verified by the verification views alone, with no cure. So
+is the convex 135-degree cylinder about axis 40 at aspect 1.8 (two cures before), whose steep
+corner lay 21-25 mm from the nearest centre and off every tangent plane, once the front is read
+off the centres' osculating quadrics there (``sides.JET_RADIUS_M``).
 
 Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
 already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the

@@ -72,6 +72,23 @@ GRAZING_SIN = float(np.sin(GRAZING_RAD))  # normals this near the vertical vote 
 # paper's). The tangent-plane test, not this reach, bounds the normal's error on a curved sheet (about
 # sqrt(2 SAME_SHEET_M / R)) and keeps another layer out (a flap 13 mm over the plate).
 SIDE_RADIUS_M = 25e-3
+# Where no tangent plane within SIDE_RADIUS_M passes SAME_SHEET_M from a point, its side is read off
+# the nearest oriented centre's osculating quadric (``jets``): a curved sheet leaves its tangent plane
+# by d^2 / 2R, 5.8 mm at 22 mm from a centre on a 42 mm radius (the corners of the 135-degree cylinder
+# about axis 40 at aspect 1.8, whose nearest centres lay 21-25 mm away: no pose knew their front and
+# the loop took cures where nothing was hidden). The quadric z = c + g.t + t^T A t / 2 in the centre's
+# tangent frame is fitted to the oriented centres within JET_RADIUS_M whose normals agree with its
+# own within JET_AGREE_RAD (another layer faces the other way), at least JET_MIN_POINTS of them, spread
+# JET_MIN_SPREAD_M or more each way across the plane (a row of centres fixes no curvature), fitting it
+# to JET_MAX_RMS_M (a crease or two layers fit no quadric). A point is on the quadric's sheet when it
+# lies within SAME_SHEET_M of it, and read only where the quadric's normal has turned at most
+# JET_MAX_TURN_RAD from the centre's (a quadric extrapolated farther than that leaves the sheet).
+JET_RADIUS_M = 15e-3
+JET_AGREE_RAD = float(np.radians(60.0))
+JET_MIN_POINTS = 8
+JET_MIN_SPREAD_M = 3e-3
+JET_MAX_RMS_M = 0.5e-3
+JET_MAX_TURN_RAD = float(np.radians(45.0))
 SPARSE_GRID_MAX_SQUARES = 24  # a projected grid of at most this many squares is sparse (the paper's: 16; the bench's: 72)
 SPARSE_FIT_M = 20e-3  # ``sparse_front_side``: normals fitted over this radius; sides read ...
 SPARSE_JOIN_M = 25e-3  # ... centres joined this far apart (a pose's squares lie about 16 mm apart) ...
@@ -93,12 +110,15 @@ class FrontSide:
     same_sheet_m: float = SAME_SHEET_M  # ``normals_at``: how close to the point the tangent plane passes
     max_turn_rad: float = 0.0  # the largest angle between the normals of neighbours joined in the oriented part
     fallback: "FrontSide | None" = None  # read where this one knows no side (``normals_at``)
+    jets: "Jets | None" = None  # the oriented points' osculating quadrics (``fit_jets``), read past the planes
 
     def normals_at(self, points: np.ndarray) -> np.ndarray:
         """(N,3) the front's unit normal at ``points`` (N,3): that of the nearest oriented surface
         point within ``radius_m`` whose tangent plane passes within ``same_sheet_m`` of the
         point (on a tight fold the nearest measured point can lie on the other face); where there
-        is none, the ``fallback``'s; NaN where neither has one."""
+        is none, the normal of the nearest one's osculating quadric (``jets``) at the point, where
+        the point lies within ``same_sheet_m`` of it (module doc, ``JET_RADIUS_M``); where there is
+        none, the ``fallback``'s; NaN where none has one."""
         P = np.atleast_2d(np.asarray(points, float))
         out = self._own_normals_at(P)
         if self.fallback is not None:
@@ -120,6 +140,9 @@ class FrontSide:
         on_sheet = ok & (np.abs(np.einsum("nkj,nkj->nk", N[ii], P[:, None, :] - S[ii])) <= self.same_sheet_m)
         has = on_sheet.any(axis=1)
         out[has] = N[ii[np.arange(len(P)), np.argmax(on_sheet, axis=1)]][has]
+        if self.jets is not None and not has.all():
+            rest = np.nonzero(~has)[0]
+            out[rest] = self.jets.normals_at(P[rest], np.nonzero(self.known)[0][ii[rest]], ok[rest], self.same_sheet_m)
         return out
 
     def oriented_share(self, points: np.ndarray) -> float:
@@ -142,6 +165,94 @@ class FrontSide:
         out[sin > np.sin(front_rad)] = 1
         out[sin < -GRAZING_SIN] = -1
         return out
+
+
+@dataclass(frozen=True)
+class Jets:
+    """Osculating quadrics of oriented surface points (module doc, ``JET_RADIUS_M``), fitted when
+    first asked for (``coef``; a front is read past its tangent planes at few points). ``points``
+    (S,3) and their unit ``normals`` (S,3) toward the front; ``known`` (S,) those oriented (only
+    they carry or fit a quadric); ``frames`` (S,3,3) rows u, v, n (n the point's normal, u and v
+    across it). A quadric is z = c + gu tu + gv tv + (Auu tu^2 + 2 Auv tu tv + Avv tv^2) / 2 in its
+    point's frame (metres, about the point)."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    known: np.ndarray
+    frames: np.ndarray
+    _coef: np.ndarray  # (S,6) fitted so far, NaN where none fits
+    _done: np.ndarray  # (S,) True where a fit was tried
+
+    def coef(self, idx: np.ndarray) -> np.ndarray:
+        """(..., 6) the quadrics of the points ``idx`` (any shape of indices), NaN where none fits."""
+        idx = np.asarray(idx, int)
+        todo = np.unique(idx[~self._done[idx]])
+        if len(todo):
+            self._fit(todo)
+        return self._coef[idx]
+
+    def _fit(self, todo: np.ndarray) -> None:
+        oriented = np.nonzero(self.known)[0]
+        P, N = self.points, self.normals
+        tree = cKDTree(P[oriented]) if len(oriented) else None
+        for i in todo:
+            self._done[i] = True
+            if tree is None or not self.known[i]:
+                continue
+            j = oriented[np.asarray(tree.query_ball_point(P[i], JET_RADIUS_M), int)]
+            j = j[N[j] @ N[i] >= np.cos(JET_AGREE_RAD)]
+            if len(j) < JET_MIN_POINTS:
+                continue
+            t = (P[j] - P[i]) @ self.frames[i].T
+            if np.linalg.eigvalsh(np.cov(t[:, :2].T))[0] < JET_MIN_SPREAD_M ** 2:
+                continue
+            tu, tv = t[:, 0], t[:, 1]
+            A = np.column_stack([np.ones(len(j)), tu, tv, 0.5 * tu ** 2, tu * tv, 0.5 * tv ** 2])
+            x, *_ = np.linalg.lstsq(A, t[:, 2], rcond=None)
+            if np.sqrt(np.mean((A @ x - t[:, 2]) ** 2)) <= JET_MAX_RMS_M:
+                self._coef[i] = x
+
+    def normals_at(self, P: np.ndarray, idx: np.ndarray, ok: np.ndarray, same_sheet_m: float) -> np.ndarray:
+        """(N,3) the unit normal at each point of ``P`` (N,3) of the first quadric of its candidate
+        points ``idx`` (N,K, nearest first; used where ``ok`` (N,K)) that passes within
+        ``same_sheet_m`` of it with its normal turned at most ``JET_MAX_TURN_RAD`` from the
+        candidate's; NaN where none does."""
+        out = np.full((len(P), 3), np.nan)
+        if not len(P):
+            return out
+        idx = np.where(ok, idx, 0)
+        c = self.coef(idx)
+        c[~ok] = np.nan
+        F = self.frames[idx]  # (N,K,3,3)
+        d = np.einsum("nkij,nkj->nki", F, P[:, None, :] - self.points[idx])  # (tu, tv, w) in each frame
+        tu, tv, w = d[..., 0], d[..., 1], d[..., 2]
+        z = c[..., 0] + c[..., 1] * tu + c[..., 2] * tv + 0.5 * (c[..., 3] * tu ** 2 + 2 * c[..., 4] * tu * tv
+                                                               + c[..., 5] * tv ** 2)
+        gu = c[..., 1] + c[..., 3] * tu + c[..., 4] * tv
+        gv = c[..., 2] + c[..., 4] * tu + c[..., 5] * tv
+        with np.errstate(invalid="ignore"):
+            good = ok & np.isfinite(z) & (np.abs(w - z) <= same_sheet_m) & (
+                1.0 / np.sqrt(1.0 + gu ** 2 + gv ** 2) >= np.cos(JET_MAX_TURN_RAD))
+        has = good.any(axis=1)
+        if has.any():
+            r = np.nonzero(has)[0]
+            k = np.argmax(good, axis=1)[has]
+            local = np.column_stack([-gu[r, k], -gv[r, k], np.ones(len(r))])
+            n = np.einsum("ni,nij->nj", local, F[r, k])
+            out[r] = n / np.linalg.norm(n, axis=1, keepdims=True)
+        return out
+
+
+def fit_jets(points: np.ndarray, normals: np.ndarray, known: np.ndarray) -> Jets:
+    """The osculating quadrics (``Jets``, fitted when asked for) of the surface ``points`` (S,3)
+    whose unit ``normals`` (S,3) are oriented toward the front where ``known`` (S,)."""
+    P, N = np.asarray(points, float), np.asarray(normals, float)
+    S = len(P)
+    helper = np.where(np.abs(N[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    u = np.cross(N, helper)
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), tol.unit_norm)
+    frames = np.stack([u, np.cross(N, u), N], axis=1)
+    return Jets(P, N, np.asarray(known, bool).copy(), frames, np.full((S, 6), np.nan), np.zeros(S, bool))
 
 
 def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, radius_m: float = SIDE_RADIUS_M,
@@ -214,7 +325,8 @@ def front_side(points: np.ndarray, up=(0.0, 0.0, 1.0), join_m: float = JOIN_M, r
             initial=0.0))
         turn = max(turn, _bridge_parts(P, normals, known, [p[0][planar[p[0]]] for p in parts if p[0] is not main],
                                        kd, join_m, planar))
-    return FrontSide(P, normals, known, radius_m, same_sheet_m, turn)
+    jets = fit_jets(P, normals, known) if fit_radius_m is None else None  # the sparse fit spans bends: no quadric
+    return FrontSide(P, normals, known, radius_m, same_sheet_m, turn, jets=jets)
 
 
 def _bridge_parts(P: np.ndarray, normals: np.ndarray, known: np.ndarray, others: list[np.ndarray], kd: cKDTree,
@@ -269,6 +381,6 @@ def sparse_front_side(points: np.ndarray, up=(0.0, 0.0, 1.0)) -> FrontSide:
                       fit_radius_m=SPARSE_FIT_M)
 
 
-__all__ = ["FrontSide", "front_side", "NEIGHBOURS", "JOIN_M", "SIDE_RADIUS_M", "SEED_VERTICAL_COS",
+__all__ = ["FrontSide", "Jets", "fit_jets", "front_side", "NEIGHBOURS", "JOIN_M", "SIDE_RADIUS_M", "SEED_VERTICAL_COS",
            "SPARSE_GRID_MAX_SQUARES", "SPARSE_MAX_TURN_RAD",
            "sparse_front_side"]

@@ -318,8 +318,8 @@ class Measurements:
         """The plate's front (``sides``) over every pose's checked square centres (outline points
         are left out: along an edge their neighbours lie on a line, which fits no plane). Where it
         knows no side (more than ``SIDE_RADIUS_M`` from an oriented centre, or off its tangent
-        plane: the rising corners and rims of steep concave plates, whose squares are cut by the
-        outline or stretched apart), the same centres' sparse front is read (``sparse_front_side``:
+        plane and its osculating quadric: the rising corners and rims of steep concave plates, whose
+        squares are cut by the outline or stretched apart), the same centres' sparse front is read (``sparse_front_side``:
         normals fitted over 20 mm, read within 40 mm), unless its joined normals turn by more than
         ``SPARSE_MAX_TURN_RAD`` (a crease or a tight curl, which it may orient the wrong way).
         With the dense front alone, no pair could confirm those edges (a confirmation needs one
