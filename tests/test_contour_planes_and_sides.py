@@ -281,7 +281,7 @@ def test_a_corner_whose_squares_are_cut_by_both_edges_reads_the_front_of_the_pla
     there are cut by both edges: on the 120-degree S-curve about axis 90 the nearest measured centre
     lies 15 mm from the corner's outline, median over the verification views): the boundary within
     8 mm of that corner reads its front from the centres beside it (``SIDE_RADIUS_M``), the right way,
-    where a 15 mm reach knows it at under half of it."""
+    where tangent planes read within 15 mm know it at under half of it."""
     area = 0.1165 * 0.0735
     spec = PlateSpec(math.sqrt(area * aspect), math.sqrt(area / aspect), deformation=deformation)
     P, N, uv = _samples_uv(spec, 7e-3, np.random.default_rng(seed))
@@ -300,7 +300,8 @@ def test_a_corner_whose_squares_are_cut_by_both_edges_reads_the_front_of_the_pla
     # bounds the turn to about sqrt(2 SAME_SHEET_M / R), 26 degrees at this S-curve's 30 mm radius,
     # and the fitted normals at the edge of the missing centres add their own)
     assert np.all(np.einsum("ij,ij->i", n[known], exact[known]) > 0.5)
-    assert fs.oriented_share(B) > dataclasses.replace(fs, radius_m=15e-3).oriented_share(B) + 0.4
+    planes = dataclasses.replace(fs, jets=None)  # the tangent planes alone: the reach is theirs
+    assert planes.oriented_share(B) > dataclasses.replace(planes, radius_m=15e-3).oriented_share(B) + 0.4
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -326,7 +327,7 @@ def test_a_centres_quadric_has_the_cylinders_curvature(R, seed):
     """``fit_jets`` on points every 7 mm over a cylinder of radius ``R`` (0.2 mm of noise): the
     quadric at a point away from the ends has the cylinder's curvature 1/R across its rulings (to
     15 %) and none along them, and its normal 20 mm away along the curve is the exact one to a fifth
-    of the turn a tangent plane misses by (20 mm / R rad: 27 degrees on a 42 mm radius)."""
+    of the turn a tangent plane there misses by (20 mm / R rad: 27 degrees on a 42 mm radius)."""
     rng = np.random.default_rng(seed)
     phi, y = np.meshgrid(np.arange(-1.2, 1.2, 7e-3 / R), np.arange(-0.03, 0.03, 7e-3))
     phi = phi.ravel() + rng.uniform(-1e-3 / R, 1e-3 / R, phi.size)
@@ -344,7 +345,6 @@ def test_a_centres_quadric_has_the_cylinders_curvature(R, seed):
     exact = np.array([np.sin(20e-3 / R), 0.0, np.cos(20e-3 / R)])
     turn = np.degrees(20e-3 / R)
     assert np.degrees(np.arccos(np.clip(n @ exact, -1.0, 1.0))) < 0.2 * turn
-    assert np.degrees(np.arccos(N[i] @ exact)) > 0.95 * turn  # the tangent plane's normal is that far off
 
 
 @pytest.mark.parametrize("axis_deg, aspect", [(40.0, 1.8), (39.0, 1.8), (41.0, 1.75), (40.0, 1.85)])
