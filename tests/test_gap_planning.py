@@ -223,3 +223,51 @@ def test_a_grazing_view_is_chosen_to_confirm_only_when_no_steeper_view_would(gra
     d2 = decide(v, views, poses, [grazing, steep], model, 0.1)
     assert d2.view.name == "steep" and "grazing" not in d2.view.reason
     assert decide(v, views, poses, [flat], model, 0.1).kind == "stop"
+
+
+@pytest.mark.parametrize("angle_deg, aspect, distance", [(120.0, 1.3, 0.4), (121.0, 0.1165 / 0.0735, 0.405),
+                                                        (119.0, 2.0, 0.395)])
+def test_the_dome_holds_a_pair_that_can_confirm_a_hanging_flaps_tip(angle_deg, aspect, distance):
+    """A fold of 120 degrees down: the flap hangs under the plate, leaning back 30 degrees, its
+    front facing 30 degrees below the horizon. Only poses low on the dome see its tip from the
+    front ``FRONT_MARGIN_RAD`` above the sheet (both cameras), and confirming the tip edge needs two
+    of them turned ``CONFIRM_SLIDE_ANGLE_RAD`` apart about it, their rays ``CONFIRM_ANGLE_RAD``
+    apart. ``dome_views`` holds such a pair (tilts 50 and 75 degrees at the tip's azimuth, 24
+    degrees apart about it; with 60 and 75 alone the most was 18.5 degrees, and the flap's tip stayed
+    unverified on most aspects)."""
+    from platebench.plates import PlateSpec, build_plate
+    from platebench.plates.spec import Fold
+    from platebench.reconstruction.strategy.planner import FRONT_MARGIN_RAD, dome_views
+    from platebench.scenes.camera import intrinsics
+
+    area = 0.1165 * 0.0735
+    spec = PlateSpec(math.sqrt(area * aspect), math.sqrt(area / aspect),
+                     deformation=Fold(math.radians(angle_deg), 0.015, 0.02, "down"))
+    plate = build_plate(spec)
+    B, uv = np.asarray(plate.boundary), np.asarray(plate.boundary_uv)
+    tip = np.abs(uv[:, 0] - spec.length_m / 2) < 1e-6
+    mid = np.argmin(np.where(tip, np.abs(uv[:, 1]), np.inf))
+    P, n = B[mid], np.asarray(plate.surface_normal(uv[mid][None]))[0]
+    edge = np.array([0.0, 1.0, 0.0])  # the tip runs across the plate (the fold's axis is 0)
+    assert n[2] < -0.4  # the flap's front faces below the horizon
+    centre = B.mean(axis=0)
+    first = SensorPose(centre + np.array([0.0, 0.0, distance]), centre, np.array([1.0, 0.0, 0.0]))
+    cam = Camera(intrinsics(1000, 640, 480), np.eye(3), np.zeros(3), 640, 480)
+    views = dome_views(first, Reach(), B, cam, 0.1)
+    fronts = []
+    for v in views:
+        eyes = v.pose.camera_centers(0.1)
+        r = eyes - P
+        above = np.arcsin((r @ n) / np.linalg.norm(r, axis=1))
+        if above.min() >= FRONT_MARGIN_RAD:
+            fronts.append((v.name, v.pose.center - P))
+    assert fronts, "no dome pose sees the flap's tip from its front"
+
+    def about_edge(r):  # the direction of r about the tip edge, in the plane across it (rad)
+        q = r - (r @ edge) * edge
+        return math.atan2(q[2], q[0])
+
+    pairs = [(a, b) for i, (a, ra) in enumerate(fronts) for b, rb in fronts[i + 1:]
+             if abs(about_edge(ra) - about_edge(rb)) >= CONFIRM_SLIDE_ANGLE_RAD
+             and math.acos(np.clip(ra @ rb / np.linalg.norm(ra) / np.linalg.norm(rb), -1, 1)) >= CONFIRM_ANGLE_RAD]
+    assert pairs, [(f[0], round(math.degrees(about_edge(f[1])), 1)) for f in fronts]

@@ -208,3 +208,23 @@ def test_a_walk_along_an_outline_stops_after_one_lap():
     a, _ = _views()
     walked = list(_walk(a, 0, -1, 2.5e-3))  # 1 mm apart: the points 1 and 2 mm on, and the first past 2.5 mm
     assert walked == [len(P) - 1, len(P) - 2, len(P) - 3]
+
+
+@pytest.mark.parametrize("hole_mm", [(10, 13), (10, 15), (-21, -16)])
+def test_no_bridge_or_walk_across_an_edge_seen_from_behind(hole_mm):
+    """Both poses confirm the whole rectangle but a 3-5 mm stretch of the bottom edge: short enough
+    for a piece to bridge (``BRIDGE_M``) and for an end to walk across (``OUTLINE_BRIDGE_M``), so the
+    loop closes. Where the poses see that stretch from behind the sheet (a curl's tip seen from
+    below), the same outlines close nothing: two gaps, facing each other across the stretch."""
+    x0, x1 = hole_mm
+    hole = _bottom(x0 + 0.5, x1 - 0.5)
+    conf = [~hole, ~hole]
+    assert verify(_views(), None, conf).verified
+    front_only = [np.zeros(len(P), bool)] * 2
+    assert verify(_views(), None, conf, behind=front_only).verified
+    v = verify(_views(), None, conf, behind=[hole, hole])
+    assert not v.verified, f"a {x1 - x0} mm stretch seen from behind was bridged: {v.reason}"
+    ends = sorted({round(g.position_m[0] * 1e3, 1) for g in v.gaps})
+    assert ends == [x0, x1], f"the gaps should face the stretch, got {ends}"
+    # seen from behind by one pose only: the other pose's outline still bridges it
+    assert verify(_views(), None, conf, behind=[hole, np.zeros(len(P), bool)]).verified

@@ -82,6 +82,17 @@ curled plate (one edge seen from outside the curl by one pose and from inside by
 keep their orientation while the 3D walks run opposite ways; a 300-degree curl under the 1995 rig
 closed its loop over a hidden corner that way, a silent verdict), so another pose's outline is walked
 only where its own points do not leave the piece the other way (``_leaving_step``).
+
+Bridges. A piece bridges unconfirmed stretches up to ``BRIDGE_M`` of its own outline, and an end
+links along any pose's outline up to ``OUTLINE_BRIDGE_M`` (corners no pair confirms), but never
+across a point that pose sees from behind the sheet (``verify``'s ``behind``, from the measured
+front): there its outline is the edge seen from the back, which ground truth counts as hidden. A
+piece's stretch seen from behind is still bridged where another pose's pieces run along all of it
+(that pose saw it from the front). Without the rule, a 300-degree curl about axis 60 under the 1995
+rig (draw 1782163077) closed its loop over 4.5 mm of its tip's corner that no final pose saw from
+the front (14 of the 17 poses whose outlines passed it saw it from behind by the measured front,
+and none confirmed a point of it): a silent verdict; with it, the loop says the boundary is not
+verified.
 World frame, metres, radians.
 """
 from __future__ import annotations
@@ -355,24 +366,45 @@ class Piece:
         return float(seg + (np.linalg.norm(P[-1] - P[0]) if self.closed else 0.0))
 
 
-def pieces(views: list[ViewOutline], confirmed: list[np.ndarray]) -> list[Piece]:
-    """Confirmed runs of at least ``MIN_PIECE_M``, joined across unconfirmed runs of at most ``BRIDGE_M``."""
-    out = []
-    for v, c in zip(views, confirmed):
+def pieces(views: list[ViewOutline], confirmed: list[np.ndarray],
+           behind: list[np.ndarray] | None = None) -> list[Piece]:
+    """Confirmed runs of at least ``MIN_PIECE_M``, joined across unconfirmed runs of at most
+    ``BRIDGE_M``. A run holding a point the pose sees from behind the sheet (``behind``: per pose,
+    (N,) bool; None: none known) is joined only where another pose's outline runs along all of it
+    (within ``LINK_M``) inside that pose's own pieces: it saw the stretch from the front."""
+    joined, refused = [], []
+    for k, (v, c) in enumerate(zip(views, confirmed)):
         arc = v.arc_m
         keep = np.zeros(len(c), bool)
         for r in cyclic_runs(c):
             if arc[r[:-1]].sum() >= MIN_PIECE_M:
                 keep[r] = True
-        if not keep.any():
-            continue
-        joined = keep.copy()
-        for r in cyclic_runs(~keep):
+        j = keep.copy()
+        back = np.zeros(len(c), bool) if behind is None else np.asarray(behind[k], bool)
+        for r in (cyclic_runs(~keep) if keep.any() else []):
             if arc[np.concatenate([[r[0] - 1], r])].sum() <= BRIDGE_M:
-                joined[r] = True
-        for r in cyclic_runs(joined):
-            out.append(Piece(v.name, r, v.points[r], closed=bool(joined.all())))
-    return out
+                if back[r].any():
+                    refused.append((k, r))
+                else:
+                    j[r] = True
+        joined.append(j)
+    if refused:
+        first = [j.copy() for j in joined]
+        trees = [cKDTree(v.points) for v in views]
+        for k, r in refused:
+            Q = views[k].points[r]
+            for j in range(len(views)):
+                d, i = trees[j].query(Q)
+                if j != k and (d <= LINK_M).all() and first[j][i].all():
+                    joined[k][r] = True
+                    break
+    return _cut(views, joined)
+
+
+def _cut(views: list[ViewOutline], joined: list[np.ndarray]) -> list[Piece]:
+    """The pieces: each pose's runs of ``joined`` (N,) outline points."""
+    return [Piece(v.name, r, v.points[r], closed=bool(j.all())) for v, j in zip(views, joined)
+            for r in (cyclic_runs(j) if j.any() else [])]
 
 
 @dataclass(frozen=True)
@@ -487,10 +519,11 @@ def _leads_on(i: int, end: np.ndarray, own: int, trees: list, all_pieces: list[P
 
 
 def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline],
-            index: _PieceIndex | None = None) -> list[int]:
+            index: _PieceIndex | None = None, behind: list[np.ndarray] | None = None) -> list[int]:
     """Pieces (other than ``own``) that an end links to: one that passes within LINK_M of the end
     and leads on; else one reached from the end along a pose's measured outline within
-    OUTLINE_BRIDGE_M of arc (a steep corner confirmed by no pair of poses, say). The outlines are
+    OUTLINE_BRIDGE_M of arc (a steep corner confirmed by no pair of poses, say), and not past a
+    point that pose sees from behind the sheet (``behind``, as ``pieces``). The outlines are
     walked both ways from the end of a piece at least 2 LINK_M long (``_leads_on`` tells which
     pieces lie off this end), and only away from the piece from the end of a shorter one (module
     doc, "Short pieces")."""
@@ -508,11 +541,12 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
         mine = next(v for v in views if v.name == piece.view)
         at_start = np.linalg.norm(end - piece.points[0]) <= np.linalg.norm(end - piece.points[-1])
         away = (-1 if at_start else 1) * outline_sense(mine)
-    for v in views:
+    for n, v in enumerate(views):
         d = np.linalg.norm(v.points - end, axis=1)
         k = int(np.argmin(d))
         if d[k] > LINK_M:
             continue
+        back = None if behind is None else np.asarray(behind[n], bool)
         if short:
             step = int(away * outline_sense(v))
             if v.name != piece.view and _leaving_step(v, k, trees[own]) == -step:
@@ -522,6 +556,8 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
             steps = (1, -1)
         for step in steps:
             for j in _walk(v, k, step, OUTLINE_BRIDGE_M):
+                if back is not None and back[j]:
+                    break
                 hit = hits(v.points[j])
                 if hit:
                     return hit
@@ -581,11 +617,14 @@ def _merge_points(ps: list[Piece]) -> np.ndarray:
 
 
 def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | None = None,
-           refuted: list[np.ndarray] | None = None) -> BoundaryVerdict:
+           refuted: list[np.ndarray] | None = None, behind: list[np.ndarray] | None = None) -> BoundaryVerdict:
     """Confirm, cut into pieces, link the pieces' ends and decide (see module doc).
 
     ``refuted``: per pose, (N,) points to count as unconfirmed although a pair confirmed them
     (``refutation.refute``); recorded in ``BoundaryVerdict.refuted``.
+    ``behind``: per pose, (N,) True where that pose sees its outline point from behind the sheet
+    (``sides``): no piece is bridged, and no outline walked, across such a point (module doc,
+    "Bridges").
     ``model`` (a ``surface_model.SurfaceModel``) is accepted for the facing shortcut of ``confirm``
     but not used: the outline membranes cut chords under a bend, so their normals near an
     occluding contour are wrong, and the shortcut confirmed contours of a 300-degree curl as edges
@@ -597,11 +636,12 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
         confirmed = confirm(views)
     if refuted is not None:
         confirmed = [c & ~r for c, r in zip(confirmed, refuted)]
-    return replace(_decide(views, confirmed), refuted=tuple(refuted) if refuted is not None else ())
+    return replace(_decide(views, confirmed, behind), refuted=tuple(refuted) if refuted is not None else ())
 
 
-def _decide(views: list[ViewOutline], confirmed: list[np.ndarray]) -> BoundaryVerdict:
-    ps = pieces(views, confirmed)
+def _decide(views: list[ViewOutline], confirmed: list[np.ndarray],
+            behind: list[np.ndarray] | None = None) -> BoundaryVerdict:
+    ps = pieces(views, confirmed, behind)
     if not ps:
         return BoundaryVerdict(False, (), (), _unconfirmed(views, confirmed, []), np.zeros((0, 3)), 0,
                                "no outline point was confirmed by a second pose", tuple(confirmed))
@@ -621,7 +661,7 @@ def _decide(views: list[ViewOutline], confirmed: list[np.ndarray]) -> BoundaryVe
             continue
         for at_start in (True, False):
             end = p.points[0] if at_start else p.points[-1]
-            links = _linked(end, i, trees, ps, views, index)
+            links = _linked(end, i, trees, ps, views, index, behind)
             for j in links:
                 parent[find(i)] = find(j)
             if not links:

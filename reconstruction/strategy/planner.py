@@ -43,7 +43,7 @@ either way about the stretch's direction, the turn that slides an occluding cont
 edge in place. Then the paper's cure 1 and cure 2 (from the stage-3 reconstruction's most bending
 curve, when it has one), further turns of the stage-2 pose (about ``g``, ``e`` and the two
 diagonals) and poses on a dome over the boundary centre (``dome_views``: every 30 degrees of
-azimuth at 20 to 75 degrees from the vertical). Each candidate is checked against the
+azimuth at 20, 40, 50, 60 and 75 degrees from the vertical). Each candidate is checked against the
 reconstructed surface model (``_Targets.check``), before anything is rendered:
 
 * which gaps' stretches it would *confirm* (``_predict``): at least half of the measured points
@@ -160,7 +160,11 @@ PREDICT_MARGIN_RAD = float(np.radians(5.0))  # predicted confirmations need the 
 OUTSIDE_PX = 4.0  # the point just outside the plate beside a measured outline point, in its pose's image
 STEEP_RAD = float(np.radians(MATCH_STEEP_DEG)) + PREDICT_MARGIN_RAD  # an edge row-matched by a candidate
 BASELINE_STEPS = 12  # baselines tried per candidate, evenly over half a turn about its centre line
-DOME_TILTS_DEG = (20.0, 40.0, 60.0, 75.0)  # dome_views: tilts from the vertical ...
+# dome_views: tilts from the vertical ... 50 as well as 60 and 75: a fold's flap hanging 120 degrees down
+# leans back under the plate, its front facing 30 degrees below the horizon, so only views 45 degrees
+# or more from the vertical see it FRONT_MARGIN_RAD above the sheet; its tip edge is confirmed by two
+# of them turned CONFIRM_SLIDE_ANGLE_RAD apart about it, which 60 and 75 (15 apart) are not
+DOME_TILTS_DEG = (20.0, 40.0, 50.0, 60.0, 75.0)
 DOME_AZIMUTH_STEP_DEG = 30.0  # ... at this azimuth step
 SILHOUETTE_REACH_M = 0.3  # a ray past an edge meets no measured surface this far on: the edge is on the outline
 TARGETED_TURNS_DEG = (35.0, 50.0)  # turns about the measured edge beyond a gap (targeted_views) ...

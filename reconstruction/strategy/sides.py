@@ -90,6 +90,11 @@ JET_MIN_POINTS = 8
 JET_MIN_SPREAD_M = 3e-3
 JET_MAX_RMS_M = 0.5e-3  # above the centres' own depth noise (0.15-0.30 mm RMS on the study's renders)
 JET_MAX_TURN_RAD = float(np.radians(45.0))
+# A quadric is read up to JET_REACH_M from its centre (a tangent plane up to SIDE_RADIUS_M): its own
+# sheet test and turn limit, not the reach, bound where it holds. The steep ends of a 160-degree curl
+# at aspect 3 (radius 57 mm) lay 25-35 mm from the nearest centre in most verification views: with a
+# 25 mm reach no pair knew their front and the loop took cures where nothing was hidden.
+JET_REACH_M = 35e-3
 SPARSE_GRID_MAX_SQUARES = 24  # a projected grid of at most this many squares is sparse (the paper's: 16; the bench's: 72)
 SPARSE_FIT_M = 20e-3  # ``sparse_front_side``: normals fitted over this radius; sides read ...
 SPARSE_JOIN_M = 25e-3  # ... centres joined this far apart (a pose's squares lie about 16 mm apart) ...
@@ -117,9 +122,9 @@ class FrontSide:
         """(N,3) the front's unit normal at ``points`` (N,3): that of the nearest oriented surface
         point within ``radius_m`` whose tangent plane passes within ``same_sheet_m`` of the
         point (on a tight fold the nearest measured point can lie on the other face); where there
-        is none, the normal of the nearest one's osculating quadric (``jets``) at the point, where
-        the point lies within ``same_sheet_m`` of it (module doc, ``JET_RADIUS_M``); where there is
-        none, the ``fallback``'s; NaN where none has one."""
+        is none, the normal at the point of the osculating quadric (``jets``) of the nearest oriented
+        point within ``JET_REACH_M`` whose quadric passes within ``same_sheet_m`` of it (module doc,
+        ``JET_RADIUS_M``); where there is none, the ``fallback``'s; NaN where none has one."""
         P = np.atleast_2d(np.asarray(points, float))
         out = self._own_normals_at(P)
         if self.fallback is not None:
@@ -134,11 +139,13 @@ class FrontSide:
             return out
         S, N = self.points[self.known], self.normals[self.known]
         k = min(SIDE_CANDIDATES, len(S))
-        d, i = cKDTree(S).query(P, k=k, distance_upper_bound=self.radius_m)
+        reach = max(self.radius_m, JET_REACH_M) if self.jets is not None else self.radius_m
+        d, i = cKDTree(S).query(P, k=k, distance_upper_bound=reach)
         d, i = d.reshape(len(P), k), i.reshape(len(P), k)
         ok = np.isfinite(d)
         ii = np.where(ok, i, 0)
-        on_sheet = ok & (np.abs(np.einsum("nkj,nkj->nk", N[ii], P[:, None, :] - S[ii])) <= self.same_sheet_m)
+        on_sheet = ok & (d <= self.radius_m) & (
+            np.abs(np.einsum("nkj,nkj->nk", N[ii], P[:, None, :] - S[ii])) <= self.same_sheet_m)
         has = on_sheet.any(axis=1)
         out[has] = N[ii[np.arange(len(P)), np.argmax(on_sheet, axis=1)]][has]
         if self.jets is not None and not has.all():

@@ -335,9 +335,11 @@ class Measurements:
         self._merged = None
         self.model = SurfaceModel.build(self.surfaces)
         self.front = self.front_side()
-        confirmed = confirm(self.outlines, front=[both_cameras_side(self.front, o) >= 0 for o in self.outlines],
+        sides = [both_cameras_side(self.front, o) for o in self.outlines]
+        confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(self.front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
-        self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
+        self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes),
+                              behind=[sd < 0 for sd in sides])
         return self.verdict
 
     def front_checked(self) -> tuple[bool, str, float, tuple]:
@@ -374,7 +376,8 @@ class Measurements:
         sides = [both_cameras_side(front, o) for o in self.outlines]
         confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
-        again = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes))
+        again = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes),
+                       behind=[sd < 0 for sd in sides])
         if again.verified:
             return True, (f"{again.reason}, each piece seen from the plate's front (oriented from the {n} sparse "
                           f"square centres, known at {share:.0%} of the boundary)"), share, ()
