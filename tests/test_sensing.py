@@ -116,6 +116,12 @@ def test_L_formula_predicts_ground_truth_visibility_distance():
 def test_sense_cli_refuses_bad_flags(tmp_path):
     p = run_cli("sense", "--out", tmp_path / "s", "--workspace-mm", "0")
     assert p.returncode == 2 and "--workspace-mm = 0.0 is out of range" in p.stderr
+    from platebench.reconstruction.strategy.planner import MAX_CURE_VIEWS, MAX_CURES_ALLOWED
+    assert MAX_CURES_ALLOWED >= MAX_CURE_VIEWS  # the default is allowed
+    for bad in (-1, MAX_CURES_ALLOWED + 1):
+        p = run_cli("sense", "--out", tmp_path / "s", "--max-cures", str(bad))
+        assert p.returncode == 2 and f"--max-cures = {bad} is out of range: allowed 0 to {MAX_CURES_ALLOWED}" \
+            in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
     p = run_cli("study", "false-boundary", "--out", tmp_path / "t", "--bend", "0:400:10")
     assert p.returncode == 2 and "--bend value 360 is out of range: allowed 0 to 350" in p.stderr
     for bad, words in (("45x4@20", "--verify-grid ROWS = 45 is out of range: allowed 1 to 40"),

@@ -29,8 +29,10 @@ def add_parser(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--overwrite", action="store_true", help="replace a sensing run 'platebench sense' wrote "
                    "(nothing else is replaced)")
+    from platebench.reconstruction.strategy.planner import MAX_CURES_ALLOWED  # noqa: PLC0415
+
     p.add_argument("--max-cures", type=int, default=SensingOptions.max_cures,
-                   help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to 20)")
+                   help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to {MAX_CURES_ALLOWED})")
     p.add_argument("--workspace-mm", type=float, default=150.0,
                    help="radius of the workspace stage 1 must cover, in MILLIMETRES (default 150)")
     add_verify_grid_flag(p)
@@ -176,13 +178,19 @@ def grid_text(desc: dict | None) -> str:
 def run(args) -> int:
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
+    from platebench.reconstruction.strategy.planner import (  # noqa: PLC0415
+        MAX_CURE_VIEWS,
+        MAX_CURES_ALLOWED,
+        MAX_VIEWS,
+    )
 
     cfg = config_from_args(args)
     if not (10 <= args.workspace_mm <= 2000):
         raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
-    if not (0 <= args.max_cures <= 20):
-        raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to 20")
+    if not (0 <= args.max_cures <= MAX_CURES_ALLOWED):
+        raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to {MAX_CURES_ALLOWED}")
     opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures,
+                          max_views=MAX_VIEWS - MAX_CURE_VIEWS + args.max_cures,
                           verify_grid=verify_grid_arg(args.verify_grid))
     # the output rule (bench.io.outputs) before the first render; staged, replaced only once complete
     with output_dir(args.out, "sensing run", overwrite=args.overwrite, inputs=[args.config]) as stage:
