@@ -20,6 +20,12 @@ Three things could lose it, or cut a step in half; all are closed here:
   again at the next stage boundary, and ``exit_status()`` turns a command that went on to the
   end into 130 / 143 all the same (its completed outputs are kept, as after any interrupt).
 
+An interrupt can also cut a library object half-way through its constructor (pyparsing's ``Forward``,
+built when matplotlib first lays out text, had no ``expr`` yet), and that object's ``__del__`` then
+fails when the collector meets it: "Exception ignored in ... __del__" on the terminal of a command that
+ended cleanly. Once a signal was raised, such finaliser errors are dropped (``_unraisable``); before
+one, Python reports them as always.
+
 Once the command has its exit status (``finish``), a signal is only recorded: it cannot break the
 way out (threads joined, files closed), and the process still exits 130 / 143 (an ``atexit`` hook);
 a second one ends the process at once, with the same status. So does a second signal while the
@@ -155,7 +161,19 @@ def install(whole_process: bool = False) -> bool:
     if _STATE["installed"] and not _STATE["atexit"]:
         atexit.register(_exit_late)
         _STATE["atexit"] = True
+    if _STATE["installed"] and sys.unraisablehook is not _unraisable:
+        _STATE["unraisablehook"] = sys.unraisablehook
+        sys.unraisablehook = _unraisable
     return _STATE["installed"]
+
+
+def _unraisable(u) -> None:
+    """``sys.unraisablehook`` while installed: after a signal was raised, an exception in a ``__del__``
+    is dropped (an object the interrupt cut in its constructor, module doc); anything else goes to the
+    hook that was there before."""
+    if _STATE["raised"] and getattr(u.object, "__name__", None) == "__del__":
+        return
+    _STATE.get("unraisablehook", sys.__unraisablehook__)(u)
 
 
 def uninstall() -> None:
@@ -168,6 +186,8 @@ def uninstall() -> None:
         for s, h in previous.items():
             with contextlib.suppress(ValueError, OSError, TypeError):
                 signal.signal(s, h if h is not None else signal.SIG_DFL)
+    if sys.unraisablehook is _unraisable:
+        sys.unraisablehook = _STATE.pop("unraisablehook", sys.__unraisablehook__)
     _STATE["installed"] = False
 
 

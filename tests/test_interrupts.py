@@ -166,6 +166,47 @@ def test_a_signal_swallowed_at_run_time_still_ends_the_command_130(tmp_path):
                                                         "partial ones removed")
 
 
+HALF_BUILT = textwrap.dedent('''
+    import gc, os, signal, sys, time
+    from platebench.bench import interrupts
+    interrupts.install()
+    class Grammar:  # what pyparsing's Forward does: __del__ reads an attribute __init__ sets last
+        def __init__(self, signal_now):
+            if signal_now:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.2)
+            self.expr = None
+        def __del__(self):
+            self.expr is None
+    signal_now = sys.argv[1] == "signal"
+    try:
+        if not signal_now:
+            g = Grammar(False)
+            del g.expr
+            del g  # a finaliser failing with no interrupt: Python reports it
+        Grammar(signal_now)
+        print("no interrupt", flush=True)
+    except KeyboardInterrupt:
+        gc.collect()
+        print("interrupted", flush=True)
+        sys.exit(interrupts.exit_status())
+''')
+
+
+@pytest.mark.parametrize("case", ["signal", "no signal"])
+def test_an_object_the_interrupt_cut_in_its_constructor_fails_its_finaliser_quietly(case):
+    """After an interrupt, a finaliser of a half-built object raises: nothing on the terminal, exit 130.
+    Without one, a failing finaliser is still reported (the hook hides nothing else)."""
+    r = subprocess.run([sys.executable, "-c", HALF_BUILT, case], cwd=REPO, capture_output=True, text=True,
+                       timeout=60)
+    if case == "signal":
+        assert r.stdout.strip() == "interrupted" and r.returncode == 130, (r.stdout, r.stderr)
+        assert "Exception ignored" not in r.stderr and "Traceback" not in r.stderr, r.stderr
+    else:
+        assert r.stdout.strip() == "no interrupt" and r.returncode == 0, (r.stdout, r.stderr)
+        assert "Exception ignored" in r.stderr and "AttributeError" in r.stderr, r.stderr
+
+
 def test_every_critical_section_names_a_function():
     import importlib
     from platebench.bench.interrupts import CRITICAL
