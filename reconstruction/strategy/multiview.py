@@ -379,23 +379,23 @@ def pieces(views: list[ViewOutline], confirmed: list[np.ndarray],
         for r in cyclic_runs(c):
             if arc[r[:-1]].sum() >= MIN_PIECE_M:
                 keep[r] = True
-        j = keep.copy()
+        bridged = keep.copy()
         back = np.zeros(len(c), bool) if behind is None else np.asarray(behind[k], bool)
         for r in (cyclic_runs(~keep) if keep.any() else []):
             if arc[np.concatenate([[r[0] - 1], r])].sum() <= BRIDGE_M:
                 if back[r].any():
                     refused.append((k, r))
                 else:
-                    j[r] = True
-        joined.append(j)
+                    bridged[r] = True
+        joined.append(bridged)
     if refused:
-        first = [j.copy() for j in joined]
+        first = [b.copy() for b in joined]
         trees = [cKDTree(v.points) for v in views]
         for k, r in refused:
             Q = views[k].points[r]
-            for j in range(len(views)):
-                d, i = trees[j].query(Q)
-                if j != k and (d <= LINK_M).all() and first[j][i].all():
+            for other, tree in enumerate(trees):
+                d, i = tree.query(Q)
+                if other != k and (d <= LINK_M).all() and first[other][i].all():
                     joined[k][r] = True
                     break
     return _cut(views, joined)
