@@ -113,6 +113,17 @@ def test_L_formula_predicts_ground_truth_visibility_distance():
     assert gt / (L + ab_height) == pytest.approx(1.0, abs=0.05)
 
 
+def test_view_budget_follows_the_cure_budget():
+    """A library caller's ``SensingOptions(max_cures=N)`` gets room for N cures beside stage 2 and every
+    verification view, as ``sense --max-cures N`` does; an explicit ``max_views`` is kept."""
+    from platebench.bench.run.sensing import SensingOptions
+    from platebench.reconstruction.strategy.planner import MAX_CURE_VIEWS, MAX_VIEWS, VERIFY_TURNS_DEG
+    assert SensingOptions().max_views == MAX_VIEWS
+    for cures in (0, 7, MAX_CURE_VIEWS, MAX_CURE_VIEWS + 6):
+        assert SensingOptions(max_cures=cures).max_views == 1 + len(VERIFY_TURNS_DEG) + cures
+    assert SensingOptions(max_cures=30, max_views=12).max_views == 12
+
+
 def test_sense_cli_refuses_bad_flags(tmp_path):
     p = run_cli("sense", "--out", tmp_path / "s", "--workspace-mm", "0")
     assert p.returncode == 2 and "--workspace-mm = 0.0 is out of range" in p.stderr

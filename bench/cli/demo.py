@@ -95,7 +95,7 @@ def _run(args, out: Path, final: Path) -> int:
     print("\n== 2. the sensing loop (paper IV-B, V-B; verification views) on the reference plate")
     from platebench.bench.cli.sense import step_lines, summary_lines  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
-    with bar(4 + SensingOptions.max_views, "sense") as pbar:
+    with bar(4 + SensingOptions().max_views, "sense") as pbar:
         s = run_sensing(SampleConfig(), out / "sensing", progress=step_callback(pbar))
     for line in step_lines(s) + summary_lines(s):
         print(line)

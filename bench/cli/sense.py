@@ -178,11 +178,7 @@ def grid_text(desc: dict | None) -> str:
 def run(args) -> int:
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
-    from platebench.reconstruction.strategy.planner import (  # noqa: PLC0415
-        MAX_CURE_VIEWS,
-        MAX_CURES_ALLOWED,
-        MAX_VIEWS,
-    )
+    from platebench.reconstruction.strategy.planner import MAX_CURES_ALLOWED  # noqa: PLC0415
 
     cfg = config_from_args(args)
     if not (10 <= args.workspace_mm <= 2000):
@@ -190,7 +186,6 @@ def run(args) -> int:
     if not (0 <= args.max_cures <= MAX_CURES_ALLOWED):
         raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to {MAX_CURES_ALLOWED}")
     opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures,
-                          max_views=MAX_VIEWS - MAX_CURE_VIEWS + args.max_cures,
                           verify_grid=verify_grid_arg(args.verify_grid))
     # the output rule (bench.io.outputs) before the first render; staged, replaced only once complete
     with output_dir(args.out, "sensing run", overwrite=args.overwrite, inputs=[args.config]) as stage:

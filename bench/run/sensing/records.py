@@ -82,7 +82,9 @@ class SensingOptions:
     # None: at the cameras' distance (a fixed far projector shrinks its squares when cameras move).
     projector_distance_m: float | None = None
     max_cures: int = MAX_CURE_VIEWS  # cure poses at most
-    max_views: int = MAX_VIEWS  # measuring poses at most (stage 2, verification, cures)
+    # Measuring poses at most (stage 2, verification, cures); None: derived from ``max_cures`` (stage 2,
+    # every verification view and ``max_cures`` cures: ``MAX_VIEWS`` at the default budget).
+    max_views: int | None = None
     verification: bool = True  # False: the paper's loop alone (stages 1-3, no verification views)
     # Every later measuring pose also projects the square grid (projector beside the rig,
     # ``active_views.projector_pose``) and measures its centres: the merged reconstruction's points
@@ -99,6 +101,10 @@ class SensingOptions:
     # A real rig (``cfg.realism`` not ideal): the corner-localisation noise of its calibration views
     # (px; ``bench.run.realism.RealismSetup``); None: measured on renders at the start of the run.
     corner_noise_px: float | None = None
+
+    def __post_init__(self):
+        if self.max_views is None:
+            object.__setattr__(self, "max_views", MAX_VIEWS - MAX_CURE_VIEWS + int(self.max_cures))
 
 
 @dataclass(frozen=True)
