@@ -136,3 +136,27 @@ def test_the_paper_corner_method_runs_in_the_study_and_is_recorded(tmp_path):
     assert study.to_dict()["settings"]["corners"] == "pixels"
     from platebench.bench.io.accuracy_records import AccuracySettings as Settings
     assert Settings.from_dict({**study.settings.to_dict(), "corners": "pixels"}).corners == "pixels"
+
+
+def test_realism_scale_scales_a_source_and_refuses_what_is_not_one(tmp_path):
+    """``--realism-scale robot_accuracy=4``: the arm's kinematic spread is four times the sourced one
+    (the robot model, not a label); a source the preset does not have, a value that is no number or out
+    of range: one-line errors, exit 2, nothing written."""
+    from platebench.bench.cli.study import with_scales
+    from platebench.bench.config import SampleConfig
+    from platebench.bench.config.presets import with_realism
+    from platebench.bench.run.realism import RealismSetup
+
+    base = REALISM_PRESETS["1995"]
+    scaled = with_scales(base, "robot_accuracy=4, noise=0.5")
+    assert scaled.scales == {"noise": 0.5, "robot_accuracy": 4.0}
+    models = [RealismSetup.prepare(r, with_realism(SampleConfig(), r), corner_noise_px=0.15).robot_model
+              for r in (base, scaled)]
+    assert models[1].sigma_length_m == pytest.approx(4 * models[0].sigma_length_m)
+    assert models[1].sigma_angle_rad == pytest.approx(4 * models[0].sigma_angle_rad)
+    assert models[1].joint_sigma_rad == pytest.approx(models[0].joint_sigma_rad)
+    for bad, words in (("robot_accuracy=x", "is not a number"), ("dust=2", "is not on in realism 1995"),
+                       ("robot_accuracy=-1", "out of range: allowed 0 to"), ("robot_accuracy", "is not SOURCE=F")):
+        p = run_cli("study", "accuracy", "--out", tmp_path / "a", "--realism-scale", bad)
+        assert p.returncode == 2 and words in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+        assert not (tmp_path / "a").exists()

@@ -108,6 +108,10 @@ def add_parser(sub) -> None:
                         "preset each plate's poses are taken by the robot with its errors (one draw per plate: --seed "
                         "plus the CRC-32 of its name, recorded in each row) and the loop measures and merges through "
                         "the commanded poses and the estimated hand/eye and calibration")
+    a.add_argument("--realism-scale", default=None, metavar="SOURCE=F[,SOURCE=F]",
+                   help="accuracy: scale error sources of --realism from their sourced magnitude (1 = as sourced; "
+                        "allowed 0 to the realism module's maximum), e.g. robot_accuracy=4 for an arm four times "
+                        "less accurate than the figure the preset cites; recorded in accuracy.json's settings")
     a.add_argument("--draws", type=int, default=30,
                    help="Monte Carlo draws per budget row (default 30; allowed 1 to 1000): each draws new robot "
                         "errors, a new hand/eye and intrinsics estimate, new line jitter and sensor noise; draw k "
@@ -247,6 +251,30 @@ MAX_DRAWS = 1000
 ACCURACY_SPP = 16  # the no-source floor of the block's corners: 0.74 mm at spp 4, 0.33 at 16, 0.22 at 64 (8 draws)
 
 
+def with_scales(realism, text: str):
+    """``realism`` with the scales of ``--realism-scale`` ('SOURCE=F,SOURCE=F'); one-line errors name
+    the value and what is allowed."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    from platebench.bench.config.realism import SOURCES  # noqa: PLC0415
+
+    scales = {}
+    for item in (t.strip() for t in text.split(",")):
+        name, eq, value = item.partition("=")
+        if not eq:
+            raise UserValueError(f"--realism-scale item {item!r} is not SOURCE=F (e.g. robot_accuracy=4)")
+        try:
+            f = float(value)
+        except ValueError:
+            raise UserValueError(f"--realism-scale {name.strip()} = {value!r} is not a number") from None
+        name = name.strip()
+        if name not in realism.sources:
+            raise UserValueError(f"--realism-scale source {name!r} is not on in realism {realism.name}: allowed "
+                                 + ", ".join(s for s in SOURCES if s in realism.sources))
+        scales[name] = f
+    return replace(realism, scales={**realism.scales, **scales})
+
+
 def run_accuracy(args) -> int:
     from platebench.bench.config.realism import realism_preset  # noqa: PLC0415
     from platebench.bench.io.atomic import write_json, write_text  # noqa: PLC0415
@@ -257,6 +285,8 @@ def run_accuracy(args) -> int:
     from platebench.bench.run.accuracy import accuracy_csv  # noqa: PLC0415
 
     realism = realism_preset(args.realism or "1995")
+    if args.realism_scale:
+        realism = with_scales(realism, args.realism_scale)
     if not (1 <= args.draws <= MAX_DRAWS):
         raise UserValueError(f"--draws = {args.draws} is out of range: allowed 1 to {MAX_DRAWS}")
     targets = tuple(t.strip() for t in args.targets.split(",") if t.strip())
@@ -319,6 +349,8 @@ def accuracy_lines(study) -> list[str]:
            f"fx/fy {cam.fx_px:.1f}/{cam.fy_px:.1f} px, baseline {cam.baseline_m * 1e3:.0f} mm, distance "
            f"{cam.distance_m * 1e3:.0f} mm; {st.draws} draws per row; paper (V-D): depth <= "
            f"{paper.depth_mm:g} mm, x/y <= {paper.xy_mm:g} mm (one trial's worst corner)"]
+    if st.realism.scales:
+        out.append("scaled from the sourced magnitudes: " + ", ".join(f"{k} x{v:g}" for k, v in st.realism.scales.items()))
     if "block" in study.summary:
         out.append("block corners: " + ("the vertices of the polygon fitted to the square's binary outline, on the "
                                         "pixel grid (the paper's method, its [11])" if st.corners == "pixels" else
