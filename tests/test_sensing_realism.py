@@ -90,6 +90,16 @@ def test_sense_under_the_1995_rig_measures_through_the_commanded_poses(tmp_path)
     assert dp == pytest.approx(stage2["left_position_error_m"], rel=1e-6)
     assert doc["final"]["outcome"] != "silent"
     assert "realism     1995 (draw 3)" in p.stdout and "moves" in p.stdout
+    # the loop knows how far its poses disagree from its own hand/eye residuals (not the truth), and moved
+    # each pose's outline onto the others' (``registration``): by millimetres, as the moves were off
+    spread = acq["pose_spread"]
+    assert spread["translation_rms_mm"] == pytest.approx(he["residual_translation_rms_m"] * 1e3, abs=1e-3)
+    reg = acq["registration_mm"]
+    mv = np.load(out / "multiview.npz")
+    assert sorted(reg) == sorted(mv["view_names"].tolist())
+    shift = np.linalg.norm(np.array(list(reg.values())), axis=1)
+    assert 0.05 < np.median(shift) < 3 * np.median(pos) * 1e3 + 1.0, shift
+    assert "registered" in p.stdout
 
 
 def test_realism_flags_of_sense_and_study_refuse_bad_values(tmp_path):

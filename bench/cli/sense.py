@@ -162,6 +162,18 @@ def realism_lines(s: SensingResult) -> list[str]:
         out.append(f"  moves       {len(moves)}: cameras really posed {np.median(pos):.3f} mm (max {pos.max():.3f}), "
                    f"{np.median(rot):.3f} mrad (max {rot.max():.3f}) from the commanded poses (median); the loop "
                    f"measured at the commanded poses; cell turned for {turned} of them")
+    sp = acq.get("pose_spread")
+    if sp is not None:
+        out.append(f"  pose spread {sp['translation_rms_mm']:.2f} mm, {sp['rotation_rms_mrad']:.2f} mrad RMS (the hand/eye "
+                   f"calibration's residuals): the poses were registered on edges they put within "
+                   f"{sp['match_tol_mm_at_0.40_m']:.2f} mm of each other at 0.40 m")
+        reg = acq.get("registration_mm") or {}
+        if reg:
+            import numpy as np  # noqa: PLC0415
+
+            n = np.linalg.norm(np.array(list(reg.values())), axis=1)
+            out.append(f"  registered  {len(n)} poses moved {np.median(n):.2f} mm (median, max {n.max():.2f}) onto "
+                       f"their common edges (sensing.json: acquisition.registration_mm)")
     return out
 
 

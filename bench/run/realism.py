@@ -48,6 +48,7 @@ from platebench.reconstruction.calibration.stereo import (
     calibrate_camera,
     distortion_is_needed,
 )
+from platebench.reconstruction.strategy.multiview import PoseSpread
 from platebench.scenes.camera import Camera, look_at_rotation
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.rig import PosedPair, StereoRig
@@ -193,6 +194,16 @@ class RigDraw:
     def moves_camera(self) -> bool:
         """True when the cameras really posed are not the commanded ones (a robot, or an estimated mount)."""
         return not self.exact and (self.robot is not None or self.realism.on("hand_eye"))
+
+    @property
+    def pose_spread(self) -> PoseSpread | None:
+        """How far this rig's poses disagree as its own hand/eye calibration measured it (the RMS
+        residuals of its relative motions, ``multiview.PoseSpread``); None when no hand/eye calibration
+        was made (``exact``, or the mount told as it is)."""
+        he = self.report.hand_eye
+        if self.exact or he is None:
+            return None
+        return PoseSpread(he.residual_translation_rms_m, he.residual_rotation_rms_rad)
 
     def eye(self) -> EyeInHand:
         """The camera on the flange: its true mount and the mount the method believes in."""

@@ -135,20 +135,24 @@ def free_space_faces(membranes: list, views: list[ViewOutline], poses_needed: in
 
 
 def refute(views: list[ViewOutline], confirmed: list[np.ndarray], meshes: list,
-           poses_needed: int = REFUTE_POSES) -> list[np.ndarray]:
+           poses_needed: int = REFUTE_POSES, shifts: np.ndarray | None = None) -> list[np.ndarray]:
     """Per pose, (N,) bool: the confirmed points that at least ``poses_needed`` other poses see as
     the inside of the plate (module doc). ``meshes``: each view's membrane as ``membrane_mesh``
     made it, in the same order (built once per pose by the caller: trimesh keeps its ray-casting
-    structure with the mesh)."""
+    structure with the mesh). ``shifts``: (V,3) metres, the poses' registration
+    (``registration.register_translations``) when ``confirmed`` was found on the registered
+    outlines: pose k's point moved by its shift is looked at from pose m's own frame (less m's
+    shift), where m's outline, camera and mesh stay."""
     if len(meshes) != len(views):
         raise ValueError(f"refute: {len(meshes)} membrane meshes for {len(views)} views; one per view is needed")
+    S = np.zeros((len(views), 3)) if shifts is None else np.asarray(shifts, float)
     out = []
     for k, (v, c) in enumerate(zip(views, confirmed)):
         idx = np.nonzero(c)[0]
         count = np.zeros(len(idx), int)
         for m, (vm, mesh) in enumerate(zip(views, meshes)):
             if m != k and len(idx):
-                count += seen_inside(v.points[idx], vm, mesh)
+                count += seen_inside(v.points[idx] + (S[k] - S[m]), vm, mesh)
         r = np.zeros(len(c), bool)
         r[idx[count >= poses_needed]] = True
         out.append(r)

@@ -85,7 +85,8 @@ from platebench.reconstruction.strategy.detectors import (
     paper_tests,
     viewpoint_consistency,
 )
-from platebench.reconstruction.strategy.multiview import BoundaryVerdict, ViewOutline, confirm, verify
+from platebench.reconstruction.strategy.multiview import BoundaryVerdict, PoseSpread, ViewOutline, confirm, verify
+from platebench.reconstruction.strategy.registration import register_translations
 from platebench.reconstruction.strategy.planner import (
     FRONT_MARGIN_RAD,
     Decision,
@@ -265,7 +266,13 @@ class Measurements:
     square centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
     the sheet neither confirms nor is confirmed."""
 
-    def __init__(self, first: FirstStages, rays_for, active_views: bool = True, verify_squares: int | None = None):
+    def __init__(self, first: FirstStages, rays_for, active_views: bool = True, verify_squares: int | None = None,
+                 spread: PoseSpread | None = None):
+        # on a real rig, how far its poses disagree as its own calibration measured it; the poses are
+        # then registered on their common edges before the verdict (``registration``)
+        self.spread = spread
+        self.shifts = np.zeros((0, 3))  # (V,3) metres: each pose's registration (``update``)
+        self._registered: list[ViewOutline] = []
         # the squares of the grid the later poses project (``verify_squares``), else stage 3's
         self.squares = verify_squares if active_views and verify_squares is not None \
             else len(first.sample3.scene.projector.pattern.features)
@@ -281,7 +288,10 @@ class Measurements:
 
     @property
     def outlines(self) -> list[ViewOutline]:
-        return [v.outline for v in self.views]
+        """Each pose's outline, registered (``registration``) as of the last ``update`` on a real rig;
+        a pose measured since then as measured."""
+        reg = self._registered
+        return [reg[i] if i < len(reg) else v.outline for i, v in enumerate(self.views)]
 
     @property
     def poses(self) -> list[SensorPose]:
@@ -302,10 +312,14 @@ class Measurements:
         pose's surface, the faces no two other poses saw as background (``refutation.free_space_faces``:
         a mismatched stretch of outline off the plate)."""
         if self._merged is None:  # once per verdict (scored, then written)
-            keep = free_space_faces(self.surfaces, self.outlines)
-            surfaces = [replace(s, faces=np.asarray(s.faces, int).reshape(-1, 3)[k])
-                        for s, k in zip(self.surfaces, keep)]
-            self._merged = merge(self.verdict.merged, self.actives, surfaces)
+            keep = free_space_faces(self.surfaces, [v.outline for v in self.views])  # each pose in its own frame
+            S = self.shifts if len(self.shifts) == len(self.views) else np.zeros((len(self.views), 3))
+            # then every pose's surface and centres moved by its registration, as its outline was
+            surfaces = [replace(s, vertices=np.asarray(s.vertices) + S[i], camera_center=s.camera_center + S[i],
+                                faces=np.asarray(s.faces, int).reshape(-1, 3)[k])
+                        for i, (s, k) in enumerate(zip(self.surfaces, keep))]
+            actives = [replace(a, points=np.asarray(a.points).reshape(-1, 3) + S[i]) for i, a in enumerate(self.actives)]
+            self._merged = merge(self.verdict.merged, actives, surfaces)
         return self._merged
 
     def add(self, view: PassiveView) -> None:
@@ -335,11 +349,18 @@ class Measurements:
         self._merged = None
         self.model = SurfaceModel.build(self.surfaces)
         self.front = self.front_side()
+        raw = [v.outline for v in self.views]
+        if self.spread is not None:  # a real rig: its poses brought into one frame on their common edges
+            self.shifts = register_translations(raw, self.spread,
+                                                [both_cameras_side(self.front, o) >= 0 for o in raw])
+            self._registered = [o.translated(s) for o, s in zip(raw, self.shifts)]
+        else:
+            self.shifts = np.zeros((len(raw), 3))
         sides = [both_cameras_side(self.front, o) for o in self.outlines]
         confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(self.front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
-        self.verdict = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes),
-                              behind=[sd < 0 for sd in sides])
+        self.verdict = verify(self.outlines, self.model, confirmed,
+                              refute(raw, confirmed, self.meshes, shifts=self.shifts), behind=[sd < 0 for sd in sides])
         return self.verdict
 
     def front_checked(self) -> tuple[bool, str, float, tuple]:
@@ -376,7 +397,8 @@ class Measurements:
         sides = [both_cameras_side(front, o) for o in self.outlines]
         confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
-        again = verify(self.outlines, self.model, confirmed, refute(self.outlines, confirmed, self.meshes),
+        again = verify(self.outlines, self.model, confirmed,
+                       refute([v.outline for v in self.views], confirmed, self.meshes, shifts=self.shifts),
                        behind=[sd < 0 for sd in sides])
         if again.verified:
             return True, (f"{again.reason}, each piece seen from the plate's front (oriented from the {n} sparse "
@@ -566,14 +588,15 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
         if first.rec is not None:
             write_reconstruction(Path(out) / "stage3" / "recon", first.rec, Path(out) / "stage3" / "sample",
                                  image_checksums(first.sample3.digital), overwrite=True)
-    m = Measurements(first, rays_for, options.active_views, len(sensor.verify_base.projector.pattern.features))
+    m = Measurements(first, rays_for, options.active_views, len(sensor.verify_base.projector.pattern.features),
+                     None if sensor.rig_draw is None else sensor.rig_draw.pose_spread)
     verif = verification_stage(sensor, first, m, options, steps, notes)
     dets = detectors(first, m)
     cures, cands = cure_stage(sensor, first, m, options, steps, notes)
     reach_poses = m.poses + [v.pose for v in verif] + [v.pose for v in cands]
     final = final_record(sensor, first, m, cures, reach_poses, options)
     result = SensingResult(cfg, tuple(steps), dets, verif, cures, m.verdict, final, tuple(notes),
-                           time.perf_counter() - t0, tuple(m.outlines), sensor.patterns, acquisition_record(sensor))
+                           time.perf_counter() - t0, tuple(m.outlines), sensor.patterns, acquisition_record(sensor, m))
     if out is not None:
         write_json(Path(out) / "sensing.json", result.to_dict())
         write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary),
@@ -581,14 +604,20 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     return result
 
 
-def acquisition_record(sensor: SimulatedSensor) -> dict | None:
+def acquisition_record(sensor: SimulatedSensor, m: Measurements | None = None) -> dict | None:
     """sensing.json's record of a real rig (None: ideal): the realism and its draw, what the draw's
     estimates missed by (``realism.RigDraw.report``), and every move: the view, the turn of the cell,
-    how far each camera really stood from its command (the loop knows only the command)."""
+    how far each camera really stood from its command (the loop knows only the command), and the
+    poses' spread (``multiview.PoseSpread``, from the rig's own hand/eye residuals; None: none
+    measured) with the translation that registered each pose's outline (``registration``; view name
+    -> mm, world frame) when ``m`` is given."""
     d = sensor.rig_draw
     if d is None:
         return None
-    return {"realism": d.realism.to_dict(), "estimates": d.report, "moves": list(sensor.moves)}
+    shifts = {} if m is None or d.pose_spread is None else {
+        v.name: [round(float(x) * 1e3, 3) for x in s] for v, s in zip(m.views, m.shifts)}
+    return {"realism": d.realism.to_dict(), "estimates": d.report, "moves": list(sensor.moves),
+            "pose_spread": None if d.pose_spread is None else d.pose_spread.to_dict(), "registration_mm": shifts}
 
 
 def write_multiview(path: Path, views: list[ViewOutline], verdict: BoundaryVerdict, true_boundary,
