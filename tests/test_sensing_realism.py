@@ -94,7 +94,7 @@ def test_sense_under_the_1995_rig_measures_through_the_commanded_poses(tmp_path)
     # each pose's outline onto the others' (``registration``): by millimetres, as the moves were off
     spread = acq["pose_spread"]
     assert spread["translation_rms_mm"] == pytest.approx(he["residual_translation_rms_m"] * 1e3, abs=1e-3)
-    reg = acq["registration_mm"]
+    reg = acq["registration"]
     mv = np.load(out / "multiview.npz")
     assert sorted(reg) == sorted(mv["view_names"].tolist())
     shift = np.linalg.norm(np.array(list(reg.values())), axis=1)

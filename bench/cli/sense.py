@@ -151,11 +151,11 @@ def realism_lines(s: SensingResult) -> list[str]:
     acq = s.acquisition
     if acq is None:
         return []
+    import numpy as np  # noqa: PLC0415
+
     out = acquisition_lines(s.config, acq["estimates"])
     moves = acq["moves"]
     if moves:
-        import numpy as np  # noqa: PLC0415
-
         pos = np.array([[m.views[c].position_error_m for c in ("left", "right")] for m in moves]) * 1e3
         rot = np.array([[m.views[c].rotation_error_rad for c in ("left", "right")] for m in moves]) * 1e3
         turned = sum(m.cell_turn_deg != 0 for m in moves)
@@ -164,16 +164,14 @@ def realism_lines(s: SensingResult) -> list[str]:
                    f"measured at the commanded poses; cell turned for {turned} of them")
     sp = acq.get("pose_spread")
     if sp is not None:
-        out.append(f"  pose spread {sp['translation_rms_mm']:.2f} mm, {sp['rotation_rms_mrad']:.2f} mrad RMS (the hand/eye "
+        out.append(f"  pose spread {sp.translation_m * 1e3:.2f} mm, {sp.rotation_rad * 1e3:.2f} mrad RMS (the hand/eye "
                    f"calibration's residuals): the poses were registered on edges they put within "
-                   f"{sp['match_tol_mm_at_0.40_m']:.2f} mm of each other at 0.40 m")
-        reg = acq.get("registration_mm") or {}
-        if reg:
-            import numpy as np  # noqa: PLC0415
-
-            n = np.linalg.norm(np.array(list(reg.values())), axis=1)
-            out.append(f"  registered  {len(n)} poses moved {np.median(n):.2f} mm (median, max {n.max():.2f}) onto "
-                       f"their common edges (sensing.json: acquisition.registration_mm)")
+                   f"{float(sp.match_tol_m(0.40)) * 1e3:.2f} mm of each other at 0.40 m")
+    reg = acq.get("registration")
+    if reg is not None and reg.shifts_m:
+        n = reg.norms_mm()
+        out.append(f"  registered  {len(n)} poses moved {float(np.median(n)):.2f} mm (median, max {n.max():.2f}) "
+                   "onto their common edges (sensing.json: acquisition.registration, mm)")
     return out
 
 

@@ -33,6 +33,8 @@ World frame, metres.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -49,13 +51,28 @@ from platebench.reconstruction.strategy.multiview import (
     smoothed_points,
 )
 
-__all__ = ["register_translations", "HUBER_M", "ROUNDS", "IRLS_STEPS", "MATCHES_PER_PAIR"]
+__all__ = ["register_translations", "PoseShifts", "HUBER_M", "ROUNDS", "IRLS_STEPS", "MATCHES_PER_PAIR"]
 
 HUBER_M = 0.5e-3  # residuals across the edge beyond this are weighted down (Huber scale)
 ROUNDS = 3  # matching rounds (each with the translations found so far)
 IRLS_STEPS = 6  # reweighting steps per round
 MATCHES_PER_PAIR = 80  # candidate matches of a pair kept (evenly spread along the first outline)
 MIN_MATCHES = 10  # a pair with fewer candidate matches does not take part
+
+
+@dataclass(frozen=True)
+class PoseShifts:
+    """Each pose's registration: ``shifts_m`` maps a view's name to its (3,) translation (metres, world
+    frame). File form: view name -> [x, y, z] in millimetres."""
+
+    shifts_m: dict
+
+    def norms_mm(self) -> np.ndarray:
+        """(V,) the length of each pose's shift, millimetres."""
+        return np.array([np.linalg.norm(s) * 1e3 for s in self.shifts_m.values()])
+
+    def to_dict(self) -> dict:
+        return {n: [round(float(x) * 1e3, 3) for x in s] for n, s in self.shifts_m.items()}
 
 
 def _pair_matches(P, Q, Q_idx, tree, vk: ViewOutline, vj: ViewOutline, nk, nj, same, tol_k, usable_k):

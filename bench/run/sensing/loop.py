@@ -86,7 +86,7 @@ from platebench.reconstruction.strategy.detectors import (
     viewpoint_consistency,
 )
 from platebench.reconstruction.strategy.multiview import BoundaryVerdict, PoseSpread, ViewOutline, confirm, verify
-from platebench.reconstruction.strategy.registration import register_translations
+from platebench.reconstruction.strategy.registration import PoseShifts, register_translations
 from platebench.reconstruction.strategy.planner import (
     FRONT_MARGIN_RAD,
     Decision,
@@ -609,15 +609,15 @@ def acquisition_record(sensor: SimulatedSensor, m: Measurements | None = None) -
     estimates missed by (``realism.RigDraw.report``), and every move: the view, the turn of the cell,
     how far each camera really stood from its command (the loop knows only the command), and the
     poses' spread (``multiview.PoseSpread``, from the rig's own hand/eye residuals; None: none
-    measured) with the translation that registered each pose's outline (``registration``; view name
-    -> mm, world frame) when ``m`` is given."""
+    measured) with the translation that registered each pose's outline (``registration.PoseShifts``;
+    None without a spread or ``m``)."""
     d = sensor.rig_draw
     if d is None:
         return None
-    shifts = {} if m is None or d.pose_spread is None else {
-        v.name: [round(float(x) * 1e3, 3) for x in s] for v, s in zip(m.views, m.shifts)}
+    shifts = None if m is None or d.pose_spread is None else \
+        PoseShifts({v.name: np.asarray(s, float) for v, s in zip(m.views, m.shifts)})
     return {"realism": d.realism.to_dict(), "estimates": d.report, "moves": list(sensor.moves),
-            "pose_spread": None if d.pose_spread is None else d.pose_spread.to_dict(), "registration_mm": shifts}
+            "pose_spread": d.pose_spread, "registration": shifts}
 
 
 def write_multiview(path: Path, views: list[ViewOutline], verdict: BoundaryVerdict, true_boundary,
