@@ -50,6 +50,7 @@ from platebench.reconstruction.strategy.multiview import (
     slide_angles,
     smoothed_points,
 )
+from platebench.tolerances import tol
 
 __all__ = ["register_translations", "PoseShifts", "HUBER_M", "ROUNDS", "IRLS_STEPS", "MATCHES_PER_PAIR"]
 
@@ -78,7 +79,7 @@ class PoseShifts:
 def _pair_matches(P, Q, Q_idx, tree, vk: ViewOutline, vj: ViewOutline, nk, nj, same, tol_k, usable_k):
     """Indices (into P, into Q) of the candidate matches of pose k's points ``P`` in pose j's
     usable points ``Q[Q_idx]`` (both translated; ``tree`` holds ``Q[Q_idx]``)."""
-    dist, nn = tree.query(P, distance_upper_bound=float(tol_k.max(initial=0.0)) * 1.0001)
+    dist, nn = tree.query(P, distance_upper_bound=float(tol_k.max(initial=0.0)) * (1 + tol.relative))
     idx = np.nonzero(usable_k & (dist <= tol_k))[0]
     if not len(idx):
         return idx, idx
@@ -111,9 +112,10 @@ def register_translations(views: list[ViewOutline], spread: PoseSpread, usable: 
     tangents = [outline_directions(v.points) for v in views]
     sense = [outline_sense(v) for v in views]
     dists = np.concatenate([np.linalg.norm(S - v.camera_center, axis=1) for S, v in zip(smooth, views)])
-    tol = [spread.match_tol_m(np.linalg.norm(S - v.camera_center, axis=1)) for S, v in zip(smooth, views)]
+    tols = [spread.match_tol_m(np.linalg.norm(S - v.camera_center, axis=1)) for S, v in zip(smooth, views)]
     # the prior: each pose's own error, per axis (the spread is of a pair: sqrt 2 of one pose)
-    sigma = max(float(spread.across_m(np.median(dists))) / np.sqrt(2.0 / 3.0) / np.sqrt(2.0) / np.sqrt(3.0), 1e-6)
+    sigma = max(float(spread.across_m(np.median(dists))) / np.sqrt(2.0 / 3.0) / np.sqrt(2.0) / np.sqrt(3.0),
+                tol.zero_length)
     for _ in range(ROUNDS):
         shifted = [S + t[v] for v, S in enumerate(smooth)]
         idxs = [np.nonzero(u)[0] for u in use]
@@ -130,7 +132,7 @@ def register_translations(views: list[ViewOutline], spread: PoseSpread, usable: 
                         >= SAME_SIDE_MIN_COS
 
                 idx, jdx = _pair_matches(shifted[k], shifted[j], Q_idx, trees[j], views[k], views[j],
-                                         normals[k], normals[j], same, tol[k], use[k])
+                                         normals[k], normals[j], same, tols[k], use[k])
                 if len(idx) < MIN_MATCHES:
                     continue
                 tau = tangents[j][jdx]
@@ -145,7 +147,7 @@ def register_translations(views: list[ViewOutline], spread: PoseSpread, usable: 
             for k, j, Pi, d in pairs:
                 r = np.einsum("mij,mj->mi", Pi, d + t[k] - t[j])
                 n = np.linalg.norm(r, axis=1)
-                w = np.where(n <= HUBER_M, 1.0, HUBER_M / np.maximum(n, 1e-12))
+                w = np.where(n <= HUBER_M, 1.0, HUBER_M / np.maximum(n, tol.zero_length))
                 S = np.einsum("m,mij->ij", w, Pi)
                 s = np.einsum("m,mij,mj->i", w, Pi, d)
                 sk, sj = slice(3 * k, 3 * k + 3), slice(3 * j, 3 * j + 3)

@@ -266,6 +266,9 @@ class Measurements:
     square centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
     the sheet neither confirms nor is confirmed."""
 
+    spread: PoseSpread | None = None  # a real rig's spread (``__init__``); None: ideal, nothing registered
+    _registered: tuple = ()  # the registered outlines of the last ``update`` (none before)
+
     def __init__(self, first: FirstStages, rays_for, active_views: bool = True, verify_squares: int | None = None,
                  spread: PoseSpread | None = None):
         # on a real rig, how far its poses disagree as its own calibration measured it; the poses are
