@@ -78,9 +78,11 @@ def test_a_true_edge_seen_by_poses_that_disagree_is_confirmed_once_registered(of
 @pytest.mark.parametrize("R, turn_deg, seed", [(0.02, 30.0, 0), (0.015, 31.0, 1), (0.025, 29.0, 2)])
 def test_a_sliding_contour_stays_unconfirmed_after_registration(R, turn_deg, seed):
     """A cylinder of radius R (15-25 mm) about y seen from two poses turned ``turn_deg`` about its
-    axis: each sees its own tangent ruling, R x turn (7-13 mm) apart on the surface. Registration
-    within a PUMA-class rig's spread (2.6 mm) does not pull them together: the contours are still
-    no edge."""
+    axis: each sees its own tangent ruling, R x turn (7-13 mm) apart on the surface, farther than a
+    PUMA-class rig's matching distance (2.6 mm): registration finds no candidate match between them,
+    moves neither pose, and the contours are still no edge. (Two poses that share nothing but a
+    contour closer than that distance would be pulled together: the true edges other poses share
+    with them are what outweighs a contour, ``registration`` module doc.)"""
     from platebench.reconstruction.strategy.registration import register_translations
 
     rng = np.random.default_rng(seed)

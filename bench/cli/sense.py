@@ -153,6 +153,8 @@ def realism_lines(s: SensingResult) -> list[str]:
         return []
     import numpy as np  # noqa: PLC0415
 
+    from platebench.reconstruction.strategy.multiview import SPREAD_REPORT_DISTANCE_M  # noqa: PLC0415
+
     out = acquisition_lines(s.config, acq["estimates"])
     moves = acq["moves"]
     if moves:
@@ -166,7 +168,8 @@ def realism_lines(s: SensingResult) -> list[str]:
     if sp is not None:
         out.append(f"  pose spread {sp.translation_m * 1e3:.2f} mm, {sp.rotation_rad * 1e3:.2f} mrad RMS (the hand/eye "
                    f"calibration's residuals): the poses were registered on edges they put within "
-                   f"{float(sp.match_tol_m(0.40)) * 1e3:.2f} mm of each other at 0.40 m")
+                   f"{float(sp.match_tol_m(SPREAD_REPORT_DISTANCE_M)) * 1e3:.2f} mm of each other at "
+                   f"{SPREAD_REPORT_DISTANCE_M:.2f} m")
     reg = acq.get("registration")
     if reg is not None and reg.shifts_m:
         n = reg.norms_mm()

@@ -149,6 +149,7 @@ REPORT_MIN_M = 8e-3  # unconfirmed outline runs at least this long are reported
 # common edges this many RMS of that disagreement across the edge beside ``CONFIRM_TOL_M`` (a 2-D
 # Gaussian offset of RMS e lies within 1.5 e with probability 1 - exp(-1.5^2) = 0.89).
 POSE_SPREAD_SIGMAS = 1.5
+SPREAD_REPORT_DISTANCE_M = 0.40  # a spread's matching distance is reported here (the paper's working distance)
 
 
 @dataclass(frozen=True)
@@ -176,6 +177,12 @@ class PoseSpread:
         d = np.asarray(distance_m, float)
         return np.hypot(self.translation_m, d * self.rotation_rad) * np.sqrt(2.0 / 3.0)
 
+    def pose_sigma_m(self, distance_m) -> np.ndarray:
+        """RMS per axis (metres) of ONE pose's own error at ``distance_m`` from the camera: the
+        residuals are of a pair of poses (sqrt 2 of one) and of a 3-D offset (sqrt 3 of an axis)."""
+        d = np.asarray(distance_m, float)
+        return np.hypot(self.translation_m, d * self.rotation_rad) / np.sqrt(6.0)
+
     def match_tol_m(self, distance_m, tol_m: float = CONFIRM_TOL_M) -> np.ndarray:
         """How far apart two unregistered poses may put one edge point ``distance_m`` from the
         camera: the point noise's ``tol_m`` and ``POSE_SPREAD_SIGMAS`` x ``across_m``, added in
@@ -183,11 +190,11 @@ class PoseSpread:
         return np.hypot(tol_m, POSE_SPREAD_SIGMAS * self.across_m(distance_m))
 
     def to_dict(self) -> dict:
-        """The file form (mm, mrad), with the matching distance it gives 0.40 m from the camera
-        (the paper's working distance)."""
+        """The file form (mm, mrad), with the matching distance it gives ``SPREAD_REPORT_DISTANCE_M``
+        from the camera."""
         return {"translation_rms_mm": round(self.translation_m * 1e3, 4),
                 "rotation_rms_mrad": round(self.rotation_rad * 1e3, 4),
-                "match_tol_mm_at_0.40_m": round(float(self.match_tol_m(0.40)) * 1e3, 3)}
+                "match_tol_mm_at_0.40_m": round(float(self.match_tol_m(SPREAD_REPORT_DISTANCE_M)) * 1e3, 3)}
 
 
 @dataclass(frozen=True)
@@ -376,18 +383,31 @@ def confirm(views: list[ViewOutline], tol_m: float = CONFIRM_TOL_M, min_angle_ra
             if not len(idx):
                 continue
             jdx = matched_idx[j][nn[idx]]
-            Q = P[idx]
-            ok = (ray_angles(Q, vk.camera_center, vj.camera_center) >= min_angle_rad) \
-                & (slide_angles(vk.plane_normals[idx], Q, vj.eye) >= min_slide_angle_rad) \
-                & (slide_angles(vj.plane_normals[jdx], smooth[j][jdx], vk.eye) >= min_slide_angle_rad)
-            if same_side:  # both poses see the edge from the same side of the sheet
-                ok &= np.einsum("ij,ij->i", tangents[k][idx], tangents[j][jdx]) * sense[k] * sense[j] \
-                    >= SAME_SIDE_MIN_COS
+            walk = (tangents[k], tangents[j], sense[k] * sense[j]) if same_side else None
+            ok = edge_pairs(vk, vj, P, smooth[j], idx, jdx, walk, min_angle_rad, min_slide_angle_rad)
             if known is not None:  # one of the pair sees the point from the known front
                 ok &= known[k][idx] | known[j][jdx]
             conf[idx[ok]] = True
         out.append(conf)
     return out
+
+
+def edge_pairs(vk: ViewOutline, vj: ViewOutline, Pk: np.ndarray, Pj: np.ndarray, idx: np.ndarray, jdx: np.ndarray,
+               walk: tuple | None = None, min_angle_rad: float = CONFIRM_ANGLE_RAD,
+               min_slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> np.ndarray:
+    """(M,) bool: of the matched points ``Pk[idx]`` of pose k and ``Pj[jdx]`` of pose j ((N,3) each,
+    metres), those a true edge could give and a contour could not (module doc): rays turned by
+    ``min_angle_rad``, each camera ``min_slide_angle_rad`` out of the other's contour plane, and with
+    ``walk`` = (k's (N,3) outline directions, j's, the product of their ``outline_sense``) both poses
+    walking the edge the same way (the same side of the sheet). ``confirm`` and ``registration`` use it."""
+    Q = Pk[idx]
+    ok = (ray_angles(Q, vk.camera_center, vj.camera_center) >= min_angle_rad) \
+        & (slide_angles(vk.plane_normals[idx], Q, vj.eye) >= min_slide_angle_rad) \
+        & (slide_angles(vj.plane_normals[jdx], Pj[jdx], vk.eye) >= min_slide_angle_rad)
+    if walk is not None:
+        tk, tj, senses = walk
+        ok &= np.einsum("ij,ij->i", tk[idx], tj[jdx]) * senses >= SAME_SIDE_MIN_COS
+    return ok
 
 
 def cyclic_runs(mask: np.ndarray) -> list[np.ndarray]:

@@ -21,9 +21,9 @@ matches,
 * ``|t_v|^2 / sigma^2``, a prior that keeps the translations as small as the rig's spread
   (``PoseSpread.across_m`` at the poses' distance, ``sigma``) and fixes the common shift.
 
-Candidate matches are the pairs ``confirm`` would accept with the spread's distance
-(``PoseSpread.match_tol_m``): rays turned ``CONFIRM_ANGLE_RAD``, cameras out of each other's contour
-planes, the same side of the sheet. A contour among them slides by a different amount for every
+Candidate matches are the pairs ``confirm`` would accept (``multiview.edge_pairs``: rays turned,
+cameras out of each other's contour planes, the same side of the sheet) within the spread's distance
+(``PoseSpread.match_tol_m``). A contour among them slides by a different amount for every
 partner pose, so no single translation of its pose agrees with all of them, and the true edges it
 shares with the same partners outweigh it; with the Huber weights a stretch of contour moves a pose
 by a fraction of its slide. Matching is redone ``ROUNDS`` times with the translations found. The
@@ -39,15 +39,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from platebench.reconstruction.strategy.multiview import (
-    CONFIRM_ANGLE_RAD,
-    CONFIRM_SLIDE_ANGLE_RAD,
-    SAME_SIDE_MIN_COS,
     PoseSpread,
     ViewOutline,
+    edge_pairs,
     outline_directions,
     outline_sense,
-    ray_angles,
-    slide_angles,
     smoothed_points,
 )
 from platebench.tolerances import tol
@@ -76,19 +72,16 @@ class PoseShifts:
         return {n: [round(float(x) * 1e3, 3) for x in s] for n, s in self.shifts_m.items()}
 
 
-def _pair_matches(P, Q, Q_idx, tree, vk: ViewOutline, vj: ViewOutline, nk, nj, same, tol_k, usable_k):
+def _pair_matches(P, Q, Q_idx, tree, vk: ViewOutline, vj: ViewOutline, walk, tol_k, usable_k):
     """Indices (into P, into Q) of the candidate matches of pose k's points ``P`` in pose j's
-    usable points ``Q[Q_idx]`` (both translated; ``tree`` holds ``Q[Q_idx]``)."""
+    usable points ``Q[Q_idx]`` (both translated; ``tree`` holds ``Q[Q_idx]``): within ``tol_k`` and
+    passing ``multiview.edge_pairs``, at most ``MATCHES_PER_PAIR`` of them."""
     dist, nn = tree.query(P, distance_upper_bound=float(tol_k.max(initial=0.0)) * (1 + tol.relative))
     idx = np.nonzero(usable_k & (dist <= tol_k))[0]
     if not len(idx):
         return idx, idx
     jdx = Q_idx[nn[idx]]
-    ok = (ray_angles(P[idx], vk.camera_center, vj.camera_center) >= CONFIRM_ANGLE_RAD) \
-        & (slide_angles(nk[idx], P[idx], vj.eye) >= CONFIRM_SLIDE_ANGLE_RAD) \
-        & (slide_angles(nj[jdx], Q[jdx], vk.eye) >= CONFIRM_SLIDE_ANGLE_RAD)
-    if same is not None:
-        ok &= same(idx, jdx)
+    ok = edge_pairs(vk, vj, P, Q, idx, jdx, walk)
     idx, jdx = idx[ok], jdx[ok]
     if len(idx) > MATCHES_PER_PAIR:
         keep = np.linspace(0, len(idx) - 1, MATCHES_PER_PAIR).round().astype(int)
@@ -106,16 +99,12 @@ def register_translations(views: list[ViewOutline], spread: PoseSpread, usable: 
     if V < 2:
         return t
     smooth = [smoothed_points(v) for v in views]
-    use = [v.matched.copy() if usable is None else (v.matched & np.asarray(u, bool)) for v, u in
-           zip(views, usable if usable is not None else [None] * V)]
-    normals = [v.plane_normals for v in views]
+    use = [v.matched if usable is None else v.matched & np.asarray(usable[i], bool) for i, v in enumerate(views)]
     tangents = [outline_directions(v.points) for v in views]
     sense = [outline_sense(v) for v in views]
     dists = np.concatenate([np.linalg.norm(S - v.camera_center, axis=1) for S, v in zip(smooth, views)])
     tols = [spread.match_tol_m(np.linalg.norm(S - v.camera_center, axis=1)) for S, v in zip(smooth, views)]
-    # the prior: each pose's own error, per axis (the spread is of a pair: sqrt 2 of one pose)
-    sigma = max(float(spread.across_m(np.median(dists))) / np.sqrt(2.0 / 3.0) / np.sqrt(2.0) / np.sqrt(3.0),
-                tol.zero_length)
+    sigma = max(float(spread.pose_sigma_m(np.median(dists))), tol.zero_length)  # the prior: one pose's error
     for _ in range(ROUNDS):
         shifted = [S + t[v] for v, S in enumerate(smooth)]
         idxs = [np.nonzero(u)[0] for u in use]
@@ -123,16 +112,10 @@ def register_translations(views: list[ViewOutline], spread: PoseSpread, usable: 
         pairs = []
         for k in range(V):
             for j in range(k + 1, V):
-                Q_idx = idxs[j]
                 if trees[j] is None or not len(idxs[k]):
                     continue
-
-                def same(i, jj, k=k, j=j):
-                    return np.einsum("ij,ij->i", tangents[k][i], tangents[j][jj]) * sense[k] * sense[j] \
-                        >= SAME_SIDE_MIN_COS
-
-                idx, jdx = _pair_matches(shifted[k], shifted[j], Q_idx, trees[j], views[k], views[j],
-                                         normals[k], normals[j], same, tols[k], use[k])
+                idx, jdx = _pair_matches(shifted[k], shifted[j], idxs[j], trees[j], views[k], views[j],
+                                         (tangents[k], tangents[j], sense[k] * sense[j]), tols[k], use[k])
                 if len(idx) < MIN_MATCHES:
                     continue
                 tau = tangents[j][jdx]

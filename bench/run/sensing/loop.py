@@ -290,6 +290,11 @@ class Measurements:
         self._merged = None  # merged()'s result for the current verdict (dropped by update)
 
     @property
+    def measured_outlines(self) -> list[ViewOutline]:
+        """Each pose's outline as measured, through its commanded pose (not registered)."""
+        return [v.outline for v in self.views]
+
+    @property
     def outlines(self) -> list[ViewOutline]:
         """Each pose's outline, registered (``registration``) as of the last ``update`` on a real rig;
         a pose measured since then as measured."""
@@ -315,7 +320,7 @@ class Measurements:
         pose's surface, the faces no two other poses saw as background (``refutation.free_space_faces``:
         a mismatched stretch of outline off the plate)."""
         if self._merged is None:  # once per verdict (scored, then written)
-            keep = free_space_faces(self.surfaces, [v.outline for v in self.views])  # each pose in its own frame
+            keep = free_space_faces(self.surfaces, self.measured_outlines)  # each pose in its own frame
             S = self.shifts if len(self.shifts) == len(self.views) else np.zeros((len(self.views), 3))
             # then every pose's surface and centres moved by its registration, as its outline was
             surfaces = [replace(s, vertices=np.asarray(s.vertices) + S[i], camera_center=s.camera_center + S[i],
@@ -352,7 +357,7 @@ class Measurements:
         self._merged = None
         self.model = SurfaceModel.build(self.surfaces)
         self.front = self.front_side()
-        raw = [v.outline for v in self.views]
+        raw = self.measured_outlines
         if self.spread is not None:  # a real rig: its poses brought into one frame on their common edges
             self.shifts = register_translations(raw, self.spread,
                                                 [both_cameras_side(self.front, o) >= 0 for o in raw])
@@ -401,7 +406,7 @@ class Measurements:
         confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         again = verify(self.outlines, self.model, confirmed,
-                       refute([v.outline for v in self.views], confirmed, self.meshes, shifts=self.shifts),
+                       refute(self.measured_outlines, confirmed, self.meshes, shifts=self.shifts),
                        behind=[sd < 0 for sd in sides])
         if again.verified:
             return True, (f"{again.reason}, each piece seen from the plate's front (oriented from the {n} sparse "
