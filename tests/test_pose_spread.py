@@ -172,3 +172,34 @@ def test_registration_brings_poses_that_disagree_back_to_one_frame(seed):
     raw = np.mean([c.mean() for c in confirm(views)])
     reg = np.mean([c.mean() for c in confirm([v.translated(s) for v, s in zip(views, t)])])
     assert reg > 0.95 and reg > raw + 0.1, (raw, reg)
+
+
+@pytest.mark.parametrize("R, turn_deg, seed", [(5.0e-3, 26.0, 0), (4.5e-3, 25.6, 1), (5.5e-3, 26.4, 2)])
+def test_under_a_real_rig_a_contour_slid_within_the_poses_disagreement_is_no_edge(R, turn_deg, seed):
+    """A crease-like contour (a cylinder of radius R, 4.5-5.5 mm, about y) seen from two poses turned
+    25.6-26.4 degrees about it (past the 25-degree turn, short of the rig's 27-degree slide): their
+    tangent rulings lie R x turn (2-2.5 mm) apart, and a real rig's residual disagreement (the second pose off by the rest,
+    leaving 0.5 mm) brings them within ``CONFIRM_TOL_M``. The ideal slide angle (20 degrees) then confirms the contour as an edge; the
+    real rig's (``CONFIRM_SLIDE_ANGLE_RIG_RAD``, 27 degrees) does not. A straight edge seen by poses
+    turned 40 degrees with the same disagreement stays confirmed under it."""
+    from platebench.reconstruction.strategy.multiview import CONFIRM_SLIDE_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RIG_RAD
+
+    rng = np.random.default_rng(seed)
+    c = np.array([0.0, 0.0, -R])
+    y = np.linspace(-0.03, 0.03, 160)
+    views = []
+    for k, a in enumerate(np.radians([-turn_deg / 2, turn_deg / 2])):
+        eye = c + 0.4 * np.array([math.sin(a), 0.0, math.cos(a)])
+        phi = a + math.acos(R / 0.4)
+        P = np.column_stack([c[0] + R * np.sin(phi) * np.ones_like(y), y, c[2] + R * np.cos(phi) * np.ones_like(y)])
+        views.append((f"c{k}", P, eye))
+    gap = views[0][1][80] - views[1][1][80]
+    assert 1.5e-3 < np.linalg.norm(gap) < 3.0e-3, gap
+    shift = gap * (1.0 - 0.5e-3 / np.linalg.norm(gap))  # the rig's disagreement, toward the other contour
+    outs = [_outline(n, P, e, np.zeros(3), rng, shift if k else np.zeros(3)) for k, (n, P, e) in enumerate(views)]
+    ideal = confirm(outs, min_slide_angle_rad=CONFIRM_SLIDE_ANGLE_RAD, same_side=False)
+    rig = confirm(outs, min_slide_angle_rad=CONFIRM_SLIDE_ANGLE_RIG_RAD, same_side=False)
+    assert ideal[0][:160].mean() > 0.5, [m[:160].mean() for m in ideal]
+    assert not any(m.any() for m in rig)
+    edge = _edge_pair(0.5e-3, 40.0, seed)
+    assert confirm(edge, min_slide_angle_rad=CONFIRM_SLIDE_ANGLE_RIG_RAD, same_side=False)[0][:160].mean() > 0.9

@@ -85,7 +85,15 @@ from platebench.reconstruction.strategy.detectors import (
     paper_tests,
     viewpoint_consistency,
 )
-from platebench.reconstruction.strategy.multiview import BoundaryVerdict, PoseSpread, ViewOutline, confirm, verify
+from platebench.reconstruction.strategy.multiview import (
+    CONFIRM_SLIDE_ANGLE_RAD,
+    CONFIRM_SLIDE_ANGLE_RIG_RAD,
+    BoundaryVerdict,
+    PoseSpread,
+    ViewOutline,
+    confirm,
+    verify,
+)
 from platebench.reconstruction.strategy.registration import PoseShifts, register_translations
 from platebench.reconstruction.strategy.planner import (
     FRONT_MARGIN_RAD,
@@ -365,7 +373,8 @@ class Measurements:
         else:
             self.shifts = np.zeros((len(raw), 3))
         sides = [both_cameras_side(self.front, o) for o in self.outlines]
-        confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
+        slide = CONFIRM_SLIDE_ANGLE_RAD if self.spread is None else CONFIRM_SLIDE_ANGLE_RIG_RAD
+        confirmed = confirm(self.outlines, min_slide_angle_rad=slide, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(self.front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         self.verdict = verify(self.outlines, self.model, confirmed,
                               refute(raw, confirmed, self.meshes, shifts=self.shifts), behind=[sd < 0 for sd in sides])
@@ -403,7 +412,8 @@ class Measurements:
                          f"(normals turn by {np.degrees(front.max_turn_rad):.0f} deg between neighbouring centres)",
                  "front_oriented_frac": round(share, 3)},)
         sides = [both_cameras_side(front, o) for o in self.outlines]
-        confirmed = confirm(self.outlines, front=[sd >= 0 for sd in sides],
+        slide = CONFIRM_SLIDE_ANGLE_RAD if self.spread is None else CONFIRM_SLIDE_ANGLE_RIG_RAD
+        confirmed = confirm(self.outlines, min_slide_angle_rad=slide, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         again = verify(self.outlines, self.model, confirmed,
                        refute(self.measured_outlines, confirmed, self.meshes, shifts=self.shifts),
