@@ -178,10 +178,11 @@ def test_registration_brings_poses_that_disagree_back_to_one_frame(seed):
 def test_under_a_real_rig_a_contour_slid_within_the_poses_disagreement_is_no_edge(R, turn_deg, seed):
     """A crease-like contour (a cylinder of radius R, 4.5-5.5 mm, about y) seen from two poses turned
     25.6-26.4 degrees about it (past the 25-degree turn, short of the rig's 27-degree slide): their
-    tangent rulings lie R x turn (2-2.5 mm) apart, and a real rig's residual disagreement (the second pose off by the rest,
-    leaving 0.5 mm) brings them within ``CONFIRM_TOL_M``. The ideal slide angle (20 degrees) then confirms the contour as an edge; the
-    real rig's (``CONFIRM_SLIDE_ANGLE_RIG_RAD``, 27 degrees) does not. A straight edge seen by poses
-    turned 40 degrees with the same disagreement stays confirmed under it."""
+    tangent rulings lie R x turn (2-2.5 mm) apart, and a real rig's residual disagreement (the second
+    pose off by the rest, leaving 0.5 mm) brings them within ``CONFIRM_TOL_M``. The ideal slide angle
+    (20 degrees) then confirms the contour as an edge; the real rig's (``CONFIRM_SLIDE_ANGLE_RIG_RAD``,
+    27 degrees) does not. A straight edge seen by poses turned 40 degrees with the same disagreement
+    stays confirmed under it."""
     from platebench.reconstruction.strategy.multiview import CONFIRM_SLIDE_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RIG_RAD
 
     rng = np.random.default_rng(seed)
@@ -203,3 +204,15 @@ def test_under_a_real_rig_a_contour_slid_within_the_poses_disagreement_is_no_edg
     assert not any(m.any() for m in rig)
     edge = _edge_pair(0.5e-3, 40.0, seed)
     assert confirm(edge, min_slide_angle_rad=CONFIRM_SLIDE_ANGLE_RIG_RAD, same_side=False)[0][:160].mean() > 0.9
+
+
+def test_the_loop_confirms_with_the_rig_slide_angle_only_on_a_real_rig():
+    """``Measurements.slide_angle_rad`` (what ``update`` and the front check pass to ``confirm``): the
+    ideal 20 degrees without a spread, the rig's 27 with one."""
+    from platebench.bench.run.sensing.loop import Measurements
+    from platebench.reconstruction.strategy.multiview import CONFIRM_SLIDE_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RIG_RAD
+
+    m = Measurements.__new__(Measurements)
+    assert m.slide_angle_rad == CONFIRM_SLIDE_ANGLE_RAD
+    m.spread = PoseSpread(1.3e-3, 3.1e-3)
+    assert m.slide_angle_rad == CONFIRM_SLIDE_ANGLE_RIG_RAD > CONFIRM_SLIDE_ANGLE_RAD

@@ -298,6 +298,13 @@ class Measurements:
         self._merged = None  # merged()'s result for the current verdict (dropped by update)
 
     @property
+    def slide_angle_rad(self) -> float:
+        """The turn about an edge a confirming pair needs (``multiview.confirm``): the ideal
+        ``CONFIRM_SLIDE_ANGLE_RAD``, or ``CONFIRM_SLIDE_ANGLE_RIG_RAD`` on a real rig (a spread), whose
+        registered poses still disagree by about a millimetre (``multiview`` module doc)."""
+        return CONFIRM_SLIDE_ANGLE_RAD if self.spread is None else CONFIRM_SLIDE_ANGLE_RIG_RAD
+
+    @property
     def measured_outlines(self) -> list[ViewOutline]:
         """Each pose's outline as measured, through its commanded pose (not registered)."""
         return [v.outline for v in self.views]
@@ -373,8 +380,7 @@ class Measurements:
         else:
             self.shifts = np.zeros((len(raw), 3))
         sides = [both_cameras_side(self.front, o) for o in self.outlines]
-        slide = CONFIRM_SLIDE_ANGLE_RAD if self.spread is None else CONFIRM_SLIDE_ANGLE_RIG_RAD
-        confirmed = confirm(self.outlines, min_slide_angle_rad=slide, front=[sd >= 0 for sd in sides],
+        confirmed = confirm(self.outlines, min_slide_angle_rad=self.slide_angle_rad, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(self.front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         self.verdict = verify(self.outlines, self.model, confirmed,
                               refute(raw, confirmed, self.meshes, shifts=self.shifts), behind=[sd < 0 for sd in sides])
@@ -412,8 +418,7 @@ class Measurements:
                          f"(normals turn by {np.degrees(front.max_turn_rad):.0f} deg between neighbouring centres)",
                  "front_oriented_frac": round(share, 3)},)
         sides = [both_cameras_side(front, o) for o in self.outlines]
-        slide = CONFIRM_SLIDE_ANGLE_RAD if self.spread is None else CONFIRM_SLIDE_ANGLE_RIG_RAD
-        confirmed = confirm(self.outlines, min_slide_angle_rad=slide, front=[sd >= 0 for sd in sides],
+        confirmed = confirm(self.outlines, min_slide_angle_rad=self.slide_angle_rad, front=[sd >= 0 for sd in sides],
                             front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
         again = verify(self.outlines, self.model, confirmed,
                        refute(self.measured_outlines, confirmed, self.meshes, shifts=self.shifts),
