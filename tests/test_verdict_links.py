@@ -228,3 +228,41 @@ def test_no_bridge_or_walk_across_an_edge_seen_from_behind(hole_mm):
     assert ends == [x0, x1], f"the gaps should face the stretch, got {ends}"
     # seen from behind by one pose only: the other pose's outline still bridges it
     assert verify(_views(), None, conf, behind=[hole, np.zeros(len(P), bool)]).verified
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_lead_test_remembered_per_end_is_the_rule_tested_point_by_point(seed):
+    """``_leads_on`` remembers per end each piece's nearest leading point (``_Leads``); asked from
+    points near and far in any order (radii below and above the first one tested), it names the
+    pieces that the rule, applied directly to every point within the radius, names."""
+    from scipy.spatial import cKDTree
+
+    from platebench.reconstruction.strategy.multiview import (
+        LEAD_M,
+        LINK_M,
+        Piece,
+        _Leads,
+        _leads_on,
+        _outward,
+    )
+    rng = np.random.default_rng(seed)
+    runs = [(0, 40), (36, 70), (60, 120), (115, 170), (150, 230), (225, 300), (10, 25)]
+    pieces = [Piece("a", np.arange(a, b), P[a:b] + rng.normal(0, 3e-4, (b - a, 3))) for a, b in runs]
+    trees = [cKDTree(p.points) for p in pieces]
+    for own, at in ((0, -1), (1, 0), (2, -1), (4, 0)):
+        end = pieces[own].points[at]
+        leads = _Leads(end, own, trees, pieces)
+        others = set(range(len(pieces))) - {own}
+        for near_to in end + rng.normal(0, 1, (40, 3)) * rng.choice([2e-3, 1e-2, 4e-2], (40, 1)):
+            radius = LEAD_M + np.linalg.norm(near_to - end)
+            direct = []
+            for i in sorted(others):
+                Q = pieces[i].points
+                Q = Q[np.linalg.norm(Q - end, axis=1) <= radius]
+                d, k = trees[own].query(Q)
+                off_end = np.linalg.norm(pieces[own].points[k] - end, axis=1) <= LINK_M
+                ahead = (Q - end) @ _outward(pieces[own].points, end) >= -LINK_M
+                if ((d > LINK_M) & (off_end | ahead)).any():
+                    direct.append(i)
+            assert _leads_on(others, near_to, leads) == direct
+        assert any(t > LEAD_M * 3 for t, _ in leads._reach.values())  # radii past the first one tested

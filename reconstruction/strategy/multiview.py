@@ -586,7 +586,12 @@ class _PieceIndex:
         self.label = np.concatenate([np.full(len(p.points), i) for i, p in enumerate(all_pieces)])
 
     def near(self, x: np.ndarray, radius: float) -> set:
+        """The pieces with a point within ``radius`` (m) of ``x`` (3,)."""
         return {int(i) for i in self.label[self.tree.query_ball_point(x, radius)]}
+
+    def near_each(self, X: np.ndarray, radius: float) -> list[set]:
+        """``near`` of each point of ``X`` (K,3), in one query."""
+        return [{int(i) for i in self.label[h]} for h in self.tree.query_ball_point(X, radius)]
 
 
 def _outward(points: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -600,23 +605,51 @@ def _outward(points: np.ndarray, end: np.ndarray) -> np.ndarray:
     return d / n if n > tol.unit_norm else np.zeros(3)
 
 
-def _leads_on(i: int, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], near_to: np.ndarray) -> bool:
-    """Piece ``i`` (within LINK_M of ``near_to``) has a point within LEAD_M of ``end`` that is
-    farther than LINK_M from the piece ``own`` the end belongs to, and off *this* end: the nearest
-    point of ``own`` to it lies within LINK_M of ``end``, or it lies ahead of the end (at most
-    LINK_M behind it along ``_outward``; at a right-angled corner the nearest point of a zigzag
-    piece can lie 4 to 8 mm back, measured on the study's plates moved by 1 degree). A piece that
-    runs alongside ``own`` and on past its other end leads on from that end, not from this one: its
-    points off ``own`` lie behind this end (counting it here closed a 300-degree curl's loop over a
-    35 mm stretch no piece covered: a silent wrong verdict)."""
-    p = all_pieces[i]
-    near = p.points[np.linalg.norm(p.points - end, axis=1) <= LEAD_M + np.linalg.norm(near_to - end)]
-    if not len(near):
-        return False
-    d, k = trees[own].query(near)
-    off_end = np.linalg.norm(all_pieces[own].points[k] - end, axis=1) <= LINK_M
-    ahead = (near - end) @ _outward(all_pieces[own].points, end) >= -LINK_M
-    return bool(((d > LINK_M) & (off_end | ahead)).any())
+class _Leads:
+    """What leads on from one end ``end`` of piece ``own`` (``_leads_on``'s rule), per other piece:
+    the distance from the end to that piece's nearest point that leads on. The rule's test of a
+    point does not depend on where the link is sought from, only the radius does, so each piece is
+    tested once per end (over its points within the largest radius asked so far), not once per
+    outline point walked."""
+
+    def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece]):
+        self.end, self.own, self.trees, self.pieces = end, own, trees, all_pieces
+        self.outward = _outward(all_pieces[own].points, end)
+        self._reach: dict[int, tuple[float, float]] = {}  # piece -> (radius tested, nearest lead within it)
+
+    def nearest(self, i: int, radius: float) -> float:
+        """(m) distance from the end to piece ``i``'s nearest point that leads on, among its points
+        within ``radius`` of the end (inf when none there)."""
+        tested, best = self._reach.get(i, (-1.0, np.inf))
+        if radius > tested:
+            tested = max(radius, LEAD_M + LINK_M + OUTLINE_BRIDGE_M)
+            P = self.pieces[i].points
+            r = np.linalg.norm(P - self.end, axis=1)
+            inside = r <= tested
+            near = P[inside]
+            if len(near):
+                d, k = self.trees[self.own].query(near)
+                off_end = np.linalg.norm(self.pieces[self.own].points[k] - self.end, axis=1) <= LINK_M
+                ahead = (near - self.end) @ self.outward >= -LINK_M
+                lead = r[inside][(d > LINK_M) & (off_end | ahead)]
+                best = float(lead.min()) if len(lead) else np.inf
+            self._reach[i] = (tested, best)
+        return best
+
+
+def _leads_on(candidates, near_to: np.ndarray, leads: _Leads) -> list[int]:
+    """The pieces of ``candidates`` (those within LINK_M of ``near_to``), in order, that lead on
+    from the end: each has a point within LEAD_M of the end
+    (``leads.end``; plus the distance from ``near_to`` to it) that is farther than LINK_M from the
+    piece ``leads.own`` the end belongs to, and off *this* end: the nearest point of ``own`` to it
+    lies within LINK_M of ``end``, or it lies ahead of the end (at most LINK_M behind it along
+    ``_outward``; at a right-angled corner the nearest point of a zigzag piece can lie 4 to 8 mm
+    back, measured on the study's plates moved by 1 degree). A piece that runs alongside ``own``
+    and on past its other end leads on from that end, not from this one: its points off ``own`` lie
+    behind this end (counting it here closed a 300-degree curl's loop over a 35 mm stretch no piece
+    covered: a silent wrong verdict)."""
+    radius = LEAD_M + float(np.linalg.norm(near_to - leads.end))
+    return [i for i in sorted(candidates) if leads.nearest(i, radius) <= radius]
 
 
 def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline],
@@ -629,10 +662,11 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
     pieces lie off this end), and only away from the piece from the end of a shorter one (module
     doc, "Short pieces")."""
     index = index or _PieceIndex(all_pieces)
+    leads = _Leads(end, own, trees, all_pieces)
 
-    def hits(near_to):
-        return sorted(i for i in index.near(near_to, LINK_M) - {own}
-                      if _leads_on(i, end, own, trees, all_pieces, near_to))
+    def hits(near_to, near=None):
+        near = index.near(near_to, LINK_M) if near is None else near
+        return _leads_on(near - {own}, near_to, leads)
     out = hits(end)
     if out:
         return out
@@ -656,10 +690,14 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
         else:
             steps = (1, -1)
         for step in steps:
-            for j in _walk(v, k, step, OUTLINE_BRIDGE_M):
-                if back is not None and back[j]:
-                    break
-                hit = hits(v.points[j])
+            walk = list(_walk(v, k, step, OUTLINE_BRIDGE_M))
+            if back is not None:  # not past a point seen from behind
+                walk = walk[:next((w for w, j in enumerate(walk) if back[j]), len(walk))]
+            if not walk:
+                continue
+            # the pieces near every point of the walk in one query, then tested in the walk's order
+            for j, near in zip(walk, index.near_each(v.points[walk], LINK_M)):
+                hit = hits(v.points[j], near) if near - {own} else []
                 if hit:
                     return hit
     return []
