@@ -125,6 +125,32 @@ def test_the_prediction_agrees_with_the_confirmation_it_predicts(about_x, about_
     assert not conf[idx][short].any()
 
 
+@pytest.mark.parametrize("about_x, about_y", [(28.0, 20.0), (27.0, 21.0), (29.0, 19.0), (28.0, -21.0),
+                                              (40.0, 0.0), (41.0, 1.0), (39.0, -10.0)])
+@pytest.mark.parametrize("distance", [0.395, 0.405])
+def test_under_a_real_rig_the_prediction_asks_the_rigs_slide_angle(about_x, about_y, distance):
+    """The planner predicts with the slide angle the loop confirms with (``decide``'s
+    ``slide_angle_rad``, ``Measurements.slide_angle_rad``). A pose turned 27-29 degrees about the
+    edge (x) and 20 across it (y) is turned 30 degrees and more from the measuring pose and slides
+    the contour 26-28 degrees: predicted to confirm the edge at the ideal slide angle (20 degrees
+    plus the margin: 25) but not at the rig's (27: 32), at which the verdict would not accept the
+    pair either; turned 39-41 degrees about the edge, at both. Whatever it predicts at the rig's
+    angle, the rendered pair confirms at that angle."""
+    from platebench.reconstruction.strategy.multiview import CONFIRM_SLIDE_ANGLE_RIG_RAD
+    top, b = _edge_beyond(distance)
+    model = SurfaceModel.build([view_membrane(top)])
+    eye = _eye(about_x, about_y, distance)
+    pose = SensorPose(eye, np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    up = np.tile([0.0, 0.0, 1.0], (len(b.points), 1))
+    ideal = predicted_confirmed(pose, b, up, model, 0.1)
+    rig = predicted_confirmed(pose, b, up, model, 0.1, CONFIRM_SLIDE_ANGLE_RIG_RAD)
+    assert ideal.all()
+    assert rig.all() if about_x >= 39.0 else not rig.any()
+    conf = confirm([top, _view("candidate", _rectangle(), eye)], min_slide_angle_rad=CONFIRM_SLIDE_ANGLE_RIG_RAD)[0]
+    idx = np.array([int(np.argmin(np.linalg.norm(top.points - p, axis=1))) for p in b.points])
+    assert np.all(conf[idx][rig])
+
+
 @pytest.mark.parametrize("height", [0.15, 0.2, 0.25])
 def test_a_pose_blocked_by_the_measured_surface_is_not_predicted_to_confirm(height):
     """A candidate turned 45 degrees about the edge confirms it; with a measured sheet across its

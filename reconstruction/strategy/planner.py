@@ -53,7 +53,8 @@ reconstructed surface model (``_Targets.check``), before anything is rendered:
   just past the edge, through ``Beyond.outside``, meet no measured surface: an edge seen in front
   of the plate's own surface is on no outline), crossing its image rows at ``STEEP_RAD`` or more
   with the best of ``BASELINE_STEPS`` baselines (only such crossings are row-matched), and turned
-  from the measuring pose by the thresholds of ``multiview.confirm`` (contour planes both ways)
+  from the measuring pose by the thresholds of ``multiview.confirm`` (contour planes both ways,
+  at the slide angle the loop confirms with: 27 degrees under a real rig, 20 on the ideal one)
   plus ``PREDICT_MARGIN_RAD``;
 * which gaps it *sees past*: the points 3 and 8 mm beyond the end, seen and not blocked the same
   way, from a direction turned ``CONFIRM_ANGLE_RAD`` from the pose that saw the end.
@@ -402,14 +403,16 @@ def _seen_by(pose: SensorPose, points: np.ndarray, normals: np.ndarray, model: S
     return ok
 
 
-def _turned_enough(beyond: Beyond, center: np.ndarray) -> np.ndarray:
+def _turned_enough(beyond: Beyond, center: np.ndarray,
+                   slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> np.ndarray:
     """(K,) a pose at ``center`` is turned from each point's measuring pose by ``CONFIRM_ANGLE_RAD``
-    and lies out of its contour plane by ``CONFIRM_SLIDE_ANGLE_RAD``, and the measuring pose out of
-    the plane the pose would see (through ``center`` and the measured edge's direction) by as
-    much, each with ``PREDICT_MARGIN_RAD`` to spare (``multiview.confirm``'s rule, before
-    rendering)."""
+    and lies out of its contour plane by ``slide_angle_rad`` (the slide angle the loop confirms
+    with: ``CONFIRM_SLIDE_ANGLE_RAD``, or ``CONFIRM_SLIDE_ANGLE_RIG_RAD`` under a real rig), and
+    the measuring pose out of the plane the pose would see (through ``center`` and the measured
+    edge's direction) by as much, each with ``PREDICT_MARGIN_RAD`` to spare
+    (``multiview.confirm``'s rule, before rendering)."""
     P = beyond.points
-    slide = CONFIRM_SLIDE_ANGLE_RAD + PREDICT_MARGIN_RAD
+    slide = slide_angle_rad + PREDICT_MARGIN_RAD
     theirs = np.cross(center - P, beyond.tangents)
     theirs /= np.maximum(np.linalg.norm(theirs, axis=1, keepdims=True), tol.zero_length)
     return (ray_angles(P, beyond.centers, center) >= CONFIRM_ANGLE_RAD + PREDICT_MARGIN_RAD) & \
@@ -456,16 +459,18 @@ def baseline_choices(pose: SensorPose) -> np.ndarray:
 
 def _predict(pose: SensorPose, look: np.ndarray, look_normals: np.ndarray, beyond: Beyond,
              beyond_normals: np.ndarray, model: SurfaceModel, baseline_m: float,
-             front_margin_rad: float = FRONT_MARGIN_RAD) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             front_margin_rad: float = FRONT_MARGIN_RAD,
+             slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """((L,) which ``look`` points ``pose`` sees (``_seen_by``), (K,) which ``beyond`` points it is
     predicted to confirm, and the baseline (3,) that makes most of them cross its image rows
     steeply). A point is predicted confirmed when the pose is turned enough from the pose that
     measured it (``_turned_enough``), sees it (``_seen_by``), shows it on its outline
     (``_on_silhouette``) and, with the chosen baseline, crosses its rows at ``STEEP_RAD`` or more
     (``outline_stereo`` matches only such crossings). Normals (L,3)/(K,3): the measured surface's
-    there; ``front_margin_rad``: how far above the measured surface the cameras must be (``_seen_by``).
+    there; ``front_margin_rad``: how far above the measured surface the cameras must be (``_seen_by``);
+    ``slide_angle_rad``: the loop's confirmation slide angle (``_turned_enough``).
     One ray cast per camera for the seeing, one for the silhouettes."""
-    turned = _turned_enough(beyond, pose.center) if len(beyond.points) else np.zeros(0, bool)
+    turned = _turned_enough(beyond, pose.center, slide_angle_rad) if len(beyond.points) else np.zeros(0, bool)
     b_idx = np.nonzero(turned)[0]
     pts = np.vstack([look, beyond.points[b_idx]])
     vis = _seen_by(pose, pts, np.vstack([look_normals, beyond_normals[b_idx]]), model, baseline_m, front_margin_rad) \
@@ -485,10 +490,12 @@ def _predict(pose: SensorPose, look: np.ndarray, look_normals: np.ndarray, beyon
 
 
 def predicted_confirmed(pose: SensorPose, beyond: Beyond, normals: np.ndarray, model: SurfaceModel,
-                        baseline_m: float) -> np.ndarray:
+                        baseline_m: float, slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> np.ndarray:
     """(K,) the points of ``beyond`` that ``pose`` is predicted to confirm (``_predict``; ``normals``
-    (K,3): the measured surface's normal there, toward the measuring side)."""
-    return _predict(pose, np.zeros((0, 3)), np.zeros((0, 3)), beyond, normals, model, baseline_m)[1]
+    (K,3): the measured surface's normal there, toward the measuring side; ``slide_angle_rad``: the
+    loop's confirmation slide angle)."""
+    return _predict(pose, np.zeros((0, 3)), np.zeros((0, 3)), beyond, normals, model, baseline_m,
+                    slide_angle_rad=slide_angle_rad)[1]
 
 
 @dataclass(frozen=True)
@@ -508,7 +515,8 @@ class _Targets:
     beyond_count: np.ndarray  # (G,) points beyond each gap
 
     def check(self, pose: SensorPose, model: SurfaceModel, baseline_m: float,
-              front_margin_rad: float = FRONT_MARGIN_RAD) -> tuple[list[int], list[int], np.ndarray]:
+              front_margin_rad: float = FRONT_MARGIN_RAD,
+              slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> tuple[list[int], list[int], np.ndarray]:
         """(the gaps ``pose`` sees past: turned ``CONFIRM_ANGLE_RAD`` from the pose that saw the end,
         both cameras see the look-ahead points; the gaps whose measured stretch ``pose`` is
         predicted to confirm: ``BEYOND_CONFIRM_FRACTION`` of it, at least ``BEYOND_MIN_POINTS``;
@@ -517,7 +525,8 @@ class _Targets:
         gap_ok = ray_angles(self.ends, self.seen_from, pose.center) >= CONFIRM_ANGLE_RAD
         look_idx = np.nonzero(np.repeat(gap_ok, A))[0]
         vis, confirmed, baseline = _predict(pose, self.look[look_idx], self.look_normals[look_idx], self.beyond,
-                                            self.beyond_normals, model, baseline_m, front_margin_rad)
+                                            self.beyond_normals, model, baseline_m, front_margin_rad,
+                                            slide_angle_rad)
         look_vis = np.zeros(G * A, bool)
         look_vis[look_idx] = vis
         seen = np.nonzero(gap_ok & look_vis.reshape(G, A).all(axis=1))[0]
@@ -602,10 +611,12 @@ def targeted_views(beyonds: list[Beyond], done_poses: list[SensorPose], reach: R
 def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[SensorPose],
            candidates: list[PlannedView], model: SurfaceModel, baseline_m: float,
            max_views: int = MAX_VIEWS, reach: Reach | None = None, camera: Camera | None = None,
-           front: FrontSide | None = None) -> Decision:
+           front: FrontSide | None = None, slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> Decision:
     """The next step of the loop (module doc). ``done``/``done_poses``: the poses measured so far.
     With ``reach`` and ``camera``, the poses turned about the edge beyond each gap
-    (``targeted_views``) are candidates too."""
+    (``targeted_views``) are candidates too. ``slide_angle_rad``: the slide angle the loop confirms
+    with (``Measurements.slide_angle_rad``), so that a view is predicted to confirm only what the
+    verdict will accept."""
     if verdict.verified:
         return Decision("done", None, "boundary verified: " + verdict.reason)
     gaps = open_ends(verdict)
@@ -624,7 +635,7 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
 
     def check_all(margin):
         if margin not in checked:
-            checked[margin] = [targets.check(c.pose, model, baseline_m, margin) for c in fresh]
+            checked[margin] = [targets.check(c.pose, model, baseline_m, margin, slide_angle_rad) for c in fresh]
         return checked[margin]
 
     best, best_seen, best_conf, best_baseline = None, [], [], None

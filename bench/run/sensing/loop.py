@@ -537,7 +537,8 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
     cands = candidate_views(first.pose2, g, e, options.reach, measured, cam, B, paper)
     cures: list[PlannedView] = []
     while True:
-        d = decide(m.verdict, m.outlines, m.poses, cands, m.model, B, options.max_views, options.reach, cam, m.front)
+        d = decide(m.verdict, m.outlines, m.poses, cands, m.model, B, options.max_views, options.reach, cam, m.front,
+                   m.slide_angle_rad)
         if d.kind == "view" and len(cures) >= options.max_cures:
             d = Decision("stop", None, f"{len(cures)} cures applied, the most allowed; " + m.verdict.reason,
                          d.gaps_targeted)
