@@ -8,6 +8,7 @@ import argparse
 import ast
 import importlib
 import io
+import os
 import re
 import tokenize
 from functools import cache
@@ -27,8 +28,23 @@ MODULE_RE = re.compile(r"(?<![\w./])((?:platebench\.)?(?:" + "|".join(PACKAGES) 
 
 
 def _files(suffixes) -> list[Path]:
-    return sorted(p for p in REPO.rglob("*") if p.is_file() and p.suffix in suffixes
-                  and not _SKIP_PARTS & set(p.relative_to(REPO).parts))
+    return [p for p in _all_files() if p.suffix in suffixes]
+
+
+@cache
+def _all_files() -> tuple[Path, ...]:
+    """Every file of the checkout, sorted, without descending into ``_SKIP_PARTS`` (the virtual
+    environment alone holds tens of thousands of files)."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(REPO):
+        dirnames[:] = [d for d in dirnames if d not in _SKIP_PARTS]
+        out += [Path(dirpath) / f for f in filenames]
+    return tuple(sorted(p for p in out if p.is_file()))
+
+
+@cache
+def _file_names() -> frozenset:
+    return frozenset(p.name for p in _files({".py", ".md"}))
 
 
 def _python_prose(path: Path) -> list[tuple[int, str]]:
@@ -80,8 +96,7 @@ def _path_problem(token: str) -> str | None:
         return "points outside the repository"
     if "/" not in token:  # a bare file name: a module or a document of the repository
         if token.endswith(".md") or token.endswith(".py"):
-            names = {p.name for p in _files({".py", ".md"})}
-            return None if token in names or token.startswith(("my_", "test_")) else "no such file in the repository"
+            return None if token in _file_names() or token.startswith(("my_", "test_")) else "no such file in the repository"
         return None
     first = token.split("/")[0]
     if first not in TOP:

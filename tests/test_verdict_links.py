@@ -265,4 +265,4 @@ def test_the_lead_test_remembered_per_end_is_the_rule_tested_point_by_point(seed
                 if ((d > LINK_M) & (off_end | ahead)).any():
                     direct.append(i)
             assert _leads_on(others, near_to, leads) == direct
-        assert any(t > LEAD_M * 3 for t, _ in leads._reach.values())  # radii past the first one tested
+        assert leads.tested.max() > LEAD_M * 3  # radii past the first one tested

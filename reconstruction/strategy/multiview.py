@@ -615,26 +615,30 @@ class _Leads:
     def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece]):
         self.end, self.own, self.trees, self.pieces = end, own, trees, all_pieces
         self.outward = _outward(all_pieces[own].points, end)
-        self._reach: dict[int, tuple[float, float]] = {}  # piece -> (radius tested, nearest lead within it)
+        self.tested = np.full(len(all_pieces), -1.0)  # (P,) m: the radius each piece was tested within
+        self.best = np.full(len(all_pieces), np.inf)  # (P,) m: its nearest point that leads on, within it
 
-    def nearest(self, i: int, radius: float) -> float:
-        """(m) distance from the end to piece ``i``'s nearest point that leads on, among its points
-        within ``radius`` of the end (inf when none there)."""
-        tested, best = self._reach.get(i, (-1.0, np.inf))
-        if radius > tested:
-            tested = max(radius, LEAD_M + LINK_M + OUTLINE_BRIDGE_M)
-            P = self.pieces[i].points
-            r = np.linalg.norm(P - self.end, axis=1)
-            inside = r <= tested
-            near = P[inside]
-            if len(near):
-                d, k = self.trees[self.own].query(near)
-                off_end = np.linalg.norm(self.pieces[self.own].points[k] - self.end, axis=1) <= LINK_M
-                ahead = (near - self.end) @ self.outward >= -LINK_M
-                lead = r[inside][(d > LINK_M) & (off_end | ahead)]
-                best = float(lead.min()) if len(lead) else np.inf
-            self._reach[i] = (tested, best)
-        return best
+    def _test(self, i: int, radius: float) -> None:
+        tested = max(radius, LEAD_M + LINK_M + OUTLINE_BRIDGE_M)
+        P = self.pieces[i].points
+        r = np.linalg.norm(P - self.end, axis=1)
+        inside = r <= tested
+        near = P[inside]
+        best = np.inf
+        if len(near):
+            d, k = self.trees[self.own].query(near)
+            off_end = np.linalg.norm(self.pieces[self.own].points[k] - self.end, axis=1) <= LINK_M
+            ahead = (near - self.end) @ self.outward >= -LINK_M
+            lead = r[inside][(d > LINK_M) & (off_end | ahead)]
+            best = float(lead.min()) if len(lead) else np.inf
+        self.tested[i], self.best[i] = tested, best
+
+    def within(self, pieces: np.ndarray, radius: float) -> np.ndarray:
+        """The ``pieces`` (int array) with a point that leads on within ``radius`` (m) of the end,
+        in the order given (each piece tested when first asked past the radius it was tested within)."""
+        for i in pieces[self.tested[pieces] < radius]:
+            self._test(int(i), radius)
+        return pieces[self.best[pieces] <= radius]
 
 
 def _leads_on(candidates, near_to: np.ndarray, leads: _Leads) -> list[int]:
@@ -649,7 +653,7 @@ def _leads_on(candidates, near_to: np.ndarray, leads: _Leads) -> list[int]:
     behind this end (counting it here closed a 300-degree curl's loop over a 35 mm stretch no piece
     covered: a silent wrong verdict)."""
     radius = LEAD_M + float(np.linalg.norm(near_to - leads.end))
-    return [i for i in sorted(candidates) if leads.nearest(i, radius) <= radius]
+    return leads.within(np.array(sorted(candidates), int), radius).tolist()
 
 
 def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline],

@@ -146,15 +146,20 @@ def refute(views: list[ViewOutline], confirmed: list[np.ndarray], meshes: list,
     if len(meshes) != len(views):
         raise ValueError(f"refute: {len(meshes)} membrane meshes for {len(views)} views; one per view is needed")
     S = np.zeros((len(views), 3)) if shifts is None else np.asarray(shifts, float)
+    idx = [np.nonzero(c)[0] for c in confirmed]
+    count = [np.zeros(len(i), int) for i in idx]
+    for m, (vm, mesh) in enumerate(zip(views, meshes)):  # every other pose's points at once: one ray cast
+        ks = [k for k in range(len(views)) if k != m and len(idx[k])]
+        if not ks:
+            continue
+        inside = seen_inside(np.vstack([views[k].points[idx[k]] + (S[k] - S[m]) for k in ks]), vm, mesh)
+        at = np.cumsum([0] + [len(idx[k]) for k in ks])
+        for j, k in enumerate(ks):
+            count[k] += inside[at[j]:at[j + 1]]
     out = []
-    for k, (v, c) in enumerate(zip(views, confirmed)):
-        idx = np.nonzero(c)[0]
-        count = np.zeros(len(idx), int)
-        for m, (vm, mesh) in enumerate(zip(views, meshes)):
-            if m != k and len(idx):
-                count += seen_inside(v.points[idx] + (S[k] - S[m]), vm, mesh)
+    for c, i, n in zip(confirmed, idx, count):
         r = np.zeros(len(c), bool)
-        r[idx[count >= poses_needed]] = True
+        r[i[n >= poses_needed]] = True
         out.append(r)
     return out
 
