@@ -129,13 +129,13 @@ def test_the_prediction_agrees_with_the_confirmation_it_predicts(about_x, about_
                                               (40.0, 0.0), (41.0, 1.0), (39.0, -10.0)])
 @pytest.mark.parametrize("distance", [0.395, 0.405])
 def test_under_a_real_rig_the_prediction_asks_the_rigs_slide_angle(about_x, about_y, distance):
-    """The planner predicts with the slide angle the loop confirms with (``decide``'s
-    ``slide_angle_rad``, ``Measurements.slide_angle_rad``). A pose turned 27-29 degrees about the
-    edge (x) and 20 across it (y) is turned 30 degrees and more from the measuring pose and slides
-    the contour 26-28 degrees: predicted to confirm the edge at the ideal slide angle (20 degrees
-    plus the margin: 25) but not at the rig's (27: 32), at which the verdict would not accept the
-    pair either; turned 39-41 degrees about the edge, at both. Whatever it predicts at the rig's
-    angle, the rendered pair confirms at that angle."""
+    """``predicted_confirmed`` at the slide angle the loop confirms with. A pose turned 27-29
+    degrees about the edge (x) and 20 across it (y) is turned 30 degrees and more from the
+    measuring pose and slides the contour 26-28.5 degrees: predicted to confirm the edge at the
+    ideal slide angle (20 degrees plus the margin: 25) but not at the rig's (27 plus the margin:
+    32; the pair may or may not pass the verdict's 27 itself, and the planner does not count on
+    it); turned 39-41 degrees about the edge, at both. Whatever it predicts at the rig's angle,
+    the rendered pair confirms at that angle."""
     from platebench.reconstruction.strategy.multiview import CONFIRM_SLIDE_ANGLE_RIG_RAD
     top, b = _edge_beyond(distance)
     model = SurfaceModel.build([view_membrane(top)])
@@ -214,6 +214,29 @@ def test_decide_aims_at_the_unconfirmed_edges_and_the_aimed_view_closes_the_loop
     assert after.verified, after.reason
     # without the aimed candidates (no reach given) and no others, it stops and names the gaps
     assert decide(v, views, poses, [], model, 0.1).kind == "stop"
+
+
+@pytest.mark.parametrize("turn_deg, confirms_at_rig", [(34.0, False), (35.0, False), (36.0, False),
+                                                    (44.0, True), (45.0, True), (50.0, True)])
+@pytest.mark.parametrize("distance", [0.4, 0.405, 0.395])
+def test_decide_predicts_with_the_slide_angle_it_is_given(turn_deg, confirms_at_rig, distance):
+    """The poses of the aimed-view case, one candidate turned ``turn_deg`` about y (the unconfirmed
+    edges' direction): ``decide`` predicts it confirms the edges beyond the gaps at the ideal slide
+    angle; at the rig's (``slide_angle_rad``, which the loop passes from
+    ``Measurements.slide_angle_rad``) only when it is turned enough for that angle plus the margin
+    (44 degrees and more, not 34-36)."""
+    from platebench.reconstruction.strategy.multiview import CONFIRM_SLIDE_ANGLE_RIG_RAD
+    P = _rectangle()
+    eyes = [_eye(distance=distance), _eye(35.0, distance=distance), _eye(0.0, 10.0, distance=distance)]
+    views = [_view(f"pose {k}", P, e) for k, e in enumerate(eyes)]
+    poses = [SensorPose(e, np.zeros(3), np.array([1.0, 0.0, 0.0])) for e in eyes]
+    v = verify(views)
+    model = SurfaceModel.build([view_membrane(o) for o in views])
+    cand = [_planned("turned", _eye(0.0, turn_deg, distance=distance))]
+    ideal = decide(v, views, poses, cand, model, 0.1)
+    rig = decide(v, views, poses, cand, model, 0.1, slide_angle_rad=CONFIRM_SLIDE_ANGLE_RIG_RAD)
+    assert ideal.kind == "view" and "(confirm: 0)" not in ideal.reason, ideal.reason
+    assert (rig.kind == "view" and "(confirm: 0)" not in rig.reason) == confirms_at_rig, rig.reason
 
 
 def _planned(name, eye):
