@@ -587,7 +587,7 @@ class _PieceIndex:
 
     def near(self, x: np.ndarray, radius: float) -> set:
         """The pieces with a point within ``radius`` (m) of ``x`` (3,)."""
-        return {int(i) for i in self.label[self.tree.query_ball_point(x, radius)]}
+        return self.near_each(np.asarray(x, float)[None], radius)[0]
 
     def near_each(self, X: np.ndarray, radius: float) -> list[set]:
         """``near`` of each point of ``X`` (K,3), in one query."""
