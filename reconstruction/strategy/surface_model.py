@@ -195,7 +195,8 @@ class SurfaceModel:
 
     def blocked(self, origins: np.ndarray, targets: np.ndarray, slack_m: float = BLOCK_SLACK_M) -> np.ndarray:
         """(N,) True where the model's surface lies on the segment origin -> target, farther than
-        ``slack_m`` from both ends (ray casting with trimesh)."""
+        ``slack_m`` from both ends (ray casting with trimesh, each ray from ``slack_m`` past its origin:
+        the first surface it meets decides, as any farther one lies farther along the segment)."""
         origins = np.atleast_2d(np.asarray(origins, float))
         targets = np.atleast_2d(np.asarray(targets, float))
         origins = np.broadcast_to(origins, targets.shape)
@@ -205,7 +206,7 @@ class SurfaceModel:
         d = targets - origins
         dist = np.linalg.norm(d, axis=1)
         d = d / dist[:, None]
-        locs, ray_idx, _ = mesh.ray.intersects_location(origins + d * slack_m, d, multiple_hits=True)
+        locs, ray_idx, _ = mesh.ray.intersects_location(origins + d * slack_m, d, multiple_hits=False)
         out = np.zeros(len(targets), bool)
         if len(ray_idx):
             t = np.einsum("ij,ij->i", locs - origins[ray_idx], d[ray_idx])
