@@ -104,3 +104,38 @@ def test_verifiable_boundary_is_where_the_poses_turn_about_the_edge(turn_deg, di
     # too small a turn verifies nothing
     close = about_x * np.array([1.0, 0.3, 1.0])
     assert not verifiable_visibility(P, close, close, masks).visible.any()
+
+
+@pytest.mark.parametrize("about_deg, along_deg, dist_m", [(24.0, 16.0, 0.4), (23.0, 17.0, 0.395), (25.0, 15.0, 0.405)])
+def test_verifiable_asks_the_slide_angle_the_verdict_asks(about_deg, along_deg, dist_m):
+    """Two poses turned ``about_deg`` about the rectangle's long edges (x) and ``along_deg`` along them:
+    their rays differ by more than ``CONFIRM_ANGLE_RAD`` (25 degrees) while each lies between 20 and 27
+    degrees out of the other's plane through the edge (checked here from the geometry). So the long
+    edges are verifiable by the ideal verdict's rule (``CONFIRM_SLIDE_ANGLE_RAD``, the default) and
+    not by a real rig's (``CONFIRM_SLIDE_ANGLE_RIG_RAD``), as ``reach_visibility`` passes it on."""
+    from platebench.bench.run.sensing.scoring import reach_visibility
+    from platebench.reconstruction.strategy.multiview import (
+        CONFIRM_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RIG_RAD)
+
+    P = _rectangle()
+    long_edge = (np.abs(np.abs(P[:, 1]) - 0.03) < 1e-9) & (np.abs(P[:, 0]) < 0.045)
+    masks = {"left": np.ones((2, len(P)), bool), "right": np.ones((2, len(P)), bool)}
+
+    def toward(a_deg, b_deg):  # turned a about x, then b about y
+        a, b = math.radians(a_deg), math.radians(b_deg)
+        v = np.array([0.0, -math.sin(a), math.cos(a)])
+        return dist_m * np.array([v[0] * math.cos(b) + v[2] * math.sin(b), v[1], -v[0] * math.sin(b) + v[2] * math.cos(b)])
+    C = np.array([toward(-about_deg / 2, -along_deg / 2), toward(about_deg / 2, along_deg / 2)])
+    for p in P[long_edge]:  # the window: rays 25+ degrees apart, each pose 20-27 degrees out of the other's plane
+        r = (C - p) / np.linalg.norm(C - p, axis=1, keepdims=True)
+        assert r[0] @ r[1] < math.cos(CONFIRM_ANGLE_RAD)
+        for i in (0, 1):
+            n = np.cross(r[i], [1.0, 0.0, 0.0])
+            slide = math.asin(abs(r[1 - i] @ n / np.linalg.norm(n)))
+            assert CONFIRM_SLIDE_ANGLE_RAD + math.radians(0.5) < slide < CONFIRM_SLIDE_ANGLE_RIG_RAD - math.radians(0.5)
+    assert verifiable_visibility(P, C, C, masks).visible[long_edge].all()
+    assert not verifiable_visibility(P, C, C, masks, CONFIRM_SLIDE_ANGLE_RIG_RAD).visible[long_edge].any()
+    poses = [SensorPose(c, np.zeros(3), np.array([1.0, 0.0, 0.0])) for c in C]
+    for angle, want in ((CONFIRM_SLIDE_ANGLE_RAD, True), (CONFIRM_SLIDE_ANGLE_RIG_RAD, False)):
+        _, v = reach_visibility(P, poses, 0.0, masks, angle)
+        assert v["left"].visible[long_edge].all() == want and v["left"].visible[long_edge].any() == want

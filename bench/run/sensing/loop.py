@@ -580,7 +580,8 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
     outcome = outcome_class(hidden(gt_first), hidden(gt_final), verified, bool(cures) or not verified)
     reach_vis = verif_vis = unconfirmable = None
     if options.ground_truth_reach:
-        reach, verif = reach_visibility(P, reach_poses, sensor.baseline_m, sensor.boundary_visibility_masks(reach_poses))
+        reach, verif = reach_visibility(P, reach_poses, sensor.baseline_m, sensor.boundary_visibility_masks(reach_poses),
+                                        m.slide_angle_rad)
         reach_vis, verif_vis = gt_visibility_dict(reach), gt_visibility_dict(verif)
         unconfirmable = max([h.length_m for h in verif["left"].hidden_segments], default=0.0)
     accuracy = stage3_accuracy(first.sample3, rec) if rec is not None else None

@@ -88,13 +88,15 @@ def final_visibility(true_boundary: np.ndarray, measured_views) -> dict:
 
 
 def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: np.ndarray,
-                          masks: dict) -> BoundaryVisibility:
+                          masks: dict, slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> BoundaryVisibility:
     """Which points of the true boundary (N,3, closed) a pair of the poses could confirm, by ground
     truth: both cameras of both poses see the point (``masks``: camera -> (P, N) bool), their
-    rays differ by ``CONFIRM_ANGLE_RAD`` and each pose lies ``CONFIRM_SLIDE_ANGLE_RAD`` out of
+    rays differ by ``CONFIRM_ANGLE_RAD`` and each pose lies ``slide_angle_rad`` out of
     the plane through the other pose and the boundary's true tangent there
     (``multiview.confirm``'s rule, on the true edge: rays from the mid-baseline points ``centers``
-    (P,3), planes and slides from the left cameras' centres ``eyes`` (P,3)). A boundary point no
+    (P,3), planes and slides from the left cameras' centres ``eyes`` (P,3)). ``slide_angle_rad`` is
+    the one the loop's verdict asks (``CONFIRM_SLIDE_ANGLE_RAD``; on a real rig
+    ``CONFIRM_SLIDE_ANGLE_RIG_RAD``), so that "verifiable" means verifiable by the verdict's own rule. A boundary point no
     pair can confirm is one that only a narrower window of viewpoints sees (a 300-degree curl's
     tips within the robot's reach): the loop can see it, and says it cannot verify it."""
     P = np.asarray(true_boundary, float)
@@ -111,7 +113,7 @@ def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: 
     n = np.cross(r, t[None])  # each pose's plane through the true tangent
     n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), tol.zero_length)
     ok = np.zeros(len(P), bool)
-    sin_slide, cos_angle = np.sin(CONFIRM_SLIDE_ANGLE_RAD), np.cos(CONFIRM_ANGLE_RAD)
+    sin_slide, cos_angle = np.sin(slide_angle_rad), np.cos(CONFIRM_ANGLE_RAD)
     for a in range(len(C)):
         if not both[a].any():
             continue
@@ -123,13 +125,15 @@ def verifiable_visibility(true_boundary: np.ndarray, centers: np.ndarray, eyes: 
     return summarise_visibility(P, ok)
 
 
-def reach_visibility(true_boundary: np.ndarray, poses, baseline_m: float, masks: dict) -> tuple[dict, dict]:
+def reach_visibility(true_boundary: np.ndarray, poses, baseline_m: float, masks: dict,
+                     slide_angle_rad: float = CONFIRM_SLIDE_ANGLE_RAD) -> tuple[dict, dict]:
     """Ground truth over reachable ``poses`` (``SensorPose``; ``masks``: camera -> (P, N) bool,
     ``SimulatedSensor.boundary_visibility_masks``): (camera -> the boundary seen by that camera of
-    some pose, camera -> the boundary some pair of poses could confirm, ``verifiable_visibility``,
-    the same for both cameras)."""
+    some pose, camera -> the boundary some pair of poses could confirm by the verdict's rule with
+    ``slide_angle_rad``, ``verifiable_visibility``, the same for both cameras)."""
     P = np.asarray(true_boundary, float)
     seen = {c: combined_visibility(P, list(m)) for c, m in masks.items()}
     v = verifiable_visibility(P, np.array([p.center for p in poses]),
-                              np.array([p.camera_centers(baseline_m)[0] for p in poses]), masks)
+                              np.array([p.camera_centers(baseline_m)[0] for p in poses]), masks,
+                              slide_angle_rad)
     return seen, {"left": v, "right": v}
