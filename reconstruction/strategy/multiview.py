@@ -151,6 +151,9 @@ END_SPAN_M = 8e-3  # a piece's direction out of an end: the chord from its point
 # or to one reached along some pose's measured outline within this arc length (16 mm, measured on the
 # study with the off-the-end lead rule: 1 more plate cured, and a silent verdict on cylinder 300 up axis 30)
 OUTLINE_BRIDGE_M = 12e-3
+# the radius about an end within which what leads on is first tested (``_Leads``): every link sought
+# along a walk of OUTLINE_BRIDGE_M lies within it; a larger one asked re-tests that piece
+LEAD_BASE_RADIUS_M = LEAD_M + LINK_M + OUTLINE_BRIDGE_M
 # a short piece's end walks another pose's outline only the way that leaves the piece: walked this
 # much arc, the outline lies farther from the piece than walked the other way, by more than the
 # outline stereo's own point error
@@ -612,30 +615,54 @@ class _Leads:
     tested once per end (over its points within the largest radius asked so far), not once per
     outline point walked."""
 
-    def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece]):
-        self.end, self.own, self.trees, self.pieces = end, own, trees, all_pieces
+    def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece],
+                 index: _PieceIndex | None = None):
+        self.end, self.own, self.trees, self.pieces, self.index = end, own, trees, all_pieces, index
         self.outward = _outward(all_pieces[own].points, end)
         self.tested = np.full(len(all_pieces), -1.0)  # (P,) m: the radius each piece was tested within
         self.best = np.full(len(all_pieces), np.inf)  # (P,) m: its nearest point that leads on, within it
 
+    def _leading(self, near: np.ndarray) -> np.ndarray:
+        """(K,) bool: which points ``near`` (K,3) lead on from the end (``_leads_on``'s test of a point)."""
+        d, k = self.trees[self.own].query(near)
+        off_end = np.linalg.norm(self.pieces[self.own].points[k] - self.end, axis=1) <= LINK_M
+        ahead = (near - self.end) @ self.outward >= -LINK_M
+        return (d > LINK_M) & (off_end | ahead)
+
     def _test(self, i: int, radius: float) -> None:
-        tested = max(radius, LEAD_M + LINK_M + OUTLINE_BRIDGE_M)
+        tested = max(radius, LEAD_BASE_RADIUS_M)
         P = self.pieces[i].points
         r = np.linalg.norm(P - self.end, axis=1)
         inside = r <= tested
         near = P[inside]
         best = np.inf
         if len(near):
-            d, k = self.trees[self.own].query(near)
-            off_end = np.linalg.norm(self.pieces[self.own].points[k] - self.end, axis=1) <= LINK_M
-            ahead = (near - self.end) @ self.outward >= -LINK_M
-            lead = r[inside][(d > LINK_M) & (off_end | ahead)]
+            lead = r[inside][self._leading(near)]
             best = float(lead.min()) if len(lead) else np.inf
         self.tested[i], self.best[i] = tested, best
 
+    def _test_all(self) -> None:
+        """``_test`` of every piece within ``LEAD_BASE_RADIUS_M``, in one pass over the index's points:
+        the same points, the same test of each."""
+        X, label = self.index.tree.data, self.index.label
+        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_BASE_RADIUS_M * (1 + 1e-6) + 1e-9), int)
+        near = X[cand]
+        r = np.linalg.norm(near - self.end, axis=1)
+        inside = r <= LEAD_BASE_RADIUS_M
+        near, r, lab = near[inside], r[inside], label[cand[inside]]
+        best = np.full(len(self.pieces), np.inf)
+        if len(near):
+            lead = self._leading(near)
+            np.minimum.at(best, lab[lead], r[lead])
+        untested = self.tested < 0
+        self.tested[untested], self.best[untested] = LEAD_BASE_RADIUS_M, best[untested]
+
     def within(self, pieces: np.ndarray, radius: float) -> np.ndarray:
         """The ``pieces`` (int array) with a point that leads on within ``radius`` (m) of the end,
-        in the order given (each piece tested when first asked past the radius it was tested within)."""
+        in the order given (each piece tested when first asked past the radius it was tested within;
+        with an index, all pieces at once the first time)."""
+        if self.index is not None and (self.tested[pieces] < 0).any():
+            self._test_all()
         for i in pieces[self.tested[pieces] < radius]:
             self._test(int(i), radius)
         return pieces[self.best[pieces] <= radius]
@@ -666,7 +693,7 @@ def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], vie
     pieces lie off this end), and only away from the piece from the end of a shorter one (module
     doc, "Short pieces")."""
     index = index or _PieceIndex(all_pieces)
-    leads = _Leads(end, own, trees, all_pieces)
+    leads = _Leads(end, own, trees, all_pieces, index)
 
     def hits(near_to, near=None):
         near = index.near(near_to, LINK_M) if near is None else near
