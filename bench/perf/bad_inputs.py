@@ -223,9 +223,9 @@ def base_cases() -> list[Case]:
     for name, addr, expect in (("--scheduler without port", "tcp://127.0.0.1", ("tcp://HOST:PORT",)),
                                ("--scheduler not an address", "localhost", ("tcp://HOST:PORT",)),
                                ("--scheduler closed port", "tcp://127.0.0.1:9", ("cannot reach",)),
-                               ("--scheduler not Dask", "tcp://127.0.0.1:{PORT}", ("within 3 s",))):
+                               ("--scheduler not Dask", "tcp://127.0.0.1:{PORT}", ("within 1 s",))):
         c.append(Case(name, ["sweep", "{W}/spec.toml", "--out", "{W}/o_ds", "--scheduler", addr,
-                             "--connect-timeout-s", "3"], expect, _write("spec.toml", spec_ok), watch=("o_ds",)))
+                             "--connect-timeout-s", "1"], expect, _write("spec.toml", spec_ok), watch=("o_ds",)))
     c.append(Case("--workers -1", ["sweep", "{W}/spec.toml", "--out", "{W}/o_ds", "--workers", "-1"],
                   ("--workers = -1", "0 to 256"), _write("spec.toml", spec_ok), watch=("o_ds",)))
     # --- damaged samples (reconstruct reads images, calib.json, pattern.json)
