@@ -645,7 +645,8 @@ class _Leads:
         """``_test`` of every piece within ``LEAD_BASE_RADIUS_M``, in one pass over the index's points:
         the same points, the same test of each."""
         X, label = self.index.tree.data, self.index.label
-        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_BASE_RADIUS_M * (1 + 1e-6) + 1e-9), int)
+        # the ball's own distance test may differ in the last bits: a wider ball, then the exact test below
+        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_BASE_RADIUS_M + LINK_M), int)
         near = X[cand]
         r = np.linalg.norm(near - self.end, axis=1)
         inside = r <= LEAD_BASE_RADIUS_M
