@@ -27,7 +27,6 @@ Importing ``platebench`` is cheap: nothing here imports Mitsuba until a function
 from __future__ import annotations
 
 from platebench.api import reconstruct, render, report, results, score, sense, sweep
-from platebench.version import __version__
 
 __all__ = ["__version__", "render", "reconstruct", "score", "sense", "sweep", "report", "results", "PlateBenchDataset"]
 

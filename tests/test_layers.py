@@ -197,6 +197,40 @@ def test_import_platebench_does_not_load_the_renderer(tmp_path):
     assert r.returncode == 0 and r.stdout.strip() == "[]", r.stderr
 
 
+@pytest.mark.parametrize("argv, words", [
+    (["sense", "--max-cures", "-1"], "--max-cures = -1 is out of range"),
+    (["sense", "--verify-grid", "dense"], "is not ROWSxCOLS@SQUARE_PX"),
+    (["study", "false-boundary", "--limit", "0"], "--limit = 0 is out of range"),
+    (["study", "false-boundary", "--seed", "-1"], "--seed = -1 is out of range"),
+    (["study", "false-boundary", "--verify-grid", "9x9@0"], "SQUARE_PX = 0 is out of range"),
+    (["study", "false-boundary", "--realism", "1995", "--width", "100"], "--width = 100 is out of range"),
+    (["sense", "--help"], "cure poses at most (default 24; allowed 0 to 48)"),
+    (["study", "--help"], "default 0,60,120,180,240,300"),
+])
+def test_sense_and_study_check_their_flags_before_loading_the_loop(tmp_path, argv, words):
+    """A bad flag of ``sense`` or ``study`` (and their --help, with the loop's own defaults) is answered
+    without importing the sensing loop, the planner or the renderer (their defaults are plain values:
+    ``bench.config.sensing``, ``reconstruction.strategy.budget``)."""
+    code = ("import sys, contextlib, io\n"
+            "from platebench.bench.cli.main import main\n"
+            "err, out = io.StringIO(), io.StringIO()\n"
+            "with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):\n"
+            "    try:\n"
+            f"        rc = main({[*argv, '--out', str(tmp_path / 'o')] if '--help' not in argv else argv!r})\n"
+            "    except SystemExit as e:\n"
+            "        rc = e.code\n"
+            "heavy = [m for m in ('platebench.bench.run.sensing', 'platebench.reconstruction.strategy.planner',\n"
+            "                     'platebench.bench.run.study', 'mitsuba', 'trimesh') if m in sys.modules]\n"
+            "print(rc, heavy)\n"
+            "print(' '.join((err.getvalue() + out.getvalue()).split()))\n")
+    r = _run([sys.executable, "-c", code], tmp_path)
+    assert r.returncode == 0, r.stderr
+    status, text = r.stdout.split("\n", 1)
+    assert status == ("0 []" if "--help" in argv else "2 []"), (status, text)
+    assert " ".join(words.split()) in text, text
+    assert not (tmp_path / "o").exists()
+
+
 def test_the_in_memory_pipeline_does_not_load_openexr(tmp_path):
     """OpenEXR is read and written only where an EXR file is (bench/io/images.py, bench/io/method_outputs.py)."""
     mods = ("platebench.bench.run.paper_method", "platebench.bench.run.score", "platebench.bench.sweep.tasks",

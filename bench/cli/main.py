@@ -44,8 +44,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         epilog="Units: metres and radians in files; flags say when they take mm or degrees. "
                "Run 'platebench COMMAND --help' for each command. Exit status: 0 done, 2 a user error "
                "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
-    from platebench.version import __version__  # noqa: PLC0415  (package metadata: read once the handlers are in)
-    parser.add_argument("--version", action="version", version=f"platebench {__version__}")
+    parser.add_argument("--version", action=_Version, help="show the installed version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, help="what to do (below)")
     for name, modname in COMMANDS.items():
         module = importlib.import_module(modname)
@@ -54,6 +53,18 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         else:
             sub.add_parser(name, help=module.HELP)
     return parser
+
+
+class _Version(argparse.Action):
+    """``--version``: the package metadata is read only when asked (it costs every other command 30-50 ms)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from platebench.version import __version__  # noqa: PLC0415
+        print(f"platebench {__version__}")  # on stdout, as argparse's own version action prints it
+        parser.exit()
 
 
 def _one_line(e: BaseException) -> str:

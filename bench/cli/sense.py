@@ -11,13 +11,13 @@ from platebench.errors import UserValueError
 if TYPE_CHECKING:
     from platebench.bench.run.sensing import SensingResult
 
-# bench.run.sensing (renderer, pipeline, trimesh, SciPy) is imported where it is used: by add_parser
-# (the defaults) only when 'sense' is the command (see main.build_parser)
+# bench.run.sensing (renderer, pipeline, trimesh, SciPy) is imported where it is used, once the flags are
+# checked; the parser's defaults are plain values (bench.config.sensing, reconstruction.strategy.budget)
 HELP = "run the sensing loop (three stages, verification views, cures) with a simulated robot"
 
 
 def add_parser(sub) -> None:
-    from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
+    from platebench.reconstruction.strategy.budget import MAX_CURE_VIEWS, MAX_CURES_ALLOWED  # noqa: PLC0415
 
     p = sub.add_parser("sense", help=HELP,
                        description="Stage 1: far pose, rough boundary. Stage 2: centre line through the boundary "
@@ -29,10 +29,8 @@ def add_parser(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--overwrite", action="store_true", help="replace a sensing run 'platebench sense' wrote "
                    "(nothing else is replaced)")
-    from platebench.reconstruction.strategy.planner import MAX_CURES_ALLOWED  # noqa: PLC0415
-
-    p.add_argument("--max-cures", type=int, default=SensingOptions.max_cures,
-                   help=f"cure poses at most (default {SensingOptions.max_cures}; allowed 0 to {MAX_CURES_ALLOWED})")
+    p.add_argument("--max-cures", type=int, default=MAX_CURE_VIEWS,
+                   help=f"cure poses at most (default {MAX_CURE_VIEWS}; allowed 0 to {MAX_CURES_ALLOWED})")
     p.add_argument("--workspace-mm", type=float, default=150.0,
                    help="radius of the workspace stage 1 must cover, in MILLIMETRES (default 150)")
     add_verify_grid_flag(p)
@@ -42,7 +40,7 @@ def add_parser(sub) -> None:
 
 def add_verify_grid_flag(p) -> None:
     """``--verify-grid``: the square grid the verification views and cures project (sense, study)."""
-    from platebench.bench.run.sensing.records import VERIFY_GRID  # noqa: PLC0415
+    from platebench.bench.config.sensing import VERIFY_GRID  # noqa: PLC0415
 
     p.add_argument("--verify-grid", metavar="ROWSxCOLS@PX", default=VERIFY_GRID,
                    help="square grid projected by the verification views and cures (default auto: 6x12@12 at 640 "
@@ -189,17 +187,19 @@ def grid_text(desc: dict | None) -> str:
 
 
 def run(args) -> int:
-    from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
-    from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
-    from platebench.reconstruction.strategy.planner import MAX_CURES_ALLOWED  # noqa: PLC0415
+    from platebench.reconstruction.strategy.budget import MAX_CURES_ALLOWED  # noqa: PLC0415
 
     cfg = config_from_args(args)
     if not (10 <= args.workspace_mm <= 2000):
         raise UserValueError(f"--workspace-mm = {args.workspace_mm} is out of range: allowed 10 to 2000 mm")
     if not (0 <= args.max_cures <= MAX_CURES_ALLOWED):
         raise UserValueError(f"--max-cures = {args.max_cures} is out of range: allowed 0 to {MAX_CURES_ALLOWED}")
+    verify_grid = verify_grid_arg(args.verify_grid)
+    from platebench.bench.progress import bar, step_callback  # noqa: PLC0415  (the flags are good: the loop)
+    from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
+
     opts = SensingOptions(workspace_radius_m=args.workspace_mm * 1e-3, max_cures=args.max_cures,
-                          verify_grid=verify_grid_arg(args.verify_grid))
+                          verify_grid=verify_grid)
     # the output rule (bench.io.outputs) before the first render; staged, replaced only once complete
     with output_dir(args.out, "sensing run", overwrite=args.overwrite, inputs=[args.config]) as stage:
         with bar(4 + opts.max_views, "sense") as pbar:

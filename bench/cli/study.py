@@ -11,8 +11,8 @@ from platebench.bench.config.ranges import parse_range_text
 from platebench.errors import UserValueError
 from platebench.scenes.scene_spec import RenderSettings
 
-# bench.run.study (the sensing loop, the renderer) is imported where it is used: by add_parser (the
-# default bends) only when 'study' is the command (see main.build_parser)
+# bench.run.study (the sensing loop, the renderer) is imported where it is used, once the flags are
+# checked; the parser's defaults are plain values (bench.config.sensing)
 HELP = ("studies: 'study false-boundary' runs the sensing loop on plates of every family; 'study accuracy' the "
         "paper's accuracy test under a real rig's errors, with an error budget; 'study cut-squares' the paper's "
         "pipeline on oblique bends, cut squares set apart")
@@ -24,9 +24,8 @@ MAX_WORKERS = 64
 
 
 def add_parser(sub) -> None:
-    from platebench.bench.run.study import DEFAULT_BENDS_DEG, REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: PLC0415
-
     from platebench.bench.config.realism import REALISM_PRESETS, SOURCES  # noqa: PLC0415
+    from platebench.bench.config.sensing import DEFAULT_BENDS_DEG, REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: PLC0415
 
     p = sub.add_parser("study", help=HELP,
                        description="false-boundary: the sensing loop (stages 1-3, verification views, cures) on "
@@ -137,14 +136,10 @@ def run(args) -> int:
                              "allowed: ideal")
     if args.spp is None:
         args.spp = 2
-    from platebench.bench.progress import bar  # noqa: PLC0415
-    from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
-    from platebench.bench.run.study import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
-    from platebench.bench.run.study import StudyRealism, perturbed_cases, study_cases, with_realism_seeds  # noqa: PLC0415
-    from platebench.bench.run.study import write_study  # noqa: PLC0415
-
     if args.which == "cut-squares":
         return run_cut_squares(args)
+    from platebench.bench.config.sensing import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
+
     bends = parse_range_text(args.bend or ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG), "--bend", 0.0, 350.0,
                              max_count=MAX_BENDS)
     l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
@@ -170,17 +165,23 @@ def run(args) -> int:
                             max_count=MAX_BENDS)
     if not (0.25 <= args.aspect <= 8.0):
         raise UserValueError(f"--aspect = {args.aspect} is out of range: allowed 0.25 to 8")
+    if args.limit is not None and args.limit < 1:
+        raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
+    verify_grid = verify_grid_arg(args.verify_grid)
+    # the flags are good: the loop and the study
+    from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
+    from platebench.bench.run.study import StudyRealism, perturbed_cases, study_cases, with_realism_seeds  # noqa: PLC0415
+    from platebench.bench.run.study import write_study  # noqa: PLC0415
+
     cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect)
     if args.limit is not None:
-        if args.limit < 1:
-            raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
         cases = cases[:args.limit]
     cases = perturbed_cases(cases, axis_deg, distance_mm)
     base, options_extra = study_base(args, render)
     if not base.realism.is_ideal:
         cases = with_realism_seeds(cases, args.seed)
     width, height = base.scene.width, base.scene.height
-    verify_grid = verify_grid_arg(args.verify_grid)
     if verify_grid == "auto":
         from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
         verify_grid = auto_verify_grid(width)

@@ -22,6 +22,7 @@ from typing import Mapping
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.config.sensing import DEFAULT_BENDS_DEG, REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: F401 (re-exported)
 from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.io.records import LFormulaRow, StudyRow, StudyTargets, file_form
@@ -140,10 +141,7 @@ def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None 
 # The sensing study: the loop on a set of plates of every family.
 
 FAMILY_ORDER = tuple(FAMILIES)  # the families in the order tables show them (plates.spec)
-DEFAULT_BENDS_DEG = (0.0, 60.0, 120.0, 180.0, 240.0, 300.0)  # cylinders, convex and concave
-STUDY_AXES_DEG = (0.0, 30.0, 60.0, 90.0)
 FOLD_BENDS_DEG = (60.0, 120.0, 170.0)
-REFERENCE_ASPECT = 0.1165 / 0.0735  # the paper's plate, length / width
 OTHER_ASPECT = 3.0
 OTHER_DISTANCE_M = 0.5
 

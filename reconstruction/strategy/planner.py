@@ -120,6 +120,7 @@ import numpy as np
 from platebench.reconstruction.paper.outline_stereo import MATCH_STEEP_DEG
 from platebench.reconstruction.paper.surface_interpolation import points_in_polygon
 from platebench.reconstruction.strategy.bending import measured_bending_curves, tangent_intersection_distance
+from platebench.reconstruction.strategy.budget import MAX_CURE_VIEWS, MAX_CURES_ALLOWED  # noqa: F401 (re-exported)
 from platebench.reconstruction.strategy.cures import cure_move_back, cure_orient
 from platebench.reconstruction.strategy.multiview import (
     CONFIRM_ANGLE_RAD,
@@ -175,9 +176,7 @@ TARGETED_TURNS_DEG = (35.0, 50.0)  # turns about the measured edge beyond a gap 
 TARGETED_BASES = 2  # ... of the poses that measured most of it, ...
 TARGETED_GAPS = 4  # ... for this many gaps at most (those with most measured beyond them; ray casting cost)
 SAME_VIEW_RAD = float(np.radians(8.0))  # a candidate this close in direction to a done pose adds nothing
-MAX_CURE_VIEWS = 24  # cure poses the view budget leaves room for (measured: module doc)
 MAX_VIEWS = 1 + len(VERIFY_TURNS_DEG) + MAX_CURE_VIEWS  # measuring poses at most: stage 2, verification, cures
-MAX_CURES_ALLOWED = 2 * MAX_CURE_VIEWS  # ``sense --max-cures`` at most (each cure is a render and a ray cast)
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.config.sensing import VERIFY_GRID
 from platebench.bench.io.records import MergedFigures, Stage3Accuracy, file_form
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
@@ -30,14 +31,6 @@ OUTCOME_TEXT = {
                    "\"seen all\" target counts it as cured), but the loop could not confirm it and says so",
 }
 HIDDEN_BELOW = 0.995  # ground truth "hides part of the boundary": a camera sees less than this fraction
-# The square grid the verification views and cures project (ROWSxCOLS@SQUARE_PX, ``bench.config.parse_grid``),
-# "auto" by default (``auto_verify_grid``): 6 arrays of 12 squares of 12 projector pixels (3 mm at 0.4 m;
-# rows 48 px apart) at 640 px wide and more. Stage 3 keeps the sample's own pattern (the paper's 16
-# squares by default) for the paper's pipeline and its counting test. The verdict's front check and its
-# confirmations need square centres up to the plate's edges: measured over the false-boundary study's
-# 61 plates at 640 x 480 (README, "What the bench measures"), this grid verifies the boundary on every
-# plate pairs of reachable poses can verify, where the paper's 16 squares at every pose verify none.
-VERIFY_GRID = "auto"
 VERIFY_ROWS, VERIFY_COLS, VERIFY_SQUARE_PX, VERIFY_WIDTH_PX = 6, 12, 12, 640
 # a grid of 6 rows with rows 4 squares apart (``parse_grid``) fits the 768-px projector up to this square size
 VERIFY_MAX_SQUARE_PX = 29
