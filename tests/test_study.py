@@ -155,8 +155,9 @@ def test_an_interrupt_stops_the_plates_running_in_the_worker_processes():
     """An interrupt while plates run in worker processes stops them: the pool's processes are gone
     within seconds, not when their plates would have finished (Python's exit joins a process pool,
     and a SIGTERM to the study alone left its workers computing). The interrupt is raised from the
-    progress callback as the flat plate finishes; the other, a 240-degree curl that takes 17 or so
-    poses (a minute or more at 640 x 480 and spp 8), is still running then."""
+    progress callback as the flat plate finishes (a few poses); the other, a 240-degree curl at 0.5 m
+    that takes 30 poses or so, is still running then (at 320 x 240, spp 2, alone: the flat plate's run
+    about 4 s, the curl's about 20 s)."""
     import multiprocessing
     import time
 
@@ -164,9 +165,9 @@ def test_an_interrupt_stops_the_plates_running_in_the_worker_processes():
     from platebench.bench.run.sensing import SensingOptions
     from platebench.bench.run.study import _study_rows, study_cases
     from platebench.scenes.scene_spec import RenderSettings
-    cases = [c for c in study_cases() if c.name in ("flat (cylinder 0)", "cylinder 240 down axis 30")]
+    cases = [c for c in study_cases() if c.name in ("flat (cylinder 0)", "cylinder 240 down axis 0 distance_m 0.5")]
     assert len(cases) == 2
-    base = SampleConfig(scene=SceneParams(width=640, height=480), render=RenderSettings(spp=8))
+    base = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2))
     before = set(multiprocessing.active_children())
     workers = []
 
