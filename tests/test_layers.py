@@ -203,6 +203,7 @@ def test_import_platebench_does_not_load_the_renderer(tmp_path):
     (["study", "false-boundary", "--limit", "0"], "--limit = 0 is out of range"),
     (["study", "false-boundary", "--seed", "-1"], "--seed = -1 is out of range"),
     (["study", "false-boundary", "--verify-grid", "9x9@0"], "SQUARE_PX = 0 is out of range"),
+    (["study", "false-boundary", "--grid", "4x4"], "is not ROWSxCOLS@SQUARE_PX"),
     (["study", "false-boundary", "--realism", "1995", "--width", "100"], "--width = 100 is out of range"),
     (["sense", "--help"], "cure poses at most (default 24; allowed 0 to 48)"),
     (["study", "--help"], "default 0,60,120,180,240,300"),

@@ -169,15 +169,17 @@ def test_an_interrupt_stops_the_plates_running_in_the_worker_processes():
     assert len(cases) == 2
     base = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2))
     before = set(multiprocessing.active_children())
-    workers = []
+    workers, finished = [], []
 
     def progress(k, row):
+        finished.append(row.case)
         workers.extend(p for p in multiprocessing.active_children() if p not in before and p.is_alive())
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
         list(_study_rows(cases, base, SensingOptions(), progress, workers=2))
     assert workers, "no worker process was running when the first plate finished"
+    assert finished == ["flat (cylinder 0)"], finished  # the curl was still running when the interrupt came
     deadline = time.monotonic() + 5.0
     while any(p.is_alive() for p in workers) and time.monotonic() < deadline:
         time.sleep(0.1)

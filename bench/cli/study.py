@@ -167,6 +167,8 @@ def run(args) -> int:
         raise UserValueError(f"--aspect = {args.aspect} is out of range: allowed 0.25 to 8")
     if args.limit is not None and args.limit < 1:
         raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
+    if args.grid:
+        parse_grid(args.grid)  # its one-line error before the loop is loaded (study_base reads it again)
     verify_grid = verify_grid_arg(args.verify_grid)
     # the flags are good: the loop and the study
     from platebench.bench.progress import bar  # noqa: PLC0415
