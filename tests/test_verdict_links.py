@@ -230,13 +230,13 @@ def test_no_bridge_or_walk_across_an_edge_seen_from_behind(hole_mm):
     assert verify(_views(), None, conf, behind=[hole, np.zeros(len(P), bool)]).verified
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-@pytest.mark.parametrize("indexed", [False, True])
-def test_the_lead_test_remembered_per_end_is_the_rule_tested_point_by_point(seed, indexed):
-    """``_leads_on`` remembers per end each piece's nearest leading point (``_Leads``; ``indexed``:
-    every piece tested at once from the pieces' KD index the first time); asked from points near and
-    far in any order (radii below and above the first one tested), it names the pieces that the
-    rule, applied directly to every point within the radius, names."""
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+def test_the_lead_test_remembered_per_end_is_the_rule_tested_point_by_point(seed):
+    """``_leads_on`` remembers per end each piece's nearest leading point (``_Leads``: every piece
+    tested at once from the pieces' KD index the first time, a piece again when asked past that
+    radius); asked from points near and far in any order (radii below and above the first one
+    tested), about all pieces or a few, it names the pieces that the rule, applied directly to every
+    point within the radius, names."""
     from scipy.spatial import cKDTree
 
     from platebench.reconstruction.strategy.multiview import (
@@ -252,9 +252,10 @@ def test_the_lead_test_remembered_per_end_is_the_rule_tested_point_by_point(seed
     runs = [(0, 40), (36, 70), (60, 120), (115, 170), (150, 230), (225, 300), (10, 25)]
     pieces = [Piece("a", np.arange(a, b), P[a:b] + rng.normal(0, 3e-4, (b - a, 3))) for a, b in runs]
     trees = [cKDTree(p.points) for p in pieces]
+    index = _PieceIndex(pieces)
     for own, at in ((o, a) for o in range(len(pieces)) for a in (0, -1)):
         end = pieces[own].points[at]
-        leads = _Leads(end, own, trees, pieces, _PieceIndex(pieces) if indexed else None)
+        leads = _Leads(end, own, trees, pieces, index)
         others = set(range(len(pieces))) - {own}
         for near_to in end + rng.normal(0, 1, (40, 3)) * rng.choice([2e-3, 1e-2, 4e-2], (40, 1)):
             radius = LEAD_M + np.linalg.norm(near_to - end)

@@ -3,6 +3,8 @@ so that ``platebench sense`` and ``platebench study`` parse and refuse flags wit
 ``bench.run.sensing.records`` and ``bench.run.study`` take them from here."""
 from __future__ import annotations
 
+from platebench.plates.spec import reference_spec
+
 # The square grid the verification views and cures project (ROWSxCOLS@SQUARE_PX, ``bench.config.parse_grid``),
 # "auto" by default (``bench.run.sensing.records.auto_verify_grid``): 6 arrays of 12 squares of 12 projector pixels (3 mm at 0.4 m;
 # rows 48 px apart) at 640 px wide and more. Stage 3 keeps the sample's own pattern (the paper's 16
@@ -15,4 +17,4 @@ VERIFY_GRID = "auto"
 # The false-boundary study's cylinders (``bench.run.study.study_cases``)
 DEFAULT_BENDS_DEG = (0.0, 60.0, 120.0, 180.0, 240.0, 300.0)  # bend angles, convex and concave
 STUDY_AXES_DEG = (0.0, 30.0, 60.0, 90.0)  # bend axes from the plate's width direction
-REFERENCE_ASPECT = 0.1165 / 0.0735  # the paper's plate, length / width
+REFERENCE_ASPECT = reference_spec().length_m / reference_spec().width_m  # the paper's plate, length / width

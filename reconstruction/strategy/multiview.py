@@ -615,8 +615,7 @@ class _Leads:
     tested once per end (over its points within the largest radius asked so far), not once per
     outline point walked."""
 
-    def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece],
-                 index: _PieceIndex | None = None):
+    def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], index: _PieceIndex):
         self.end, self.own, self.trees, self.pieces, self.index = end, own, trees, all_pieces, index
         self.outward = _outward(all_pieces[own].points, end)
         self.tested = np.full(len(all_pieces), -1.0)  # (P,) m: the radius each piece was tested within
@@ -642,8 +641,8 @@ class _Leads:
         self.tested[i], self.best[i] = tested, best
 
     def _test_all(self) -> None:
-        """``_test`` of every piece within ``LEAD_BASE_RADIUS_M``, in one pass over the index's points:
-        the same points, the same test of each."""
+        """``_test`` of every piece within ``LEAD_BASE_RADIUS_M``, in one pass over the index's points
+        (the same points, the same test of each): done once, before any piece is tested alone."""
         X, label = self.index.tree.data, self.index.label
         # the ball's own distance test may differ in the last bits: a wider ball, then the exact test below
         cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_BASE_RADIUS_M + LINK_M), int)
@@ -655,14 +654,13 @@ class _Leads:
         if len(near):
             lead = self._leading(near)
             np.minimum.at(best, lab[lead], r[lead])
-        untested = self.tested < 0
-        self.tested[untested], self.best[untested] = LEAD_BASE_RADIUS_M, best[untested]
+        self.tested[:], self.best = LEAD_BASE_RADIUS_M, best
 
     def within(self, pieces: np.ndarray, radius: float) -> np.ndarray:
         """The ``pieces`` (int array) with a point that leads on within ``radius`` (m) of the end,
-        in the order given (each piece tested when first asked past the radius it was tested within;
-        with an index, all pieces at once the first time)."""
-        if self.index is not None and (self.tested[pieces] < 0).any():
+        in the order given (all pieces at once the first time; then each piece again when asked past
+        the radius it was tested within)."""
+        if len(pieces) and self.tested[0] < 0:
             self._test_all()
         for i in pieces[self.tested[pieces] < radius]:
             self._test(int(i), radius)
