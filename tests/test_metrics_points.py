@@ -213,6 +213,30 @@ def test_point_to_mesh_exact_on_a_mesh_of_mixed_triangle_sizes(seed):
     np.testing.assert_allclose(d * 1e3, d_mm, atol=1e-9)
 
 
+@pytest.mark.parametrize("axis_deg, seed", [(29.0, 7), (31.0, 9)])
+def test_point_to_mesh_is_the_brute_force_minimum_to_the_last_bit(axis_deg, seed):
+    """Points 10 to 30 cm off a 200-degree curl's outline, where the triangles sharing the nearest
+    vertex tie to within rounding, and points inside the curl, where much of the mesh is nearly
+    equidistant: each distance is bit for bit the smallest exact distance over every triangle (no
+    bound computed by another formula, the tree's distances or a bounding box's, may prune the
+    triangle that wins by one ulp), and the face returned gives it."""
+    from platebench.plates import CylindricalBend, PlateSpec, build_plate
+
+    plate = build_plate(PlateSpec(0.1165, 0.0735, deformation=CylindricalBend(math.radians(200.0), "up",
+                                                                              math.radians(axis_deg))))
+    mesh, T = plate.mesh, plate.mesh.triangles
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(1000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    B = np.asarray(plate.boundary)[rng.choice(len(plate.boundary), len(u))]
+    lo, hi = mesh.bounds
+    P = np.vstack([B + rng.uniform(0.1, 0.3, (len(u), 1)) * u, lo + rng.uniform(size=(100, 3)) * (hi - lo)])
+    closest, d, face = closest_point_on_mesh(P, mesh)
+    brute = np.array([point_triangle_distance(np.repeat(p[None], len(T), 0), T[:, 0], T[:, 1], T[:, 2]).min()
+                      for p in P])
+    np.testing.assert_array_equal(d, brute)
+    np.testing.assert_array_equal(point_triangle_distance(P, T[face, 0], T[face, 1], T[face, 2]), d)
+
 def test_radius_classes_split_by_factors_of_two():
     from platebench.evaluation.point_metrics import radius_classes
 
