@@ -594,7 +594,8 @@ class _PieceIndex:
 
     def near_each(self, X: np.ndarray, radius: float) -> list[set]:
         """``near`` of each point of ``X`` (K,3), in one query."""
-        return [{int(i) for i in self.label[h]} for h in self.tree.query_ball_point(X, radius)]
+        label = self.label
+        return [set(label[h].tolist()) for h in self.tree.query_ball_point(X, radius)]
 
 
 def _outward(points: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -656,15 +657,18 @@ class _Leads:
             np.minimum.at(best, lab[lead], r[lead])
         self.tested[:], self.best = LEAD_BASE_RADIUS_M, best
 
-    def within(self, pieces: np.ndarray, radius: float) -> np.ndarray:
-        """The ``pieces`` (int array) with a point that leads on within ``radius`` (m) of the end,
-        in the order given (all pieces at once the first time; then each piece again when asked past
-        the radius it was tested within)."""
-        if len(pieces) and self.tested[0] < 0:
+    def within(self, pieces: list[int], radius: float) -> list[int]:
+        """The ``pieces`` with a point that leads on within ``radius`` (m) of the end, in the order
+        given (all pieces at once the first time; then each piece again when asked past the radius
+        it was tested within). A few pieces per call, asked once per outline point walked: plain
+        Python over them, no arrays built."""
+        if pieces and self.tested[0] < 0:
             self._test_all()
-        for i in pieces[self.tested[pieces] < radius]:
-            self._test(int(i), radius)
-        return pieces[self.best[pieces] <= radius]
+        for i in pieces:
+            if self.tested[i] < radius:
+                self._test(i, radius)
+        best = self.best
+        return [i for i in pieces if best[i] <= radius]
 
 
 def _leads_on(candidates, near_to: np.ndarray, leads: _Leads) -> list[int]:
@@ -679,7 +683,7 @@ def _leads_on(candidates, near_to: np.ndarray, leads: _Leads) -> list[int]:
     behind this end (counting it here closed a 300-degree curl's loop over a 35 mm stretch no piece
     covered: a silent wrong verdict)."""
     radius = LEAD_M + float(np.linalg.norm(near_to - leads.end))
-    return leads.within(np.array(sorted(candidates), int), radius).tolist()
+    return leads.within(sorted(candidates), radius)
 
 
 def _linked(end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], views: list[ViewOutline],

@@ -133,6 +133,11 @@ class FrontSide:
                 out[miss] = self.fallback.normals_at(P[miss])
         return out
 
+    @cached_property
+    def _known_tree(self) -> cKDTree:
+        """The KD-tree of the oriented points (built once: ``normals_at`` is asked many times)."""
+        return cKDTree(self.points[self.known])
+
     def _own_normals_at(self, P: np.ndarray) -> np.ndarray:
         out = np.full((len(P), 3), np.nan)
         if not self.known.any() or not len(P):
@@ -140,7 +145,7 @@ class FrontSide:
         S, N = self.points[self.known], self.normals[self.known]
         k = min(SIDE_CANDIDATES, len(S))
         reach = max(self.radius_m, JET_REACH_M) if self.jets is not None else self.radius_m
-        d, i = cKDTree(S).query(P, k=k, distance_upper_bound=reach)
+        d, i = self._known_tree.query(P, k=k, distance_upper_bound=reach)
         d, i = d.reshape(len(P), k), i.reshape(len(P), k)
         ok = np.isfinite(d)
         ii = np.where(ok, i, 0)
@@ -159,13 +164,15 @@ class FrontSide:
         P = np.atleast_2d(np.asarray(points, float))
         return float(np.mean(np.all(np.isfinite(self.normals_at(P)), axis=1))) if len(P) else 0.0
 
-    def side(self, points: np.ndarray, eyes: np.ndarray, front_rad: float = GRAZING_RAD) -> np.ndarray:
+    def side(self, points: np.ndarray, eyes: np.ndarray, front_rad: float = GRAZING_RAD,
+             normals: np.ndarray | None = None) -> np.ndarray:
         """(N,) +1 where a camera at ``eyes`` ((3,) or (N,3)) sees ``points`` (N,3) from the front,
         at least ``front_rad`` above the sheet, -1 from behind (more than ``GRAZING_RAD``), 0
         unknown (``normals_at``) or in between, near grazing (the normal is read a few millimetres
-        away, where a curl has turned by as much)."""
+        away, where a curl has turned by as much). ``normals``: ``normals_at(points)`` when the
+        caller has it already (several eyes or angles asked of the same points)."""
         P = np.atleast_2d(np.asarray(points, float))
-        n = self.normals_at(P)
+        n = self.normals_at(P) if normals is None else normals
         r = np.broadcast_to(np.asarray(eyes, float), P.shape) - P
         with np.errstate(invalid="ignore"):
             sin = np.einsum("ij,ij->i", n, r) / np.linalg.norm(r, axis=1)

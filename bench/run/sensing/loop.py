@@ -379,9 +379,9 @@ class Measurements:
             self._registered = [o.translated(s) for o, s in zip(raw, self.shifts)]
         else:
             self.shifts = np.zeros((len(raw), 3))
-        sides = [both_cameras_side(self.front, o) for o in self.outlines]
+        sides, front_known = sides_and_front_known(self.front, self.outlines)
         confirmed = confirm(self.outlines, min_slide_angle_rad=self.slide_angle_rad, front=[sd >= 0 for sd in sides],
-                            front_known=[both_cameras_side(self.front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
+                            front_known=front_known)
         self.verdict = verify(self.outlines, self.model, confirmed,
                               refute(raw, confirmed, self.meshes, shifts=self.shifts), behind=[sd < 0 for sd in sides])
         return self.verdict
@@ -417,9 +417,9 @@ class Measurements:
                 {"what": "the whole boundary: the plate's front could not be oriented from the square centres "
                          f"(normals turn by {np.degrees(front.max_turn_rad):.0f} deg between neighbouring centres)",
                  "front_oriented_frac": round(share, 3)},)
-        sides = [both_cameras_side(front, o) for o in self.outlines]
+        sides, front_known = sides_and_front_known(front, self.outlines)
         confirmed = confirm(self.outlines, min_slide_angle_rad=self.slide_angle_rad, front=[sd >= 0 for sd in sides],
-                            front_known=[both_cameras_side(front, o, KNOWN_FRONT_RAD) > 0 for o in self.outlines])
+                            front_known=front_known)
         again = verify(self.outlines, self.model, confirmed,
                        refute(self.measured_outlines, confirmed, self.meshes, shifts=self.shifts),
                        behind=[sd < 0 for sd in sides])
@@ -448,18 +448,29 @@ SPARSE_FRONT_NOTE = "when the front is not asked for"  # in a verdict the sparse
 KNOWN_FRONT_RAD = FRONT_MARGIN_RAD
 
 
-def both_cameras_side(front: FrontSide, outline: ViewOutline, front_rad: float = GRAZING_RAD) -> np.ndarray:
+def both_cameras_side(front: FrontSide, outline: ViewOutline, front_rad: float = GRAZING_RAD,
+                      normals: np.ndarray | None = None) -> np.ndarray:
     """(N,) the side of the sheet (``FrontSide.side``: +1 front, at least ``front_rad`` above it;
     -1 back; 0 unknown or near grazing) from which BOTH cameras of the pose that measured
     ``outline`` see its points: the lesser of the left camera's and the right one's (the
     mid-baseline point's mirror of the left). A stereo pair measures an edge only where both of
     its cameras see the same edge; at a tight curl's tip the right camera can see it from behind
-    the sheet while the left sees its front (``KNOWN_FRONT_RAD``)."""
+    the sheet while the left sees its front (``KNOWN_FRONT_RAD``). ``normals``: the front's
+    normals at the outline's points (``front.normals_at``), when already read."""
+    n = front.normals_at(outline.points) if normals is None else normals
     if outline.left is None:
-        return front.side(outline.points, outline.eye, front_rad)
+        return front.side(outline.points, outline.eye, front_rad, normals=n)
     right = 2.0 * np.asarray(outline.camera_center, float) - outline.left.center
-    return np.minimum(front.side(outline.points, outline.left.center, front_rad),
-                      front.side(outline.points, right, front_rad))
+    return np.minimum(front.side(outline.points, outline.left.center, front_rad, normals=n),
+                      front.side(outline.points, right, front_rad, normals=n))
+
+
+def sides_and_front_known(front: FrontSide, outlines: list) -> tuple[list, list]:
+    """Per outline, ``both_cameras_side`` at ``GRAZING_RAD`` (the side) and whether it is above
+    ``KNOWN_FRONT_RAD`` (front known), the front's normals read once for both."""
+    normals = [front.normals_at(o.points) for o in outlines]
+    return ([both_cameras_side(front, o, normals=n) for o, n in zip(outlines, normals)],
+            [both_cameras_side(front, o, KNOWN_FRONT_RAD, normals=n) > 0 for o, n in zip(outlines, normals)])
 
 
 def _true_rays(scene):
