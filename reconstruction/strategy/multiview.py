@@ -257,8 +257,9 @@ class ViewOutline:
         s = np.asarray(shift_m, float)
         left = None if self.left is None else replace(self.left, t=self.left.t - self.left.R @ s)
         out = replace(self, points=self.points + s, camera_center=self.camera_center + s, left=left)
-        if "plane_normals" in self.__dict__:  # a translation turns no plane: keep what was computed
-            out.__dict__["plane_normals"] = self.__dict__["plane_normals"]
+        for kept in ("plane_normals", "image_tree"):  # a translation turns no plane, moves no pixel
+            if kept in self.__dict__:
+                out.__dict__[kept] = self.__dict__[kept]
         return out
 
     @property
@@ -271,6 +272,16 @@ class ViewOutline:
     def plane_normals(self) -> np.ndarray:
         """(N,3) unit normals of the outline's *contour planes* (``contour_planes``)."""
         return contour_planes(self)
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        """KD-tree of ``points`` (built once: the loop asks a pose's outline again at every update)."""
+        return cKDTree(self.points)
+
+    @cached_property
+    def image_tree(self) -> cKDTree:
+        """KD-tree of ``image_points`` (pixels; built once, as ``tree``)."""
+        return cKDTree(self.image_points)
 
 
 def outline_directions(points: np.ndarray, half: int = TANGENT_HALF_POINTS) -> np.ndarray:

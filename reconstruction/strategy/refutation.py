@@ -39,7 +39,6 @@ World frame, metres; pixels of each pose's left image.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from platebench.reconstruction.paper.surface_interpolation import points_in_polygon
 from platebench.reconstruction.strategy.multiview import ViewOutline
@@ -75,8 +74,8 @@ def seen_inside(points: np.ndarray, view: ViewOutline, mesh) -> np.ndarray:
         return out
     idx = np.nonzero(ok)[0]
     inside = points_in_polygon(uv[idx], view.image_points)
-    far_px = cKDTree(view.image_points).query(uv[idx])[0] >= REFUTE_MARGIN_PX
-    off = cKDTree(view.points).query(P[idx])[0] > REFUTE_OFF_OUTLINE_M
+    far_px = view.image_tree.query(uv[idx])[0] >= REFUTE_MARGIN_PX
+    off = view.tree.query(P[idx])[0] > REFUTE_OFF_OUTLINE_M
     idx = idx[inside & far_px & off]
     if not len(idx):
         return out
@@ -107,7 +106,7 @@ def seen_outside(points: np.ndarray, view: ViewOutline) -> np.ndarray:
     j = np.nonzero(framed)[0]
     if len(j):
         outside = ~points_in_polygon(uv[j], view.image_points)
-        outside &= cKDTree(view.image_points).query(uv[j])[0] >= REFUTE_MARGIN_PX
+        outside &= view.image_tree.query(uv[j])[0] >= REFUTE_MARGIN_PX
         out[j[outside]] = True
     return out
 
