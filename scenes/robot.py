@@ -235,6 +235,15 @@ class RobotErrorModel:
             if not (np.isfinite(v) and 0.0 <= v <= 0.1):
                 raise ValueError(f"{name} = {v!r} is out of range: allowed 0 to 0.1")
 
+    def scaled(self, repeatability_scale: float = 1.0, accuracy_scale: float = 1.0,
+               repeatability: bool = True, accuracy: bool = True) -> "RobotErrorModel":
+        """The same robot with its repeatability term (``joint_sigma_rad``) and its accuracy terms
+        (``sigma_length_m``, ``sigma_angle_rad``) multiplied by the scales, and the switches set."""
+        return RobotErrorModel(joint_sigma_rad=self.joint_sigma_rad * repeatability_scale,
+                               sigma_length_m=self.sigma_length_m * accuracy_scale,
+                               sigma_angle_rad=self.sigma_angle_rad * accuracy_scale,
+                               repeatability=repeatability, accuracy=accuracy)
+
     @property
     def exact(self) -> bool:
         """True when the robot goes exactly where it is told."""

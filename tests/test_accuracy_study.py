@@ -155,6 +155,15 @@ def test_realism_scale_scales_a_source_and_refuses_what_is_not_one(tmp_path):
     assert models[1].sigma_length_m == pytest.approx(4 * models[0].sigma_length_m)
     assert models[1].sigma_angle_rad == pytest.approx(4 * models[0].sigma_angle_rad)
     assert models[1].joint_sigma_rad == pytest.approx(models[0].joint_sigma_rad)
+    # a study builds the robot's unit model once and scales it per budget row: the same model as built anew
+    unit = RealismSetup.unit_robot_model(base.robot)
+    no_rp = next(c.realism for c in budget_configs(base) if c.kind == "all_but"
+                 and "robot_repeatability" not in c.realism.sources)
+    for r, m in ((base, models[0]), (scaled, models[1]), (no_rp, None)):
+        m = m or RealismSetup.prepare(r, with_realism(SampleConfig(), r), corner_noise_px=0.15).robot_model
+        assert RealismSetup.prepare(r, with_realism(SampleConfig(), r), corner_noise_px=0.15,
+                                    unit_robot=unit).robot_model == m
+    assert not no_rp.on("robot_repeatability") and unit.repeatability and unit.accuracy
     for bad, words in (("robot_accuracy=x", "is not a number"), ("dust=2", "is not on in realism 1995"),
                        ("robot_accuracy=-1", "out of range: allowed 0 to"), ("robot_accuracy", "is not SOURCE=F")):
         p = run_cli("study", "accuracy", "--out", tmp_path / "a", "--realism-scale", bad)

@@ -213,5 +213,5 @@ def robot_error_model(hw: RobotHardware, cell: Cell = CELL, q_work=None, q_sampl
     qs = [q_work] if q_sample is None else [np.asarray(q, float) for q in q_sample]
     sigma_q = joint_sigma_for_repeatability(arm, q_work, hw.repeatability_rp_m)
     s_len, s_ang, _ = kinematic_error_sigmas(arm, qs, hw.accuracy_position_m)
-    return RobotErrorModel(joint_sigma_rad=sigma_q * repeatability_scale, sigma_length_m=s_len * accuracy_scale,
-                           sigma_angle_rad=s_ang * accuracy_scale, repeatability=repeatability, accuracy=accuracy)
+    return RobotErrorModel(joint_sigma_rad=sigma_q, sigma_length_m=s_len, sigma_angle_rad=s_ang).scaled(
+        repeatability_scale, accuracy_scale, repeatability, accuracy)

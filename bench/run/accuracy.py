@@ -248,6 +248,7 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> AccuracyStu
     confs = budget_configs(rz, settings.budget)
     noise_cache: dict = {}  # corner noise per camera (lens, aperture, sensor): measured once
     renderers: dict = {}  # one renderer per scene structure (a thin lens, a distorting lens): kernels kept
+    unit_robots: dict = {}  # robot -> its error model at unit scales (``RealismSetup.unit_robot_model``): built once
     plate = build_plate(base.plate) if "plate" in settings.targets else None
     rows, setups = [], {}
     for conf in confs:
@@ -255,9 +256,13 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> AccuracyStu
         scene = cfg.scene.build()
         rig = scene.rig
         key = json.dumps([cfg.scene.to_dict(), cfg.sensor.to_dict()], sort_keys=True)
+        robot = conf.realism.robot
+        if robot is not None and robot not in unit_robots:
+            unit_robots[robot] = RealismSetup.unit_robot_model(robot)
+        unit = unit_robots.get(robot)
         if conf.realism.estimates and key not in noise_cache:
-            noise_cache[key] = RealismSetup.prepare(conf.realism, cfg).corner_noise_px
-        setup = RealismSetup.prepare(conf.realism, cfg, corner_noise_px=noise_cache.get(key, 0.0))
+            noise_cache[key] = RealismSetup.prepare(conf.realism, cfg, unit_robot=unit).corner_noise_px
+        setup = RealismSetup.prepare(conf.realism, cfg, corner_noise_px=noise_cache.get(key, 0.0), unit_robot=unit)
         setups[conf.label] = setup
         rkey = (scene.aperture_radius_m > 0, rig.left.distortion is not None, rig.left.K[0, 0] != rig.left.K[1, 1])
         if rkey not in renderers:

@@ -85,21 +85,30 @@ class RealismSetup:
     robot_model: RobotErrorModel | None
     corner_noise_px: float
 
+    @staticmethod
+    def unit_robot_model(robot: str, cell: Cell = CELL, target: TargetBlock = TARGET) -> RobotErrorModel:
+        """The error model of robot ``robot`` (a key of ``ROBOTS``) in ``cell``, both terms on at their
+        datasheet magnitudes (``robot_error_model`` over the seed configuration and the hand/eye
+        views' configurations): the costly part of ``prepare`` (an IK per view, the kinematic
+        parameters' Jacobians), the same for every realism with that robot."""
+        hw = ROBOTS[robot]
+        q_views = [nominal_arm(hw, cell).ik(T, cell.q_seed) for T in calibration_flange_poses(cell, target)]
+        return robot_error_model(hw, cell, q_sample=[cell.q_seed, *q_views])
+
     @classmethod
     def prepare(cls, realism: Realism, cfg, cell: Cell = CELL, target: TargetBlock = TARGET,
-                corner_noise_px: float | None = None, spp: int = 16) -> "RealismSetup":
+                corner_noise_px: float | None = None, spp: int = 16,
+                unit_robot: RobotErrorModel | None = None) -> "RealismSetup":
         """Everything that does not change between draws. ``cfg``: the sample configuration under this
         realism (``presets.with_realism``: its camera, lens and sensor). ``corner_noise_px`` None: measured
-        on rendered views of the target through that camera (only when an estimate needs it)."""
+        on rendered views of the target through that camera (only when an estimate needs it).
+        ``unit_robot``: ``unit_robot_model(realism.robot, cell, target)`` when the caller has it
+        (a study prepares many realisms with the same robot); scaled and switched here."""
         model = None
         if realism.robot is not None:
-            hw = ROBOTS[realism.robot]
-            q_views = [nominal_arm(hw, cell).ik(T, cell.q_seed) for T in calibration_flange_poses(cell, target)]
-            model = robot_error_model(hw, cell, q_sample=[cell.q_seed, *q_views],
-                                      repeatability=realism.on("robot_repeatability"),
-                                      accuracy=realism.on("robot_accuracy"),
-                                      repeatability_scale=realism.scale("robot_repeatability"),
-                                      accuracy_scale=realism.scale("robot_accuracy"))
+            unit = cls.unit_robot_model(realism.robot, cell, target) if unit_robot is None else unit_robot
+            model = unit.scaled(realism.scale("robot_repeatability"), realism.scale("robot_accuracy"),
+                                realism.on("robot_repeatability"), realism.on("robot_accuracy"))
         if corner_noise_px is None:
             corner_noise_px = measure_corner_noise(cfg, target, spp) if realism.estimates else 0.0
         return cls(realism, cell, target, model, float(corner_noise_px))
