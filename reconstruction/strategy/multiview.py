@@ -257,7 +257,7 @@ class ViewOutline:
         s = np.asarray(shift_m, float)
         left = None if self.left is None else replace(self.left, t=self.left.t - self.left.R @ s)
         out = replace(self, points=self.points + s, camera_center=self.camera_center + s, left=left)
-        for kept in ("plane_normals", "image_tree"):  # a translation turns no plane, moves no pixel
+        for kept in ("plane_normals", "image_tree", "pixel_tangents"):  # a translation turns no plane, moves no pixel
             if kept in self.__dict__:
                 out.__dict__[kept] = self.__dict__[kept]
         return out
@@ -277,6 +277,12 @@ class ViewOutline:
     def tree(self) -> cKDTree:
         """KD-tree of ``points`` (built once: the loop asks a pose's outline again at every update)."""
         return cKDTree(self.points)
+
+    @cached_property
+    def pixel_tangents(self) -> np.ndarray:
+        """(N,2) unit tangents of the outline in its left image (``image_tangents`` of
+        ``image_points``), computed once."""
+        return image_tangents(self.image_points)
 
     @cached_property
     def image_tree(self) -> cKDTree:
@@ -361,7 +367,7 @@ def contour_planes(view: ViewOutline) -> np.ndarray:
     if view.left is not None and len(P) >= 3:
         uv = np.asarray(view.image_points, float)
         _, ray = view.left.rays(uv)
-        _, ahead = view.left.rays(uv + image_tangents(uv))  # the tangent line's pixel one step on
+        _, ahead = view.left.rays(uv + view.pixel_tangents)  # the tangent line's pixel one step on
         n = np.cross(ray, ahead)
     else:
         n = np.cross(P - view.camera_center, outline_directions(P))

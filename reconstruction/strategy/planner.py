@@ -132,7 +132,6 @@ from platebench.reconstruction.strategy.multiview import (
     ray_angles,
     slide_angles,
 )
-from platebench.reconstruction.strategy.multiview import image_tangents as multiview_image_tangents
 from platebench.reconstruction.strategy.poses import (
     Reach,
     SensorPose,
@@ -381,7 +380,7 @@ def outside_points(view: ViewOutline, idx: np.ndarray) -> np.ndarray:
     if cam is None or len(view.points) < 3:
         return P.copy()
     uv = view.image_points[idx]
-    t = multiview_image_tangents(view.image_points)[idx]
+    t = view.pixel_tangents[idx]
     n2 = np.column_stack([-t[:, 1], t[:, 0]])
     out = np.where(points_in_polygon(uv + n2 * OUTSIDE_PX, view.image_points)[:, None], -n2, n2)
     uv_out = uv + out * OUTSIDE_PX
