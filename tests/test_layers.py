@@ -232,6 +232,35 @@ def test_sense_and_study_check_their_flags_before_loading_the_loop(tmp_path, arg
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("spec, words", [
+    ("[grid]\nwidth_px = [160.5]\n", "grid.width_px = 160.5 is not an integer"),
+    ("[grid]\nbend_deg = {start = 0, stop = 1e12, step = 1e-3}\n", "allowed at most 100000"),
+    ("[sweep]\nname = 'x'\nmethods = ['nope']\n[grid]\nbend_deg = [10]\n", "nope"),
+])
+def test_sweep_refuses_a_bad_spec_before_loading_its_executors(tmp_path, spec, words):
+    """A bad sweep spec is refused from the spec alone: neither the executors (Dask), the renderer nor
+    scipy.ndimage (the lens undistortion's resampler, 0.25 s to import) is loaded, and nothing is written."""
+    (tmp_path / "spec.toml").write_text(spec)
+    code = ("import sys, contextlib, io\n"
+            "from platebench.bench.cli.main import main\n"
+            "err = io.StringIO()\n"
+            "with contextlib.redirect_stderr(err):\n"
+            "    try:\n"
+            f"        rc = main(['sweep', {str(tmp_path / 'spec.toml')!r}, '--out', {str(tmp_path / 'o')!r}])\n"
+            "    except SystemExit as e:\n"
+            "        rc = e.code\n"
+            "heavy = [m for m in ('platebench.bench.sweep.executors', 'dask', 'distributed', 'mitsuba',\n"
+            "                     'scipy.ndimage') if m in sys.modules]\n"
+            "print(rc, heavy)\n"
+            "print(' '.join(err.getvalue().split()))\n")
+    r = _run([sys.executable, "-c", code], tmp_path)
+    assert r.returncode == 0, r.stderr
+    status, text = r.stdout.split("\n", 1)
+    assert status == "2 []", (status, text)
+    assert words in text and len(text.strip().splitlines()) == 1, text
+    assert not (tmp_path / "o").exists()
+
+
 def test_the_in_memory_pipeline_does_not_load_openexr(tmp_path):
     """OpenEXR is read and written only where an EXR file is (bench/io/images.py, bench/io/method_outputs.py)."""
     mods = ("platebench.bench.run.paper_method", "platebench.bench.run.score", "platebench.bench.sweep.tasks",

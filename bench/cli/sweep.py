@@ -91,7 +91,6 @@ def _executor(args, stack):
 
 def run(args) -> int:
     from platebench.bench.io.outputs import guard_output  # noqa: PLC0415
-    from platebench.bench.sweep.executors import run_sweep  # noqa: PLC0415
     from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
 
     if args.scheduler and args.workers is not None:
@@ -118,6 +117,8 @@ def run(args) -> int:
     for flag, v in (("--connect-timeout-s", args.connect_timeout_s), ("--worker-timeout-s", args.worker_timeout_s)):
         if not math.isfinite(v) or not 1.0 <= v <= 86400.0:
             raise UserValueError(f"{flag} = {v} is out of range: allowed 1 to 86400 s")
+    from platebench.bench.sweep.executors import run_sweep  # noqa: PLC0415  (after the spec and flags are checked)
+
     with contextlib.ExitStack() as stack:
         executor = _executor(args, stack)
         summary = run_sweep(spec, args.out, executor, resume=args.resume, overwrite=args.overwrite,
