@@ -197,6 +197,25 @@ def test_import_platebench_does_not_load_the_renderer(tmp_path):
     assert r.returncode == 0 and r.stdout.strip() == "[]", r.stderr
 
 
+def _cli_in_fresh_python(argv: list, heavy: tuple, cwd) -> tuple[str, str]:
+    """Run ``platebench`` ``argv`` in a fresh Python: ("EXIT [the modules of ``heavy`` it imported]",
+    its stderr and stdout on one line)."""
+    code = ("import sys, contextlib, io\n"
+            "from platebench.bench.cli.main import main\n"
+            "err, out = io.StringIO(), io.StringIO()\n"
+            "with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):\n"
+            "    try:\n"
+            f"        rc = main({[str(a) for a in argv]!r})\n"
+            "    except SystemExit as e:\n"
+            "        rc = e.code\n"
+            f"print(rc, [m for m in {heavy!r} if m in sys.modules])\n"
+            "print(' '.join((err.getvalue() + out.getvalue()).split()))\n")
+    r = _run([sys.executable, "-c", code], cwd)
+    assert r.returncode == 0, r.stderr
+    status, text = r.stdout.split("\n", 1)
+    return status, text
+
+
 @pytest.mark.parametrize("argv, words", [
     (["sense", "--max-cures", "-1"], "--max-cures = -1 is out of range"),
     (["sense", "--verify-grid", "dense"], "is not ROWSxCOLS@SQUARE_PX"),
@@ -212,21 +231,9 @@ def test_sense_and_study_check_their_flags_before_loading_the_loop(tmp_path, arg
     """A bad flag of ``sense`` or ``study`` (and their --help, with the loop's own defaults) is answered
     without importing the sensing loop, the planner or the renderer (their defaults are plain values:
     ``bench.config.sensing``, ``reconstruction.strategy.budget``)."""
-    code = ("import sys, contextlib, io\n"
-            "from platebench.bench.cli.main import main\n"
-            "err, out = io.StringIO(), io.StringIO()\n"
-            "with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):\n"
-            "    try:\n"
-            f"        rc = main({[*argv, '--out', str(tmp_path / 'o')] if '--help' not in argv else argv!r})\n"
-            "    except SystemExit as e:\n"
-            "        rc = e.code\n"
-            "heavy = [m for m in ('platebench.bench.run.sensing', 'platebench.reconstruction.strategy.planner',\n"
-            "                     'platebench.bench.run.study', 'mitsuba', 'trimesh') if m in sys.modules]\n"
-            "print(rc, heavy)\n"
-            "print(' '.join((err.getvalue() + out.getvalue()).split()))\n")
-    r = _run([sys.executable, "-c", code], tmp_path)
-    assert r.returncode == 0, r.stderr
-    status, text = r.stdout.split("\n", 1)
+    status, text = _cli_in_fresh_python(argv if "--help" in argv else [*argv, "--out", tmp_path / "o"],
+                                        ("platebench.bench.run.sensing", "platebench.reconstruction.strategy.planner",
+                                         "platebench.bench.run.study", "mitsuba", "trimesh"), tmp_path)
     assert status == ("0 []" if "--help" in argv else "2 []"), (status, text)
     assert " ".join(words.split()) in text, text
     assert not (tmp_path / "o").exists()
@@ -241,21 +248,9 @@ def test_sweep_refuses_a_bad_spec_before_loading_its_executors(tmp_path, spec, w
     """A bad sweep spec is refused from the spec alone: neither the executors (Dask), the renderer nor
     scipy.ndimage (the lens undistortion's resampler, 0.25 s to import) is loaded, and nothing is written."""
     (tmp_path / "spec.toml").write_text(spec)
-    code = ("import sys, contextlib, io\n"
-            "from platebench.bench.cli.main import main\n"
-            "err = io.StringIO()\n"
-            "with contextlib.redirect_stderr(err):\n"
-            "    try:\n"
-            f"        rc = main(['sweep', {str(tmp_path / 'spec.toml')!r}, '--out', {str(tmp_path / 'o')!r}])\n"
-            "    except SystemExit as e:\n"
-            "        rc = e.code\n"
-            "heavy = [m for m in ('platebench.bench.sweep.executors', 'dask', 'distributed', 'mitsuba',\n"
-            "                     'scipy.ndimage') if m in sys.modules]\n"
-            "print(rc, heavy)\n"
-            "print(' '.join(err.getvalue().split()))\n")
-    r = _run([sys.executable, "-c", code], tmp_path)
-    assert r.returncode == 0, r.stderr
-    status, text = r.stdout.split("\n", 1)
+    status, text = _cli_in_fresh_python(["sweep", tmp_path / "spec.toml", "--out", tmp_path / "o"],
+                                        ("platebench.bench.sweep.executors", "dask", "distributed", "mitsuba",
+                                         "scipy.ndimage"), tmp_path)
     assert status == "2 []", (status, text)
     assert words in text and len(text.strip().splitlines()) == 1, text
     assert not (tmp_path / "o").exists()
