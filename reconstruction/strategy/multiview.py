@@ -940,11 +940,13 @@ def _unconfirmed(views: list[ViewOutline], confirmed: list[np.ndarray], ps: list
         inside = np.zeros(len(v.points), bool)
         inside[by_view.get(v.name, np.zeros(0, int))] = True
         arc = v.arc_m
-        other = np.vstack(others[v.name]) if others[v.name] else None
+        other = None  # the KD-tree of the other poses' pieces, built when a run first asks
         for r in cyclic_runs(~inside):
             length = float(arc[r[:-1]].sum())
             if length < REPORT_MIN_M:
                 continue
-            covered = bool(other is not None and np.mean(cKDTree(other).query(v.points[r])[0] <= LINK_M) > 0.9)
+            if other is None and others[v.name]:
+                other = cKDTree(np.vstack(others[v.name]))
+            covered = bool(other is not None and np.mean(other.query(v.points[r])[0] <= LINK_M) > 0.9)
             out.append(UnconfirmedRun(v.name, length, v.points[r[0]].copy(), v.points[r[-1]].copy(), covered))
     return tuple(out)
