@@ -151,8 +151,9 @@ END_SPAN_M = 8e-3  # a piece's direction out of an end: the chord from its point
 # or to one reached along some pose's measured outline within this arc length (16 mm, measured on the
 # study with the off-the-end lead rule: 1 more plate cured, and a silent verdict on cylinder 300 up axis 30)
 OUTLINE_BRIDGE_M = 12e-3
-# the radius about an end within which what leads on is first tested (``_Leads``): every link sought
-# along a walk of OUTLINE_BRIDGE_M lies within it; a larger one asked re-tests that piece
+# the radius about an end within which a piece is tested again when a walk asks past what was tested
+# (``_Leads``): every link sought along a walk of OUTLINE_BRIDGE_M lies within it; a larger one asked
+# re-tests that piece
 LEAD_BASE_RADIUS_M = LEAD_M + LINK_M + OUTLINE_BRIDGE_M
 # a short piece's end walks another pose's outline only the way that leaves the piece: walked this
 # much arc, the outline lies farther from the piece than walked the other way, by more than the
@@ -631,7 +632,10 @@ class _Leads:
     the distance from the end to that piece's nearest point that leads on. The rule's test of a
     point does not depend on where the link is sought from, only the radius does, so each piece is
     tested once per end (over its points within the largest radius asked so far), not once per
-    outline point walked."""
+    outline point walked. Whether a piece leads on within a radius is the same answer whatever
+    larger radius it was tested within (its nearest leading point within that radius): every piece
+    is first tested within LEAD_M, the radius asked from the end itself (most ends link there), and
+    a piece asked past that again within ``LEAD_BASE_RADIUS_M`` or the radius asked."""
 
     def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], index: _PieceIndex):
         self.end, self.own, self.trees, self.pieces, self.index = end, own, trees, all_pieces, index
@@ -659,20 +663,21 @@ class _Leads:
         self.tested[i], self.best[i] = tested, best
 
     def _test_all(self) -> None:
-        """``_test`` of every piece within ``LEAD_BASE_RADIUS_M``, in one pass over the index's points
-        (the same points, the same test of each): done once, before any piece is tested alone."""
+        """``_test`` of every piece within LEAD_M (the radius asked from the end itself), in one pass
+        over the index's points (the same points, the same test of each): done once, before any piece
+        is tested alone."""
         X, label = self.index.tree.data, self.index.label
         # the ball's own distance test may differ in the last bits: a wider ball, then the exact test below
-        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_BASE_RADIUS_M + LINK_M), int)
+        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_M + LINK_M), int)
         near = X[cand]
         r = np.linalg.norm(near - self.end, axis=1)
-        inside = r <= LEAD_BASE_RADIUS_M
+        inside = r <= LEAD_M
         near, r, lab = near[inside], r[inside], label[cand[inside]]
         best = np.full(len(self.pieces), np.inf)
         if len(near):
             lead = self._leading(near)
             np.minimum.at(best, lab[lead], r[lead])
-        self.tested[:], self.best = LEAD_BASE_RADIUS_M, best
+        self.tested[:], self.best = LEAD_M, best
 
     def within(self, pieces: list[int], radius: float) -> list[int]:
         """The ``pieces`` with a point that leads on within ``radius`` (m) of the end, in the order
