@@ -28,7 +28,7 @@ from platebench.scenes.naming import IMAGE_NAMES
 from platebench.scenes.render.runtime import KernelCounter
 
 SCORE_NOISE_M = 5e-5  # perf score: normal noise (m) added to the points sampled on the dent plate's mesh
-SCORE_AGREE_M = 1e-9  # perf score: the three exact distance computations must agree to this (m)
+SCORE_AGREE_M = 1e-9  # perf score: the exact distances and trimesh's must agree to this (m)
 SCORE_OFF_SURFACE_M = (5e-3, 2e-2)  # perf score: the second point set lies this far off the mesh (m), in random
 # directions, as a merged reconstruction's surface samples lie off the true plate where it is wrong
 

@@ -512,7 +512,7 @@ def pieces(views: list[ViewOutline], confirmed: list[np.ndarray],
         joined.append(bridged)
     if refused:
         first = [b.copy() for b in joined]
-        trees = [cKDTree(v.points) for v in views]
+        trees = [v.tree for v in views]
         for k, r in refused:
             Q = views[k].points[r]
             for other, tree in enumerate(trees):
@@ -634,8 +634,8 @@ class _Leads:
     tested once per end (over its points within the largest radius asked so far), not once per
     outline point walked. Whether a piece leads on within a radius is the same answer whatever
     larger radius it was tested within (its nearest leading point within that radius): every piece
-    is first tested within LEAD_M, the radius asked from the end itself (most ends link there), and
-    a piece asked past that again within ``LEAD_BASE_RADIUS_M`` or the radius asked."""
+    is first tested within LEAD_M, the radius asked from the end itself, and a piece asked past that
+    again within ``LEAD_BASE_RADIUS_M`` or the radius asked."""
 
     def __init__(self, end: np.ndarray, own: int, trees: list, all_pieces: list[Piece], index: _PieceIndex):
         self.end, self.own, self.trees, self.pieces, self.index = end, own, trees, all_pieces, index
@@ -667,8 +667,9 @@ class _Leads:
         over the index's points (the same points, the same test of each): done once, before any piece
         is tested alone."""
         X, label = self.index.tree.data, self.index.label
-        # the ball's own distance test may differ in the last bits: a wider ball, then the exact test below
-        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_M + LINK_M), int)
+        # the ball's own distance test may differ in the last bits: a ball wider by a relative slack,
+        # then the exact test below
+        cand = np.asarray(self.index.tree.query_ball_point(self.end, LEAD_M * (1.0 + tol.relative)), int)
         near = X[cand]
         r = np.linalg.norm(near - self.end, axis=1)
         inside = r <= LEAD_M
