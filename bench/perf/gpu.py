@@ -217,7 +217,9 @@ def study_figures(workers: int, log=print) -> dict:
     for row in rows:
         outcomes[row.get("outcome")] = outcomes.get(row.get("outcome"), 0) + 1
     out = {"workers": workers, "plates": len(rows), "wall_s": wall, "exit_status": rc, "outcomes": outcomes,
-           "targets": doc.get("targets")}
+           "targets": doc.get("targets"),
+           # each plate's outcome, to compare with a CPU run of the same study (same seed) plate by plate
+           "plate_outcomes": {row.get("case"): row.get("outcome") for row in rows}}
     log(f"study false-boundary: {len(rows)} plates, {workers} workers, {wall:.0f} s; outcomes {outcomes}")
     return out
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU machine's measurement: every figure of `platebench perf gpu --full` (host pixels and
 # subnormal floats, whole sample vs raw renders, cuda vs llvm pixels, the sweep pipeline, the
-# 61-plate false-boundary study), each beside its baseline, in one run of about 6-8 minutes.
+# 61-plate false-boundary study), each beside its baseline, in one run (194 s on an H200 machine).
 #
 #   bash bench/perf/gpu_check.sh prepare   # here, once: .device/ (Mitsuba, drjit, ... for Python 3.12)
 #                                          # plus the Dask and TOML-writer wheels the GPU machine lacks

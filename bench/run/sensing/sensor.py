@@ -119,9 +119,9 @@ class SimulatedSensor:
     the image width; None: ``cfg``'s pattern too), from the same projector."""
 
     def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None,
-                 overlap: bool | None = None, corner_noise_px: float | None = None):
+                 overlap: bool = False, corner_noise_px: float | None = None):
         self.cfg = cfg
-        self.overlap = overlap  # passive_views' overlap of renders and measurements (None: on a GPU)
+        self.overlap = overlap  # passive_views' overlap of renders and measurements (off: see passive_views)
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
         # a real rig (``cfg.realism`` not ideal): one draw of the robot and the estimates for the whole run
@@ -214,13 +214,21 @@ class SimulatedSensor:
 
     def passive_views(self, views, rays_for=None, overlap: bool | None = None) -> list[PassiveView]:
         """``passive_view`` of each ``(name, pose)`` of ``views``, in order, rendered as one batch: the
-        images of every view back to back, then their measurements. With ``overlap`` (default: when
-        the renderer runs on a GPU) one thread renders the batch while this one measures the views
-        already rendered, so the device renders the next views during the measurements. Every view's
-        images and measurement are ``passive_view``'s, whatever the order of the work."""
+        images of every view back to back, then their measurements. With ``overlap`` (default: the
+        sensor's, off) one thread renders the batch while this one measures the views already
+        rendered. Every view's images and measurement are ``passive_view``'s, whatever the order of
+        the work.
+
+        The overlap is off by default. Dr.Jit 1.5.0 (the locked version) can deadlock when two
+        Python threads use it, one holding the GIL while it waits for Dr.Jit's lock and the other
+        holding that lock while its log callback asks for the GIL (fixed upstream by Dr.Jit commit
+        553c0ad, after 1.5.0), and Python's garbage collector can free Dr.Jit objects in the
+        measuring thread at any moment. What the overlap could save is small: a view of the study (640 x 480, spp 2, four
+        images) is about 2.5 M samples, 5 ms at the 506 M samples/s an H200 rendered (README,
+        Throughput), against the tenths of a second its measurement takes."""
         active = rays_for is not None
         if overlap is None:
-            overlap = self.renders_on_gpu if self.overlap is None else self.overlap
+            overlap = self.overlap
         if not overlap or len(views) < 2:
             shots = [self._shoot_view(name, pose, active) for name, pose in views]
             return [self._measure_view(name, pose, shot, rays_for) for (name, pose), shot in zip(views, shots)]
@@ -234,12 +242,6 @@ class SimulatedSensor:
                 for shot in shots:
                     shot.cancel()
                 raise
-
-    @property
-    def renders_on_gpu(self) -> bool:
-        """True when this sensor's renderer runs on a GPU (a ``cuda_*`` variant)."""
-        from platebench.scenes.render.runtime import default_variant  # noqa: PLC0415
-        return (self.cfg.variant or default_variant()).startswith("cuda")
 
     def _shoot_view(self, name: str, pose: SensorPose, active: bool) -> Shot | PoseError:
         """The view's shot; under a real rig, the ``PoseError`` of a pose its robot cannot reach."""
