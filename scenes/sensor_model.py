@@ -46,19 +46,29 @@ class SensorModel:
         return (1 << self.bit_depth) - 1
 
     def digitize(self, radiance: np.ndarray, seed: int = 0) -> np.ndarray:
-        """Linear radiance (H,W) -> uint8/uint16 digital numbers."""
-        x = np.clip(np.asarray(radiance, np.float64) / self.radiance_full_scale, 0.0, None)
+        """Linear radiance (H,W) -> uint8/uint16 digital numbers.
+
+        In float64, in one working copy of the image (each step in place; a step that is the
+        identity for this sensor, a full scale of 1 or a gamma of 1, is skipped: it would give the
+        same bits)."""
+        x = np.array(radiance, dtype=np.float64)
+        if self.radiance_full_scale != 1.0:
+            np.divide(x, self.radiance_full_scale, out=x)
         rng = np.random.default_rng(seed)
         if self.full_well_e > 0:
+            np.clip(x, 0.0, None, out=x)
             x = rng.poisson(x * self.full_well_e) / self.full_well_e
-        x = np.clip(x, 0.0, 1.0) ** (1.0 / self.gamma)
+        np.clip(x, 0.0, 1.0, out=x)
+        if self.gamma != 1.0:
+            np.power(x, 1.0 / self.gamma, out=x)
         if self.line_jitter_px > 0:
             x = jitter_rows(x, line_shifts_px(x.shape[0], self.line_jitter_px, seed))
-        dn = x * self.max_dn
+        np.multiply(x, self.max_dn, out=x)
         if self.read_noise_dn > 0:
-            dn = dn + rng.normal(0.0, self.read_noise_dn, dn.shape)
-        dn = np.clip(np.rint(dn), 0, self.max_dn)
-        return dn.astype(np.uint8 if self.bit_depth == 8 else np.uint16)
+            np.add(x, rng.normal(0.0, self.read_noise_dn, x.shape), out=x)
+        np.rint(x, out=x)
+        np.clip(x, 0, self.max_dn, out=x)
+        return x.astype(np.uint8 if self.bit_depth == 8 else np.uint16)
 
     def to_dict(self) -> dict:
         d = {"bit_depth": self.bit_depth, "radiance_full_scale": self.radiance_full_scale, "gamma": self.gamma,

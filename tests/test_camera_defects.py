@@ -136,3 +136,35 @@ def test_ground_truth_is_the_same_with_the_defects_that_are_not_geometry():
         same_radiance = all(np.array_equal(s.radiance[k], ref.radiance[k]) for k in ref.radiance)
         assert same_radiance == (name != "defocus"), name
         assert any(not np.array_equal(s.digital[k], ref.digital[k]) for k in ref.digital), name
+
+
+def _digitize_by_definition(m: SensorModel, radiance, seed: int):
+    """``SensorModel.digitize`` written as its definition, step by step, each on a fresh array."""
+    x = np.clip(np.asarray(radiance, np.float64) / m.radiance_full_scale, 0.0, None)
+    rng = np.random.default_rng(seed)
+    if m.full_well_e > 0:
+        x = rng.poisson(x * m.full_well_e) / m.full_well_e
+    x = np.clip(x, 0.0, 1.0) ** (1.0 / m.gamma)
+    if m.line_jitter_px > 0:
+        x = jitter_rows(x, line_shifts_px(x.shape[0], m.line_jitter_px, seed))
+    dn = x * m.max_dn
+    if m.read_noise_dn > 0:
+        dn = dn + rng.normal(0.0, m.read_noise_dn, dn.shape)
+    return np.clip(np.rint(dn), 0, m.max_dn).astype(np.uint8 if m.bit_depth == 8 else np.uint16)
+
+
+@pytest.mark.parametrize("model", [SensorModel(), SensorModel(16), SensorModel(8, 0.7, 2.2),
+                                   SensorModel(8, 1.3, 1.0, 20000.0, 0.8), SensorModel(16, 0.9, 1.8, 5000.0, 3.0, 0.1),
+                                   SensorModel(8, line_jitter_px=0.3)])
+def test_digitize_is_its_definition_to_the_bit(model):
+    """The in-place digitiser gives the bytes of its definition: out of range, at the radiances
+    whose DN lies exactly half-way and one float32 step either side of them (where a rounding
+    changed by the order of the operations would show), and for every sensor option."""
+    rng = np.random.default_rng(11)
+    half = ((np.arange(model.max_dn + 1) + 0.5) / model.max_dn * model.radiance_full_scale).astype(np.float32)
+    edge = np.concatenate([half, np.nextafter(half, np.float32(0)), np.nextafter(half, np.float32(2))])
+    for seed in (0, 1, 2):
+        img = rng.random((37, 211), dtype=np.float32) * 1.4 - 0.2
+        img[0, :4] = [0.0, -0.0, 1.0, np.float32(model.radiance_full_scale)]
+        for x in (img, edge[None]):
+            assert np.array_equal(model.digitize(x, seed), _digitize_by_definition(model, x, seed))

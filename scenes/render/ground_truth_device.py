@@ -17,7 +17,9 @@ its cores for ``llvm_*``) instead of numpy on one core:
 3. The projector's pixel coordinates of each point (through its lens, if any), whether its
    light reaches the point (in its image, inside a spot's cone, not blocked by the plate: a
    Mitsuba shadow-ray test) and the pattern feature there.
-4. The maps are scattered into full frames on the device and copied to the host once each.
+4. The per-hit values are copied to the host once each (compact: only the pixels that see the
+   plate) and placed into full frames there. (Scattering into full frames on the device gives
+   the same bytes but took 26 % longer on 2 CPU cores at 1280 x 960, llvm_ad_rgb.)
 
 Every camera, projector and plate parameter enters the kernels as an opaque value
 (``dr.opaque``), and the mesh as data buffers: another sample's pose, lens, plate or bend
