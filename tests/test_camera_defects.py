@@ -153,18 +153,21 @@ def _digitize_by_definition(m: SensorModel, radiance, seed: int):
     return np.clip(np.rint(dn), 0, m.max_dn).astype(np.uint8 if m.bit_depth == 8 else np.uint16)
 
 
-@pytest.mark.parametrize("model", [SensorModel(), SensorModel(16), SensorModel(8, 0.7, 2.2),
-                                   SensorModel(8, 1.3, 1.0, 20000.0, 0.8), SensorModel(16, 0.9, 1.8, 5000.0, 3.0, 0.1),
-                                   SensorModel(8, line_jitter_px=0.3)])
+@pytest.mark.parametrize("model", [SensorModel(), SensorModel(16), SensorModel(8, 0.7, 2.2), SensorModel(8, 1.0, 2.0),
+                                   SensorModel(16, 1.0, 0.5), SensorModel(8, 1.3, 1.0, 20000.0, 0.8),
+                                   SensorModel(16, 0.9, 1.8, 5000.0, 3.0, 0.1), SensorModel(8, line_jitter_px=0.3)])
 def test_digitize_is_its_definition_to_the_bit(model):
-    """The in-place digitiser gives the bytes of its definition: out of range, at the radiances
-    whose DN lies exactly half-way and one float32 step either side of them (where a rounding
-    changed by the order of the operations would show), and for every sensor option."""
+    """The in-place digitiser gives the bytes of its definition and leaves its input as it was: out
+    of range, at the float64 radiances whose DN lies exactly half-way and one float64 step either
+    side of them (where a rounding changed by the order of the operations would show), for float32
+    and float64 images, and for every sensor option."""
     rng = np.random.default_rng(11)
-    half = ((np.arange(model.max_dn + 1) + 0.5) / model.max_dn * model.radiance_full_scale).astype(np.float32)
-    edge = np.concatenate([half, np.nextafter(half, np.float32(0)), np.nextafter(half, np.float32(2))])
+    half = (np.arange(model.max_dn + 1) + 0.5) / model.max_dn * model.radiance_full_scale
+    edge = np.concatenate([half, np.nextafter(half, 0.0), np.nextafter(half, 2.0)])
     for seed in (0, 1, 2):
-        img = rng.random((37, 211), dtype=np.float32) * 1.4 - 0.2
-        img[0, :4] = [0.0, -0.0, 1.0, np.float32(model.radiance_full_scale)]
-        for x in (img, edge[None]):
+        img = rng.random((37, 211)) * 1.4 - 0.2
+        img[0, :4] = [0.0, -0.0, 1.0, model.radiance_full_scale]
+        for x in (img, img.astype(np.float32), edge[None], edge[None].astype(np.float32)):
+            before = x.copy()
             assert np.array_equal(model.digitize(x, seed), _digitize_by_definition(model, x, seed))
+            assert np.array_equal(x, before)

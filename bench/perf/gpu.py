@@ -46,6 +46,7 @@ from platebench.scenes.scene_spec import RenderSettings
 __all__ = ["perf_gpu", "TARGETS_GPU"]
 
 TARGETS_GPU = {"whole_sample_s": 0.15, "sweep_samples_per_s": 10.0, "study_s": 60.0}
+STUDY_TIMEOUT_S = 300.0  # perf gpu --full: the study is stopped after five times its 60-s target
 CPU_VARIANT, GPU_VARIANT = "llvm_ad_rgb", "cuda_ad_rgb"
 
 
@@ -208,8 +209,13 @@ def study_figures(workers: int, log=print) -> dict:
     with tempfile.TemporaryDirectory(prefix="platebench-perf-study-") as tmp:
         out_dir = Path(tmp) / "study"
         t0 = time.perf_counter()  # the command as a user runs it, start-up included
-        rc = subprocess.run([sys.executable, "-m", "platebench", "study", "false-boundary", "--out", str(out_dir),
-                             "--workers", str(workers)], stdout=subprocess.DEVNULL).returncode
+        try:
+            rc = subprocess.run([sys.executable, "-m", "platebench", "study", "false-boundary", "--out", str(out_dir),
+                                 "--workers", str(workers)], stdout=subprocess.DEVNULL,
+                                timeout=STUDY_TIMEOUT_S).returncode
+        except subprocess.TimeoutExpired:  # a stalled plate: the section says so and the run goes on
+            raise TimeoutError(f"the study did not end within {STUDY_TIMEOUT_S:g} s (its workers stopped with it)") \
+                from None
         wall = time.perf_counter() - t0
         doc = json.loads((out_dir / "study.json").read_text()) if rc == 0 else {}
     rows = doc.get("rows", [])

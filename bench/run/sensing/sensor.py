@@ -223,9 +223,10 @@ class SimulatedSensor:
         Python threads use it, one holding the GIL while it waits for Dr.Jit's lock and the other
         holding that lock while its log callback asks for the GIL (fixed upstream by Dr.Jit commit
         553c0ad, after 1.5.0), and Python's garbage collector can free Dr.Jit objects in the
-        measuring thread at any moment. What the overlap could save is small: a view of the study (640 x 480, spp 2, four
-        images) is about 2.5 M samples, 5 ms at the 506 M samples/s an H200 rendered (README,
-        Throughput), against the tenths of a second its measurement takes."""
+        measuring thread at any moment. What the overlap could save is small: a view of the study
+        (640 x 480, spp 2, two or four images) is 1.2 to 2.5 M samples, of the order of 5 ms at the
+        506 M samples/s an H200 rendered at 1280 x 960 (README, Throughput), against the tenths of
+        a second its measurement takes."""
         active = rays_for is not None
         if overlap is None:
             overlap = self.overlap
