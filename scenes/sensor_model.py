@@ -60,7 +60,7 @@ class SensorModel:
             x = rng.poisson(x * self.full_well_e) / self.full_well_e
         np.clip(x, 0.0, 1.0, out=x)
         if self.gamma != 1.0:
-            np.power(x, 1.0 / self.gamma, out=x)
+            x **= 1.0 / self.gamma  # numpy's ``**`` (its square root for 0.5), as the definition has it
         if self.line_jitter_px > 0:
             x = jitter_rows(x, line_shifts_px(x.shape[0], self.line_jitter_px, seed))
         np.multiply(x, self.max_dn, out=x)

@@ -19,7 +19,7 @@ its cores for ``llvm_*``) instead of numpy on one core:
    Mitsuba shadow-ray test) and the pattern feature there.
 4. The per-hit values are copied to the host once each (compact: only the pixels that see the
    plate) and placed into full frames there. (Scattering into full frames on the device gives
-   the same bytes but took 26 % longer on 2 CPU cores at 1280 x 960, llvm_ad_rgb.)
+   the same bytes but was slower with llvm_ad_rgb on 2 CPU cores.)
 
 Every camera, projector and plate parameter enters the kernels as an opaque value
 (``dr.opaque``), and the mesh as data buffers: another sample's pose, lens, plate or bend

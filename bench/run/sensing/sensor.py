@@ -119,9 +119,8 @@ class SimulatedSensor:
     the image width; None: ``cfg``'s pattern too), from the same projector."""
 
     def __init__(self, cfg: SampleConfig, progress=None, verify_grid: str | None = None,
-                 overlap: bool = False, corner_noise_px: float | None = None):
+                 corner_noise_px: float | None = None):
         self.cfg = cfg
-        self.overlap = overlap  # passive_views' overlap of renders and measurements (off: see passive_views)
         built = cfg.scene.build()
         self.base = replace(built, lighting=replace(built.lighting, follows_rig=True))
         # a real rig (``cfg.realism`` not ideal): one draw of the robot and the estimates for the whole run
@@ -212,37 +211,22 @@ class SimulatedSensor:
         (``active_views.active_points``)."""
         return self._measure_view(name, pose, self._shoot_view(name, pose, rays_for is not None), rays_for)
 
-    def passive_views(self, views, rays_for=None, overlap: bool | None = None) -> list[PassiveView]:
+    def passive_views(self, views, rays_for=None) -> list[PassiveView]:
         """``passive_view`` of each ``(name, pose)`` of ``views``, in order, rendered as one batch: the
-        images of every view back to back, then their measurements. With ``overlap`` (default: the
-        sensor's, off) one thread renders the batch while this one measures the views already
-        rendered. Every view's images and measurement are ``passive_view``'s, whatever the order of
-        the work.
+        images of every view back to back, then their measurements (the same views and measurements
+        as one ``passive_view`` after another).
 
-        The overlap is off by default. Dr.Jit 1.5.0 (the locked version) can deadlock when two
-        Python threads use it, one holding the GIL while it waits for Dr.Jit's lock and the other
-        holding that lock while its log callback asks for the GIL (fixed upstream by Dr.Jit commit
-        553c0ad, after 1.5.0), and Python's garbage collector can free Dr.Jit objects in the
-        measuring thread at any moment. What the overlap could save is small: a view of the study
-        (640 x 480, spp 2, two or four images) is 1.2 to 2.5 M samples, of the order of 5 ms at the
-        506 M samples/s an H200 rendered at 1280 x 960 (README, Throughput), against the tenths of
-        a second its measurement takes."""
+        The renders do not overlap the measurements in a second thread: Dr.Jit 1.5.0 (the locked
+        version) can deadlock when two Python threads use it, one holding the GIL while it waits for
+        Dr.Jit's lock and the other holding that lock while its log callback asks for the GIL (fixed
+        upstream by Dr.Jit commit 553c0ad, after 1.5.0), and Python's garbage collector can free
+        Dr.Jit objects in the measuring thread at any moment. An overlap would save little: a view of
+        the study (640 x 480, spp 2, two or four images) is 1.2 to 2.5 M samples, of the order of
+        5 ms at the 506 M samples/s an H200 rendered at 1280 x 960 (README, Throughput), against the
+        tenths of a second its measurement takes."""
         active = rays_for is not None
-        if overlap is None:
-            overlap = self.overlap
-        if not overlap or len(views) < 2:
-            shots = [self._shoot_view(name, pose, active) for name, pose in views]
-            return [self._measure_view(name, pose, shot, rays_for) for (name, pose), shot in zip(views, shots)]
-        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
-        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="platebench-render") as pool:  # renders in order
-            shots = [pool.submit(self._shoot_view, name, pose, active) for name, pose in views]
-            try:
-                return [self._measure_view(name, pose, shot.result(), rays_for)
-                        for (name, pose), shot in zip(views, shots)]
-            except BaseException:
-                for shot in shots:
-                    shot.cancel()
-                raise
+        shots = [self._shoot_view(name, pose, active) for name, pose in views]
+        return [self._measure_view(name, pose, shot, rays_for) for (name, pose), shot in zip(views, shots)]
 
     def _shoot_view(self, name: str, pose: SensorPose, active: bool) -> Shot | PoseError:
         """The view's shot; under a real rig, the ``PoseError`` of a pose its robot cannot reach."""
