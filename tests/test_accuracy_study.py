@@ -44,6 +44,30 @@ def test_a_small_accuracy_study_runs_end_to_end(tmp_path):
     assert "paper (V-D): depth <= 2 mm" in p.stdout and "added to the no-source floor alone (depth" in p.stdout
 
 
+@pytest.mark.parametrize("seed0", [0, 5])
+def test_plate_centres_moved_past_their_neighbours_by_the_arm_are_still_identified(seed0):
+    """The PUMA's absolute error alone (no hand/eye estimate to cancel it) moves the plate's measured
+    centres in the world by about a centimetre, more than half the squares' 16 mm+ spacing, so nearness
+    in space cannot say which true centre each is. Read in the left image, every one of the 16 is
+    identified in every draw that measures the plate (a draw whose view runs the plate into the image
+    border fails, with that reason)."""
+    from platebench.evaluation.truth import true_feature_points
+    from platebench.plates import build_plate
+
+    cfg = with_realism(SampleConfig(), "1995")
+    proj = cfg.scene.build().projector
+    P = true_feature_points(build_plate(cfg.plate).mesh, proj.camera,
+                            np.array([f.center for f in proj.pattern.features], float).reshape(-1, 2))
+    gaps = np.linalg.norm(P[:, None] - P[None], axis=2)
+    spacing_m = gaps[~np.eye(len(P), dtype=bool)].min()
+    study = run_accuracy_study(AccuracySettings(REALISM_PRESETS["1995"].only("robot_accuracy"), draws=3,
+                                                targets=("plate",), spp=2, seed0=seed0, budget=False))
+    ok = [r for r in study.rows if r.ok]
+    assert len(ok) >= 2 and all(r.points == 16 for r in ok)
+    assert all("image border" in r.error for r in study.rows if not r.ok)
+    assert max(r.worst_xy_mm for r in ok) > 0.5 * spacing_m * 1e3
+
+
 def test_the_ideal_study_measures_the_methods_floor_in_the_true_block_frame():
     """Every source off: the corners are triangulated by the true rig and the block's true pose, so the errors
     are the corner method's alone: well inside the paper's bound, and the plate's centres at the bench's

@@ -505,3 +505,48 @@ def test_views_rendered_as_one_batch_are_the_views_rendered_one_by_one(bend_deg,
         if b.active is not None:
             np.testing.assert_array_equal(b.active.points, s.active.points)
     assert measured >= 2
+
+def _fit_distance(sensor, direction: np.ndarray) -> float:
+    """The distance (m) from the plate's centre along ``direction`` at which the plate's boundary just fits
+    both images of the rig (its projection reaches an image edge), by bisection on the projections."""
+    from platebench.reconstruction.strategy.poses import SensorPose
+
+    B = np.asarray(sensor.plate.boundary, float)
+
+    def fits(d):
+        rig = sensor.scene_at(SensorPose(d * direction, np.zeros(3), np.array([1.0, 0.0, 0.0]))).rig
+        return all(np.all((uv >= 0) & (uv <= [c.width - 1, c.height - 1]))
+                   for c in (rig.left, rig.right) for uv in [c.project(B)])
+    lo, hi = 0.05, 2.0
+    for _ in range(40):
+        lo, hi = (lo, (lo + hi) / 2) if fits((lo + hi) / 2) else ((lo + hi) / 2, hi)
+    return hi
+
+
+@pytest.mark.render
+def test_a_stage_view_whose_plate_runs_into_the_image_border_is_taken_again_farther_back():
+    """A real rig's pose error can shift a stage's view by centimetres and run the plate into the image
+    border: the loop takes that view again farther back along its line of sight
+    (``loop._passive_backing_off``), saying so in the pose's reason. Analytic set-up on the ideal rig:
+    the distance at which the flat plate's projection just fits both images; 6 % closer it runs into
+    the border, and one step back (10 %) frames it. Half as far again, three steps back do not, and the
+    border error stands. A pose that frames the plate is taken once, as it is."""
+    from platebench.bench.run.sensing.loop import _passive_backing_off
+    from platebench.bench.run.sensing.sensor import BACK_OFF_FRACTION, SimulatedSensor
+    from platebench.reconstruction.paper.plate_region import PlateAtBorderError
+    from platebench.reconstruction.strategy.poses import SensorPose
+
+    sensor = SimulatedSensor(SENSE)
+    down = np.array([0.0, 0.0, 1.0])
+    d_fit = _fit_distance(sensor, down)
+    x = np.array([1.0, 0.0, 0.0])
+    near = SensorPose(d_fit / 1.06 * down, np.zeros(3), x, "stage 2: test")
+    pose, shot, passive = _passive_backing_off(sensor, near, "stage 2")
+    assert pose.distance_m == pytest.approx(near.distance_m * (1 + BACK_OFF_FRACTION), rel=1e-12)
+    assert pose.reason.startswith("stage 2: test; moved back to") and "image border" in pose.reason
+    assert len(passive.boundary) > 0 and shot.scene.rig.left.center[2] == pytest.approx(pose.distance_m)
+    with pytest.raises(PlateAtBorderError):
+        _passive_backing_off(sensor, SensorPose(d_fit / 1.5 * down, np.zeros(3), x, "too near"), "stage 2")
+    far = SensorPose(1.1 * d_fit * down, np.zeros(3), x, "fits")
+    pose, _, _ = _passive_backing_off(sensor, far, "stage 2")
+    assert pose is far

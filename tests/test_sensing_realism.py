@@ -8,13 +8,19 @@ import numpy as np
 import pytest
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.config.hardware_robot import CELL, ROBOTS, nominal_arm
 from platebench.bench.config.presets import with_realism
 from platebench.bench.run.realism import RealismSetup, draw_rig, realise
-from platebench.scenes.robot import IKError, camera_pose, pose_difference
+from platebench.scenes.robot import IKError, camera_pose, kinematic_error_sigmas, pose_difference
 from platebench.scenes.scene_spec import scene_for_pose
 from tests.conftest import run_cli
 
 CFG95 = with_realism(SampleConfig(), "1995")
+PUMA = ROBOTS[CFG95.realism.robot]
+# the arm's absolute error (RMS over configurations): its published position accuracy and the orientation
+# error the kinematic model implies for it (``scenes.robot.kinematic_error_sigmas``)
+ARM_POSITION_RMS_M = PUMA.accuracy_position_m
+ARM_ROTATION_RMS_RAD = kinematic_error_sigmas(nominal_arm(PUMA), [CELL.q_seed], PUMA.accuracy_position_m)[2]
 
 
 def _far_side_rig(tilt_deg: float, distance_m: float = 0.45):
@@ -50,9 +56,9 @@ def test_a_pose_beyond_the_arms_reach_is_taken_with_the_cell_turned(tilt_deg):
     yaw = d.reach_yaw(rig)
     assert yaw is not None and yaw != 0.0
     acq = d.acquire(rig, yaw)
-    for c in ("left", "right"):  # the pair really taken is near the command, as an unturned pose's
+    for c in ("left", "right"):  # the pair really taken is near the command: within the arm's own error
         dp, da = pose_difference(camera_pose(acq.taken.cameras[c]), camera_pose(rig.cameras[c]))
-        assert 1e-5 < dp < 0.01 and 1e-5 < da < 0.02, (dp, da)
+        assert 1e-5 < dp < 3 * ARM_POSITION_RMS_M and 1e-5 < da < 3 * ARM_ROTATION_RMS_RAD, (dp, da)
         assert acq.report.views[c].position_error_m == pytest.approx(dp)
 
 
@@ -70,11 +76,12 @@ def test_sense_under_the_1995_rig_measures_through_the_commanded_poses(tmp_path)
     assert len(moves) >= len(doc["final"]["poses"]) + 1  # stage 1, stage 2 (stage 3 where it stands), the views
     pos = np.array([[m[f"{c}_position_error_m"] for c in ("left", "right")] for m in moves])
     rot = np.array([[m[f"{c}_rotation_error_rad"] for c in ("left", "right")] for m in moves])
-    # The cameras really stand where the estimated mount and the robot's errors put them: of the order of the
-    # mount estimate's error (millimetres and milliradians for this preset), never where they were commanded,
-    # and each move lands differently (a new repeatability draw, another arm configuration).
-    assert 0.2 * he["mount_position_error_m"] < np.median(pos) < he["mount_position_error_m"] + 3e-3
-    assert 0.2 * he["mount_rotation_error_rad"] < np.median(rot) < he["mount_rotation_error_rad"] + 3e-3
+    # The cameras really stand where the estimated mount and the robot's errors put them: off by the mount
+    # estimate's error and the arm's absolute error at each configuration (centimetres and tens of milliradians
+    # for the PUMA), never where they were commanded, and each move lands differently (a new repeatability
+    # draw, another arm configuration).
+    assert 0.2 * he["mount_position_error_m"] < np.median(pos) < he["mount_position_error_m"] + 2 * ARM_POSITION_RMS_M
+    assert 0.2 * he["mount_rotation_error_rad"] < np.median(rot) < he["mount_rotation_error_rad"] + 2 * ARM_ROTATION_RMS_RAD
     assert pos.min() > 1e-5 and np.ptp(pos) > 1e-5
     # stage 3's sample: its calibration is what the loop was told (the commanded stage-2 pose, estimated K), its
     # ground truth comes from the cameras really posed, apart by the move recorded for stage 2
@@ -108,7 +115,15 @@ def test_realism_flags_of_sense_and_study_refuse_bad_values(tmp_path):
              (("sense", "--realism", "1995", "--camera", "1995"), "--camera and --realism both choose the camera"),
              (("study", "false-boundary", "--realism", "1996"), "invalid choice: '1996'"),
              (("study", "false-boundary", "--realism", "1995", "--width", "100"), "--width = 100 is out of range"),
-             (("study", "cut-squares", "--realism", "1995"), "--realism = 1995 for the cut-squares study")]
+             (("study", "cut-squares", "--realism", "1995"), "--realism = 1995 for the cut-squares study"),
+             (("study", "false-boundary", "--realism-scale", "robot_accuracy=2"),
+              "--realism-scale robot_accuracy=2 without an error source"),
+             (("study", "false-boundary", "--realism", "1995", "--realism-scale", "robot_accuracy=x"),
+              "--realism-scale robot_accuracy = 'x' is not a number"),
+             (("study", "false-boundary", "--realism", "1995", "--realism-scale", "lens=2"),
+              "--realism-scale source 'lens' is not on in realism 1995"),
+             (("study", "cut-squares", "--realism-scale", "robot_accuracy=2"),
+              "--realism-scale robot_accuracy=2 for the cut-squares study")]
     for args, words in cases:
         p = run_cli(*args, "--out", tmp_path / "o")
         assert p.returncode == 2 and words in p.stderr.strip().splitlines()[-1], (args, p.stderr)
@@ -167,3 +182,25 @@ def test_a_measured_outline_lies_where_the_truth_really_appears_under_the_1995_r
     seen = np.asarray(view.gt_visibility["left"].visible, bool)
     d = cKDTree(view.outline.image_points).query(view.image_of(sensor.plate.boundary[seen]))[0]
     assert seen.mean() > 0.99 and np.percentile(d, 95) < 1.0, np.percentile(d, [50, 95])
+
+
+def test_a_studys_realism_scale_reaches_every_plates_draw():
+    """``study false-boundary --realism 1995 --realism-scale robot_accuracy=0.5``: the study's rig and each
+    plate's draw carry the scale, and the robot drawn for a plate has half the kinematic spread of the
+    preset's (the arm's accuracy halved), its repeatability unchanged."""
+    import argparse
+
+    from platebench.bench.cli.study import study_base
+    from platebench.bench.run.study import study_cases, with_realism_seeds
+    from platebench.scenes.scene_spec import RenderSettings
+
+    args = argparse.Namespace(realism="1995", realism_scale="robot_accuracy=0.5", grid=None, width=320)
+    base, extra = study_base(args, RenderSettings(spp=1))
+    assert base.realism.scales == {"robot_accuracy": 0.5} and extra["corner_noise_px"] > 0
+    case = with_realism_seeds(study_cases()[:1], 0)[0]
+    cfg = case.config(base)
+    assert cfg.realism.scales == {"robot_accuracy": 0.5} and cfg.realism.seed == case.realism_seed
+    half = RealismSetup.prepare(cfg.realism, cfg, corner_noise_px=0.15).robot_model
+    full = RealismSetup.prepare(CFG95.realism, CFG95, corner_noise_px=0.15).robot_model
+    assert half.sigma_angle_rad == pytest.approx(0.5 * full.sigma_angle_rad, rel=1e-12)
+    assert half.joint_sigma_rad == pytest.approx(full.joint_sigma_rad, rel=1e-12)

@@ -108,9 +108,10 @@ def add_parser(sub) -> None:
                         "plus the CRC-32 of its name, recorded in each row) and the loop measures and merges through "
                         "the commanded poses and the estimated hand/eye and calibration")
     a.add_argument("--realism-scale", default=None, metavar="SOURCE=F[,SOURCE=F]",
-                   help="accuracy: scale error sources of --realism from their sourced magnitude (1 = as sourced; "
-                        "allowed 0 to the realism module's maximum), e.g. robot_accuracy=4 for an arm four times "
-                        "less accurate than the figure the preset cites; recorded in accuracy.json's settings")
+                   help="accuracy and false-boundary: scale error sources of --realism from their sourced "
+                        "magnitude (1 = as sourced; allowed 0 to the realism module's maximum), e.g. "
+                        "robot_accuracy=0.5 for an arm twice as accurate as the figure the preset cites; recorded in "
+                        "accuracy.json's and study.json's settings")
     a.add_argument("--draws", type=int, default=30,
                    help="Monte Carlo draws per budget row (default 30; allowed 1 to 1000): each draws new robot "
                         "errors, a new hand/eye and intrinsics estimate, new line jitter and sensor noise; draw k "
@@ -134,6 +135,9 @@ def run(args) -> int:
     if args.realism not in (None, "ideal") and args.which == "cut-squares":
         raise UserValueError(f"--realism = {args.realism} for the cut-squares study: it places its cameras itself; "
                              "allowed: ideal")
+    if args.realism_scale and args.which == "cut-squares":
+        raise UserValueError(f"--realism-scale {args.realism_scale} for the cut-squares study: it has no error "
+                             "source to scale (allowed with accuracy and false-boundary)")
     if args.spp is None:
         args.spp = 2
     if args.which == "cut-squares":
@@ -198,7 +202,7 @@ def run(args) -> int:
         settings.update(StudyRealism(
             base.realism.name, base.realism.sources,
             "--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
-            options.corner_noise_px).to_dict())
+            options.corner_noise_px, tuple(base.realism.scales.items())).to_dict())
     from platebench.bench.run.journal import journal_path  # noqa: PLC0415
 
     ran = 0
@@ -232,6 +236,9 @@ def study_base(args, render: RenderSettings) -> tuple[SampleConfig, dict]:
     calibration views measured once for every plate (``realism.measure_corner_noise``)."""
     grid = parse_grid(args.grid) if args.grid else {}
     if args.realism in (None, "ideal"):
+        if args.realism_scale:
+            raise UserValueError(f"--realism-scale {args.realism_scale} without an error source: allowed only with "
+                                 "--realism 1995 or modern (ideal has none to scale)")
         width = args.width or DEFAULT_WIDTH
         return SampleConfig(scene=SceneParams(width=width, height=width * 3 // 4, pattern=grid), render=render), {}
     from dataclasses import replace  # noqa: PLC0415
@@ -240,7 +247,12 @@ def study_base(args, render: RenderSettings) -> tuple[SampleConfig, dict]:
     from platebench.bench.config.presets import with_realism  # noqa: PLC0415
     from platebench.bench.run.realism import measure_corner_noise  # noqa: PLC0415
 
-    cfg = with_realism(SampleConfig(scene=SceneParams(pattern=grid), render=render), args.realism)
+    from platebench.bench.config.realism import realism_preset  # noqa: PLC0415
+
+    realism = realism_preset(args.realism)
+    if args.realism_scale:
+        realism = with_scales(realism, args.realism_scale)
+    cfg = with_realism(SampleConfig(scene=SceneParams(pattern=grid), render=render), realism)
     if args.width is not None:
         at = replace(cfg, scene=replace(cfg.scene, width=args.width,
                                         height=max(16, round(args.width * cfg.scene.height / cfg.scene.width))))
@@ -494,6 +506,8 @@ def table_lines(study) -> list[str]:
     if rz.realism:
         out.append(f"realism {rz.realism}: " + ", ".join(rz.realism_sources) + "; each plate's draw: "
                    + (rz.realism_seeds or "") + f"; corner noise of the calibration views {rz.corner_noise_px or 0:.3f} px")
+        if rz.realism_scales:
+            out.append("scaled from the sourced magnitudes: " + ", ".join(f"{k} x{v:g}" for k, v in rz.realism_scales))
     t = study.targets
     out.append(f"targets: silent {t.silent}, errors {t.errors}, cured {t.seen_all_of_curable}/{t.curable} "
                f"({_pct(t.seen_all_frac)} %: the final poses see it all), verified {t.cured_of_verifiable} of the "

@@ -11,12 +11,16 @@ joint and kinematic-parameter spreads. ``robot_error_model`` converts them, at t
 configurations, and nothing else: the conversion reproduces the stated figures (tested), it is never
 tuned to any result of the bench.
 
-What could not be sourced is said so beside the value (``UNSOURCED``). The PUMA 560's absolute
-accuracy is one: no published measurement of it could be checked for this build (candidates:
-Whitney, Lozinski & Rourke 1986; Veitschegger & Wu 1988; Mooring, Roth & Driels 1991). The value
-used instead is the measured accuracy of the 2012 ABB arm, a LOWER BOUND for a 1978 arm, so the
-robot's share of the 1995 error budget is a lower bound too; the ``robot_accuracy`` magnitude axis
-of a sweep shows what a larger value would do.
+What could not be sourced is said so beside the value (``UNSOURCED``). The PUMA's absolute accuracy
+is taken from the one measurement of an uncalibrated PUMA that could be read for this build: Driels &
+Pathre (1994) calibrated "a six degree of freedom PUMA robot" with a vision-based automatic theodolite
+and checked it against a coordinate measuring machine: "an accuracy of 14 mm prior to calibration"
+(abstract). The abstract names neither the statistic (RMS, mean or maximum) nor the PUMA's model; the
+bench takes 14 mm as the RMS position error over the cell's configurations, as it takes the ABB arm's
+published figure. Were it a maximum, the RMS would be smaller: the ``robot_accuracy`` magnitude axis
+of a sweep (and ``study accuracy --realism-scale``) shows what a smaller or larger value does. Other
+candidates (Whitney, Lozinski & Rourke 1986; Veitschegger & Wu 1988; Mooring, Roth & Driels 1991)
+could not be read.
 
 The cell (``CELL``): where the robot stands, how the camera is mounted and the hand/eye calibration
 views. These are layout choices (a plausible bench top, not measurements) and carry no error: the
@@ -77,14 +81,14 @@ ROBOTS: dict[str, RobotHardware] = {
         # Unimation's specification of the PUMA 560: repeatability +-0.1 mm (the figure quoted for the
         # 500 series by Unimation and throughout the literature; the datasheet itself was not at hand).
         repeatability_rp_m=0.1e-3,
-        # UNSOURCED for the PUMA 560 (see the module doc): the ABB IRB 1600's measured ISO 9283 position
-        # accuracy, 650 um (Slamani, Nubiola & Bonev 2012, Industrial Robot 39(1) 57-68), used as a lower bound.
-        accuracy_position_m=0.65e-3,
-        # UNSOURCED for the PUMA 560: the same paper's rotation accuracy of the ABB arm, 2.8 mrad, a lower bound.
-        accuracy_orientation_rad=2.8e-3,
+        # M. R. Driels & U. S. Pathre, "Robot calibration using an automatic theodolite", Int. J. Adv. Manuf.
+        # Technol. 9 (1994) 114-125, abstract: a six-axis PUMA, measured against a CMM (0.02 mm), had "an
+        # accuracy of 14 mm prior to calibration". Taken as the RMS position error (module doc).
+        accuracy_position_m=14e-3,
+        accuracy_orientation_rad=None,  # no published orientation accuracy of an uncalibrated PUMA was found
         orientation_repeatability_rad=None,  # no published orientation repeatability of the PUMA 560 was found
         description="Unimation PUMA 560 (the paper's robot): repeatability 0.1 mm (Unimation); absolute "
-                    "accuracy UNSOURCED, the ABB IRB 1600's measured 0.65 mm / 2.8 mrad used as a lower bound",
+                    "accuracy 14 mm before calibration (a PUMA measured by Driels & Pathre 1994)",
     ),
     "modern": RobotHardware(
         name="modern",

@@ -415,16 +415,19 @@ class StudyRealism:
     realism_sources: tuple = ()
     realism_seeds: str | None = None
     corner_noise_px: float | None = None
+    realism_scales: tuple = ()  # ((source, factor), ...): sources not at their sourced magnitude
 
     def to_dict(self) -> dict:
         return {"realism": self.realism, "realism_sources": list(self.realism_sources),
-                "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px}
+                "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px,
+                "realism_scales": dict(self.realism_scales)}
 
     @classmethod
     def from_dict(cls, settings: Mapping) -> "StudyRealism":
         """The realism part of a study's settings (the other settings are left alone)."""
         return cls(settings.get("realism"), tuple(settings.get("realism_sources") or ()),
-                   settings.get("realism_seeds"), settings.get("corner_noise_px"))
+                   settings.get("realism_seeds"), settings.get("corner_noise_px"),
+                   tuple((settings.get("realism_scales") or {}).items()))
 
 
 @dataclass(frozen=True)

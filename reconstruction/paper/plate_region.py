@@ -26,6 +26,11 @@ class ReconstructionError(UserValueError):
     """The images do not allow the requested reconstruction step (message says which and why)."""
 
 
+class PlateAtBorderError(ReconstructionError):
+    """The plate's region runs into the image border: part of it may lie outside the image, so its
+    outline is not the plate's (a sensing loop can move the cameras back and take the view again)."""
+
+
 @dataclass(frozen=True)
 class PlateRegion:
     """The plate as seen in one passive image."""
@@ -112,7 +117,7 @@ def plate_mask(image: np.ndarray, name: str = "image") -> PlateMask:
     cv2.drawContours(filled, [outer], -1, 1, thickness=cv2.FILLED)
     touches = (filled[0].any() or filled[-1].any() or filled[:, 0].any() or filled[:, -1].any())
     if touches:
-        raise ReconstructionError(f"{name}: the plate touches the image border (move the cameras back)")
+        raise PlateAtBorderError(f"{name}: the plate touches the image border (move the cameras back)")
     return PlateMask(filled.astype(bool), outer[:, 0, :].astype(float), float(low), t.threshold, t.z0, t.z1)
 
 

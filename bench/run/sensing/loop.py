@@ -61,7 +61,15 @@ from platebench.bench.run.sensing.scoring import (
     reach_visibility,
     stage3_accuracy,
 )
-from platebench.bench.run.sensing.sensor import ACTIVE, PASSIVE, PassiveView, SimulatedSensor, measure_outline
+from platebench.bench.run.sensing.sensor import (
+    ACTIVE,
+    BACK_OFF_FRACTION,
+    BACK_OFF_TRIES,
+    PASSIVE,
+    PassiveView,
+    SimulatedSensor,
+    measure_outline,
+)
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.pipeline import (
     PipelineOptions,
@@ -70,7 +78,7 @@ from platebench.reconstruction.paper.pipeline import (
     projector_feature_rays,
     reconstruct,
 )
-from platebench.reconstruction.paper.plate_region import ReconstructionError
+from platebench.reconstruction.paper.plate_region import PlateAtBorderError, ReconstructionError
 from platebench.reconstruction.strategy.active_views import (
     ActivePoints,
     MergedReconstruction,
@@ -171,14 +179,12 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     ``ReconstructionError`` when passive stereo fails at stage 1 or 2."""
     cam, pcam, B = sensor.camera, sensor.projector_camera, sensor.baseline_m
     pose1 = sensor.within_reach(stage1_pose(np.zeros(3), options.workspace_radius_m, cam, B), options.working_distance_m)
-    s1 = sensor.shoot(pose1, PASSIVE, label="stage 1")
-    p1 = passive_stereo(s1.digital["left_passive"], s1.digital["right_passive"], s1.measured.rig)
+    pose1, s1, p1 = _passive_backing_off(sensor, pose1, "stage 1")
     r1 = StageRecord(1, pose1, len(p1.boundary), p1.stereo.method, gt_visibility_dict(s1.gt_visibility), p1.plane)
 
     pose2 = stage2_pose(p1.boundary, p1.plane, cam, B, options.working_distance_m)
     validate_pose(pose2, p1.boundary, p1.plane, cam, B)
-    s2 = sensor.shoot(pose2, PASSIVE, label="stage 2")
-    p2 = passive_stereo(s2.digital["left_passive"], s2.digital["right_passive"], s2.measured.rig)
+    pose2, s2, p2 = _passive_backing_off(sensor, pose2, "stage 2")
     r2 = StageRecord(2, pose2, len(p2.boundary), p2.stereo.method, gt_visibility_dict(s2.gt_visibility))
 
     # stage 3 (paper V-B): the projector's centre ray through the boundary centre along the normal
@@ -206,6 +212,28 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     view2 = PassiveView("stage 2", pose2, measure_outline("stage 2", s2.measured, s2.digital),
                         s2.measured.rig.left.pinhole, s2.gt_visibility, **s2.cameras_for_truth())
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
+
+
+def _passive_backing_off(sensor: SimulatedSensor, pose: SensorPose, label: str):
+    """(pose, shot, passive stereo) of the passive view at ``pose``; where the plate runs into the image
+    border (``PlateAtBorderError``: under a real rig the camera really stands off its command and the
+    view is shifted), the same line of sight ``BACK_OFF_FRACTION`` of its distance farther back, at most
+    ``BACK_OFF_TRIES`` times, the pose's reason saying so; the last try's error when none frames the
+    plate. A pose the plate fits as commanded is taken once, as it is."""
+    asked, reason, tries = pose.distance_m, pose.reason, 0
+    while True:
+        shot = sensor.shoot(pose, PASSIVE, label=label)
+        try:
+            return pose, shot, passive_stereo(shot.digital["left_passive"], shot.digital["right_passive"],
+                                              shot.measured.rig)
+        except PlateAtBorderError:
+            if tries == BACK_OFF_TRIES:
+                raise
+        tries += 1
+        d = pose.distance_m * (1.0 + BACK_OFF_FRACTION)
+        pose = replace(pose, center=pose.target - pose.view_dir * d,
+                       reason=f"{reason}; moved back to {d * 1e3:.0f} mm: the plate ran into the image border at "
+                              f"{asked * 1e3:.0f} mm")
 
 
 def stage2_verification(sensor: SimulatedSensor, first: FirstStages, rays_for) -> FirstStages:

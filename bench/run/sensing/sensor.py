@@ -38,6 +38,11 @@ from platebench.scenes.scene_spec import SceneSpec, scene_for_pose
 
 PASSIVE = ("left_passive", "right_passive")
 REACH_STEP_M = 0.01  # ``within_reach``: a pose out of the robot's reach comes closer by this much at a time
+# ``loop.first_stages``: a stage-1 or stage-2 view whose plate runs into the image border (a real rig's
+# pose error can shift the view by centimetres) is taken again this fraction of its distance farther
+# back along its line of sight, at most BACK_OFF_TRIES times
+BACK_OFF_FRACTION = 0.1
+BACK_OFF_TRIES = 3
 ACTIVE = ("left_active", "right_active")
 
 
