@@ -96,6 +96,12 @@ def test_sense_under_the_1995_rig_measures_through_the_commanded_poses(tmp_path)
     dp, _ = pose_difference(camera_pose(taken.left), camera_pose(told.left))
     assert dp == pytest.approx(stage2["left_position_error_m"], rel=1e-6)
     assert doc["final"]["outcome"] != "silent"
+    # the PUMA's poses stand centimetres off: no pair confirms an edge, and the loop stops its cures after
+    # FRUITLESS_CURES of them instead of spending the budget, saying why
+    from platebench.reconstruction.strategy.budget import FRUITLESS_CURES, MAX_CURE_VIEWS
+    stop = [st for st in doc["steps"] if st.get("decision") == "stop"]
+    assert not doc["final"]["boundary_verified"] and len(stop) == 1
+    assert doc["cures"] == FRUITLESS_CURES < MAX_CURE_VIEWS and "confirmed no outline point" in stop[0]["reason"]
     assert "realism     1995 (draw 3)" in p.stdout and "moves" in p.stdout
     # the loop knows how far its poses disagree from its own hand/eye residuals (not the truth), and moved
     # each pose's outline onto the others' (``registration``): by millimetres, as the moves were off
@@ -122,6 +128,8 @@ def test_realism_flags_of_sense_and_study_refuse_bad_values(tmp_path):
               "--realism-scale robot_accuracy = 'x' is not a number"),
              (("study", "false-boundary", "--realism", "1995", "--realism-scale", "lens=2"),
               "--realism-scale source 'lens' is not on in realism 1995"),
+             (("study", "false-boundary", "--realism", "1995", "--realism-scale", "noise=2,noise=3"),
+              "--realism-scale source 'noise' is given twice"),
              (("study", "cut-squares", "--realism-scale", "robot_accuracy=2"),
               "--realism-scale robot_accuracy=2 for the cut-squares study")]
     for args, words in cases:
@@ -204,3 +212,9 @@ def test_a_studys_realism_scale_reaches_every_plates_draw():
     full = RealismSetup.prepare(CFG95.realism, CFG95, corner_noise_px=0.15).robot_model
     assert half.sigma_angle_rad == pytest.approx(0.5 * full.sigma_angle_rad, rel=1e-12)
     assert half.joint_sigma_rad == pytest.approx(full.joint_sigma_rad, rel=1e-12)
+    # the study's settings record the scale and read it back; a study at the sourced magnitudes writes none
+    from platebench.bench.run.study import StudyRealism
+    rz = StudyRealism("1995", base.realism.sources, "seeds", 0.15, tuple(base.realism.scales.items()))
+    assert rz.to_dict()["realism_scales"] == {"robot_accuracy": 0.5}
+    assert StudyRealism.from_dict(json.loads(json.dumps(rz.to_dict()))) == rz
+    assert "realism_scales" not in StudyRealism("1995", base.realism.sources, "seeds", 0.15).to_dict()

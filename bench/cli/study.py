@@ -233,7 +233,8 @@ def study_base(args, render: RenderSettings) -> tuple[SampleConfig, dict]:
     """The false-boundary study's sample configuration (before each plate's) and the sensing options
     it adds: ideal, ``--width`` (default 640) by 3/4 of it; under ``--realism``, the preset's camera at
     its own size, or at ``--width`` with its field of view and aspect kept, and the corner noise of its
-    calibration views measured once for every plate (``realism.measure_corner_noise``)."""
+    calibration views measured once for every plate (``realism.measure_corner_noise``); the preset's sources
+    scaled by ``--realism-scale``."""
     grid = parse_grid(args.grid) if args.grid else {}
     if args.realism in (None, "ideal"):
         if args.realism_scale:
@@ -283,6 +284,8 @@ def with_scales(realism, text: str):
         except ValueError:
             raise UserValueError(f"--realism-scale {name.strip()} = {value!r} is not a number") from None
         name = name.strip()
+        if name in scales:
+            raise UserValueError(f"--realism-scale source {name!r} is given twice: allowed once")
         if name not in realism.sources:
             raise UserValueError(f"--realism-scale source {name!r} is not on in realism {realism.name}: allowed "
                                  + ", ".join(s for s in SOURCES if s in realism.sources))

@@ -17,8 +17,8 @@ Pathre (1994) calibrated "a six degree of freedom PUMA robot" with a vision-base
 and checked it against a coordinate measuring machine: "an accuracy of 14 mm prior to calibration"
 (abstract). The abstract names neither the statistic (RMS, mean or maximum) nor the PUMA's model; the
 bench takes 14 mm as the RMS position error over the cell's configurations, as it takes the ABB arm's
-published figure. Were it a maximum, the RMS would be smaller: the ``robot_accuracy`` magnitude axis
-of a sweep (and ``study accuracy --realism-scale``) shows what a smaller or larger value does. Other
+published figure. Were it a maximum, the RMS would be smaller; were it a mean, somewhat larger: the
+``robot_accuracy`` magnitude axis of a sweep (and ``study --realism-scale``) shows what another value does. Other
 candidates (Whitney, Lozinski & Rourke 1986; Veitschegger & Wu 1988; Mooring, Roth & Driels 1991)
 could not be read.
 

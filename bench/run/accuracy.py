@@ -192,16 +192,25 @@ def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: i
     centres = np.array([f.center for f in proj.pattern.features], float).reshape(-1, 2)
     truth = true_feature_points(plate.mesh, proj.camera, centres)
     truth = truth[np.all(np.isfinite(truth), axis=1)]
-    if not len(rec.points) or len(truth) < 2:
+    if len(truth) < 2:
+        raise ReconstructionError(f"{len(truth)} of the projector's square centres hit the plate (2 at least "
+                                  "to compare)")
+    if not len(rec.points):
         raise ReconstructionError("no square centre measured")
-    # the square's identity from where it appears: the true centres seen through the true left camera's
-    # pinhole (the method's pixels are undistorted), against the measured centres' left pixels
-    true_uv = acq.taken.left.pinhole.project(truth)
+    # the square's identity from where it appears: the true centres seen by the camera really posed, in the
+    # pixels the method works in (undistorted with the told lens onto the told intrinsics' pinhole), against
+    # the measured centres' left pixels; each true centre taken by its nearest measured one only
+    seen = replace(acq.taken.left, K=acq.told.left.K).pinhole
+    true_uv = seen.project(truth)
     gaps = np.linalg.norm(true_uv[:, None] - true_uv[None], axis=2)
     spacing = float(np.min(gaps[~np.eye(len(truth), dtype=bool)]))
     d = np.linalg.norm(np.asarray(rec.uv_left, float)[:, None] - true_uv[None], axis=2)
     near = d.argmin(axis=1)
-    ok = d[np.arange(len(near)), near] <= MATCH_SPACING_FRACTION * spacing
+    dist = d[np.arange(len(near)), near]
+    ok = dist <= MATCH_SPACING_FRACTION * spacing
+    for j in np.unique(near[ok]):  # two measured centres on one true one: the nearer stands for it
+        dup = np.flatnonzero(ok & (near == j))
+        ok[dup[np.argsort(dist[dup])[1:]]] = False
     if not ok.any():
         raise ReconstructionError(f"no measured square centre appears within {MATCH_SPACING_FRACTION:g} of the "
                                   f"centres' spacing ({spacing:.1f} px) of a true one in the left image")

@@ -408,8 +408,9 @@ def targets(rows: list[StudyRow]) -> StudyTargets:
 @dataclass(frozen=True)
 class StudyRealism:
     """The real rig a study measured with (its part of the study's settings; all None: ideal): the
-    realism preset's name, the error sources on, how each plate's draw is seeded and the corner noise
-    of the calibration views (px per axis, measured once for every plate)."""
+    realism preset's name, the error sources on, how each plate's draw is seeded, the corner noise
+    of the calibration views (px per axis, measured once for every plate) and the sources scaled from
+    their sourced magnitude (``--realism-scale``; written only when some are)."""
 
     realism: str | None = None
     realism_sources: tuple = ()
@@ -418,9 +419,9 @@ class StudyRealism:
     realism_scales: tuple = ()  # ((source, factor), ...): sources not at their sourced magnitude
 
     def to_dict(self) -> dict:
-        return {"realism": self.realism, "realism_sources": list(self.realism_sources),
-                "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px,
-                "realism_scales": dict(self.realism_scales)}
+        out = {"realism": self.realism, "realism_sources": list(self.realism_sources),
+               "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px}
+        return {**out, "realism_scales": dict(self.realism_scales)} if self.realism_scales else out
 
     @classmethod
     def from_dict(cls, settings: Mapping) -> "StudyRealism":

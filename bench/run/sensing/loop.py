@@ -72,6 +72,7 @@ from platebench.bench.run.sensing.sensor import (
 )
 from platebench.reconstruction.paper.boundary_plane import BoundaryPlane
 from platebench.reconstruction.paper.pipeline import (
+    PassiveResult,
     PipelineOptions,
     Reconstruction,
     passive_stereo,
@@ -96,12 +97,14 @@ from platebench.reconstruction.strategy.detectors import (
 from platebench.reconstruction.strategy.multiview import (
     CONFIRM_SLIDE_ANGLE_RAD,
     CONFIRM_SLIDE_ANGLE_RIG_RAD,
+    CONFIRM_TOL_M,
     BoundaryVerdict,
     PoseSpread,
     ViewOutline,
     confirm,
     verify,
 )
+from platebench.reconstruction.strategy.budget import FRUITLESS_CURES
 from platebench.reconstruction.strategy.registration import PoseShifts, register_translations
 from platebench.reconstruction.strategy.planner import (
     FRONT_MARGIN_RAD,
@@ -214,26 +217,31 @@ def first_stages(sensor: SimulatedSensor, options: SensingOptions, rays_for) -> 
     return FirstStages((r1, r2, r3), pose2, view2, p2.plane, p2.boundary, sample3, rec, tuple(notes))
 
 
-def _passive_backing_off(sensor: SimulatedSensor, pose: SensorPose, label: str):
+def _passive_backing_off(sensor: SimulatedSensor, pose: SensorPose,
+                         label: str) -> tuple[SensorPose, object, PassiveResult]:
     """(pose, shot, passive stereo) of the passive view at ``pose``; where the plate runs into the image
     border (``PlateAtBorderError``: under a real rig the camera really stands off its command and the
     view is shifted), the same line of sight ``BACK_OFF_FRACTION`` of its distance farther back, at most
-    ``BACK_OFF_TRIES`` times, the pose's reason saying so; the last try's error when none frames the
-    plate. A pose the plate fits as commanded is taken once, as it is."""
+    ``BACK_OFF_TRIES`` times and only where the robot reaches (``SimulatedSensor.reaches``), the pose's
+    reason saying so. When no view frames the plate: the border error, saying how often the view was
+    taken farther back. A pose the plate fits as commanded is taken once, as it is."""
     asked, reason, tries = pose.distance_m, pose.reason, 0
     while True:
         shot = sensor.shoot(pose, PASSIVE, label=label)
         try:
             return pose, shot, passive_stereo(shot.digital["left_passive"], shot.digital["right_passive"],
                                               shot.measured.rig)
-        except PlateAtBorderError:
-            if tries == BACK_OFF_TRIES:
-                raise
+        except PlateAtBorderError as e:
+            d = pose.distance_m * (1.0 + BACK_OFF_FRACTION)
+            farther = replace(pose, center=pose.target - pose.view_dir * d,
+                              reason=f"{reason}; moved back to {d * 1e3:.0f} mm: the plate ran into the image "
+                                     f"border at {asked * 1e3:.0f} mm")
+            if tries == BACK_OFF_TRIES or not sensor.reaches(farther):
+                why = "the robot does not reach farther back" if tries < BACK_OFF_TRIES else "the most allowed"
+                raise PlateAtBorderError(f"{e} (at {asked * 1e3:.0f} mm and {tries} time(s) farther back, up to "
+                                         f"{pose.distance_m * 1e3:.0f} mm: {why})") from None
         tries += 1
-        d = pose.distance_m * (1.0 + BACK_OFF_FRACTION)
-        pose = replace(pose, center=pose.target - pose.view_dir * d,
-                       reason=f"{reason}; moved back to {d * 1e3:.0f} mm: the plate ran into the image border at "
-                              f"{asked * 1e3:.0f} mm")
+        pose = farther
 
 
 def stage2_verification(sensor: SimulatedSensor, first: FirstStages, rays_for) -> FirstStages:
@@ -575,12 +583,23 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
         notes.append(note)
     cands = candidate_views(first.pose2, g, e, options.reach, measured, cam, B, paper)
     cures: list[PlannedView] = []
+    # how far two of the rig's poses disagree about a point at the stage-2 distance, as its own hand/eye
+    # calibration measured it (0 on the ideal bench): beyond the confirmation distance, a loop whose poses
+    # confirmed nothing after FRUITLESS_CURES cures stops (``budget.FRUITLESS_CURES``)
+    rig_spread_m = 0.0 if m.spread is None else float(m.spread.across_m(first.pose2.distance_m))
     while True:
         d = decide(m.verdict, m.outlines, m.poses, cands, m.model, B, options.max_views, options.reach, cam, m.front,
                    m.slide_angle_rad)
         if d.kind == "view" and len(cures) >= options.max_cures:
             d = Decision("stop", None, f"{len(cures)} cures applied, the most allowed; " + m.verdict.reason,
                          d.gaps_targeted)
+        elif d.kind == "view" and len(cures) >= FRUITLESS_CURES and m.verdict.confirmed_length_m == 0.0 \
+                and rig_spread_m > CONFIRM_TOL_M:
+            d = Decision("stop", None, f"{len(cures)} cures and {len(m.views) - len(cures)} other poses confirmed no "
+                         "outline point by a second pose, on a rig whose poses disagree by "
+                         f"{rig_spread_m * 1e3:.1f} mm (its hand/eye residuals) against the confirmation's "
+                         f"{CONFIRM_TOL_M * 1e3:g} mm: more poses planned alike would not confirm either; "
+                         + m.verdict.reason, d.gaps_targeted)
         if d.kind == "view":
             d = replace(d, view=replace(d.view, name=unique_name(d.view.name, {v.name for v in m.views})))
         steps.append(d)

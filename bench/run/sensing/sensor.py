@@ -176,6 +176,11 @@ class SimulatedSensor:
                                                  f"the robot ({self.cfg.realism.robot}) reaches ({d0 * 1e3:.0f} mm asked)")
         return pose
 
+    def reaches(self, pose: SensorPose) -> bool:
+        """Whether the rig can be put at ``pose``: always on the ideal bench; under a real rig, when the
+        robot reaches it from some turn of the cell (``RigDraw.reach_yaw``)."""
+        return self.rig_draw is None or self.rig_draw.reach_yaw(self.scene_at(pose).rig) is not None
+
     def shoot(self, pose: SensorPose, names, projector: SensorPose | None = None, label: str = "",
               verify: bool = False) -> Shot:
         """Render the images ``names`` with the rig at ``pose`` (and the projector at ``projector``,
