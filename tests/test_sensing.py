@@ -529,8 +529,8 @@ def test_a_stage_view_whose_plate_runs_into_the_image_border_is_taken_again_fart
     border: the loop takes that view again farther back along its line of sight
     (``loop._passive_backing_off``), saying so in the pose's reason. Analytic set-up on the ideal rig:
     the distance at which the flat plate's projection just fits both images; 6 % closer it runs into
-    the border, and one step back (10 %) frames it. Half as far again, three steps back do not, and the
-    border error stands. A pose that frames the plate is taken once, as it is."""
+    the border, and one step back (10 %) frames it. At half the distance, the five steps allowed do not,
+    and the border error stands. A pose that frames the plate is taken once, as it is."""
     from platebench.bench.run.sensing.loop import _passive_backing_off
     from platebench.bench.run.sensing.sensor import BACK_OFF_FRACTION, SimulatedSensor
     from platebench.reconstruction.paper.plate_region import PlateAtBorderError
@@ -545,8 +545,8 @@ def test_a_stage_view_whose_plate_runs_into_the_image_border_is_taken_again_fart
     assert pose.distance_m == pytest.approx(near.distance_m * (1 + BACK_OFF_FRACTION), rel=1e-12)
     assert pose.reason.startswith("stage 2: test; moved back to") and "image border" in pose.reason
     assert len(passive.boundary) > 0 and shot.scene.rig.left.center[2] == pytest.approx(pose.distance_m)
-    with pytest.raises(PlateAtBorderError):
-        _passive_backing_off(sensor, SensorPose(d_fit / 1.5 * down, np.zeros(3), x, "too near"), "stage 2")
+    with pytest.raises(PlateAtBorderError, match="the most allowed"):  # 1.1^5 = 1.61 < 2: never far enough
+        _passive_backing_off(sensor, SensorPose(d_fit / 2.0 * down, np.zeros(3), x, "too near"), "stage 2")
     far = SensorPose(1.1 * d_fit * down, np.zeros(3), x, "fits")
     pose, _, _ = _passive_backing_off(sensor, far, "stage 2")
     assert pose is far
