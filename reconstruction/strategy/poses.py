@@ -10,7 +10,7 @@ vertical. World frame, +Z up, metres, radians. Nothing here renders or reads gro
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -41,6 +41,12 @@ class SensorPose:
     @property
     def distance_m(self) -> float:
         return float(np.linalg.norm(self.target - self.center))
+
+    def at_distance(self, distance_m: float, reason: str | None = None) -> "SensorPose":
+        """The same line of sight with the sensor ``distance_m`` (m) from its target (and ``reason``, if
+        given)."""
+        return replace(self, center=self.target - self.view_dir * distance_m,
+                       reason=self.reason if reason is None else reason)
 
     def camera_centers(self, baseline_m: float) -> np.ndarray:
         """(2,3) the two cameras' centres: the ends of the baseline, ``baseline_m`` apart along

@@ -233,9 +233,8 @@ def _passive_backing_off(sensor: SimulatedSensor, pose: SensorPose,
                                               shot.measured.rig)
         except PlateAtBorderError as e:
             d = pose.distance_m * (1.0 + BACK_OFF_FRACTION)
-            farther = replace(pose, center=pose.target - pose.view_dir * d,
-                              reason=f"{reason}; moved back to {d * 1e3:.0f} mm: the plate ran into the image "
-                                     f"border at {asked * 1e3:.0f} mm")
+            farther = pose.at_distance(d, f"{reason}; moved back to {d * 1e3:.0f} mm: the plate ran into the image "
+                                          f"border at {asked * 1e3:.0f} mm")
             if tries == BACK_OFF_TRIES or not sensor.reaches(farther):
                 why = "the robot does not reach farther back" if tries < BACK_OFF_TRIES else "the most allowed"
                 raise PlateAtBorderError(f"{e} (at {asked * 1e3:.0f} mm and {tries} time(s) farther back, up to "

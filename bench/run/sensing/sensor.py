@@ -173,8 +173,8 @@ class SimulatedSensor:
             return pose
         d0 = pose.distance_m
         for d in np.arange(d0, nearest_m - REACH_STEP_M / 2, -REACH_STEP_M):
-            p = replace(pose, center=pose.target - pose.view_dir * d)
-            if self.rig_draw.reach_yaw(self.scene_at(p).rig) is not None:
+            p = pose.at_distance(d)
+            if self.reaches(p):
                 return p if d == d0 else replace(p, reason=f"{pose.reason}; brought to {d * 1e3:.0f} mm, the farthest "
                                                  f"the robot ({self.cfg.realism.robot}) reaches ({d0 * 1e3:.0f} mm asked)")
         return pose
