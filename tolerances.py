@@ -28,6 +28,10 @@ class Tolerances:
     pixel: float = 1e-9             # pixel-coordinate equality (principal point, K entries)
     disparity_file_px: float = 1e-3  # a sample's disp0GT.pfm (float32) and its float32 depth map's disparity agree
     stereo_pose_m: float = 1e-12    # both cameras of a conventional rig share R, t differs by B only
+    benchmark_block_frac: float = 2e-3  # a benchmark image rendered on another variant: each block mean
+                                    # (bench.benchmark.verify.BLOCKS) within this fraction of the full scale
+                                    # of the recorded one (0.5 DN of 255: edge pixels that differ by up to
+                                    # 0.05 of full scale between cuda and llvm, a few hundred in a block)
     rebuilt_px: float = 1e-6        # K entries (px) of a rig re-created from sample.json against calib.json's
     rebuilt_pose: float = 1e-9      # R entries and t (m) of a re-created rig against calib.json's
     fit_converged: float = 1e-9     # fixed-point iterations (corner intersections) stop here (px)
@@ -46,6 +50,8 @@ class Tolerances:
     flat_height_m: float = 1e-5     # a fitted height field this flat (over the plate) has no bend
     lens_inverse_residual: float = 1e-12  # the ground truth's inverse distortion (normalised units): a larger
                                           # residual after its Newton steps is an error, never a silent map
+    rank_tie_pct: float = 1e-9      # two methods' primary figures (mean bad-2mm, percent) this close are tied
+                                    # on the leaderboard (the tie-breakers decide)
     plate_window_px: float = 4.0    # ground truth casts the plate's projected vertex box widened by this (px):
                                     # a lens bends a triangle's short edges by far less
 

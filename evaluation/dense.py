@@ -2,7 +2,9 @@
 
 * ``score_points_depth``: sparse world points (the paper's square centres) by their depth error at
   their left-image projection (keys ``centres_depth_*_mm``: sparse, never to be compared with a dense
-  map's ``depth_*_mm`` over the plate's pixels), and by their distance to the true surface.
+  map's ``depth_*_mm`` over the plate's pixels), and by their distance to the true surface; the
+  caller may add the method's ``coverage`` (``evaluation.pixel_coverage``: for the paper, the plate
+  pixels whose true ray hits its surface mesh).
 
 Dense maps, point clouds and meshes of any method are scored by ``evaluation.field_scores``.
 Inputs: metres, pixels (OpenCV, centres at integers); outputs: keys carry their unit.
@@ -14,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.evaluation.pixel_coverage import PixelCoverage
 from platebench.evaluation.point_metrics import point_to_surface_distance
 
 __all__ = ["SparseDepthScore", "score_points_depth", "bilinear"]
@@ -23,7 +26,8 @@ __all__ = ["SparseDepthScore", "score_points_depth", "bilinear"]
 class SparseDepthScore:
     """Sparse world points against the truth (millimetres): their count, those whose left-image
     projection lands on the plate, the |depth error| there (median, RMS, max; NaN when none lands),
-    and their distance to the true surface (RMS, max; None without a mesh)."""
+    and their distance to the true surface (RMS, max; None without a mesh); ``coverage``: the
+    method's pixel coverage (``coverage_frac``; None: not measured)."""
 
     points: int
     points_on_plate: int
@@ -32,6 +36,12 @@ class SparseDepthScore:
     centres_depth_max_mm: float
     surface_rms_mm: float | None = None
     surface_max_mm: float | None = None
+    coverage: PixelCoverage | None = None
+
+    @property
+    def coverage_frac(self) -> float | None:
+        """The share of the plate's pixels with an estimate (None: not measured)."""
+        return None if self.coverage is None else self.coverage.coverage_frac
 
     def to_dict(self) -> dict:
         out = {"points": self.points, "points_on_plate": self.points_on_plate,
@@ -39,6 +49,8 @@ class SparseDepthScore:
                "centres_depth_rms_mm": self.centres_depth_rms_mm, "centres_depth_max_mm": self.centres_depth_max_mm}
         if self.surface_rms_mm is not None:
             out.update(surface_rms_mm=self.surface_rms_mm, surface_max_mm=self.surface_max_mm)
+        if self.coverage is not None:
+            out.update(self.coverage.to_dict())
         return out
 
 

@@ -13,19 +13,24 @@ gives one of four kinds of result, each scored with the metrics its field uses:
 * **depth** (H, W) z-depth in metres along the left optical axis; non-finite or <= 0 = no
   estimate. Over the plate's pixels (ground-truth mask): |Z_est - Z_gt| (mean, median, RMS, max,
   nearest-rank quantiles A50-A99, signed mean), the share of estimates off by more than 0.1 /
-  0.5 / 1 / 2 mm, coverage = plate pixels with an estimate / plate pixels, and the count of
-  estimates off the plate.
+  0.5 / 1 / 2 mm, ``coverage_frac`` = plate pixels with an estimate / plate pixels, and the count
+  of estimates off the plate.
 * **points** (N, 3) world frame, metres. Exact distance of each point to the true surface
   (``evaluation.point_metrics``, not trimesh's closest point, which is off by up to 0.08 mm on
   plate meshes in metres); outliers = points farther than ``outlier_m`` (default 2 mm, the
-  paper's depth bound); coverage of the plate's top surface at a lateral radius
-  (``evaluation.surface_metrics``, outliers excluded).
+  paper's depth bound); ``coverage_frac`` = plate pixels into which a point projects through the
+  true left camera / plate pixels, and the surface coverage ``surface_coverage_frac`` of the
+  plate's top surface at a lateral radius (``evaluation.surface_metrics``, outliers excluded).
 * **mesh** (a trimesh.Trimesh, world frame, metres). Both ways, as DTU and Tanks and Temples do:
   accuracy = distance from points sampled uniformly on the estimate to the true surface,
   completeness = distance from points sampled on the true plate's top surface to the estimate;
   at each threshold tau, precision = share of estimate samples within tau, recall = share of
   truth samples within tau, F = 2 P R / (P + R); DTU's "overall" = (mean accuracy + mean
-  completeness) / 2.
+  completeness) / 2; ``coverage_frac`` = plate pixels whose true ray (left camera centre through
+  the pixel's true world point) hits the mesh / plate pixels.
+
+``coverage_frac`` has one meaning for every kind, the share of the left view's plate pixels with an
+estimate (``evaluation.pixel_coverage``).
 
 Every score is a frozen dataclass with values in metres (pixels for disparities); ``to_dict()``
 gives the JSON layout, with the unit in every key (mm, px, pct, frac, count, px counts as
@@ -49,6 +54,12 @@ from platebench.evaluation.disparity_metrics import (
     middlebury_metrics,
 )
 from platebench.evaluation.metrics_row import METRIC_NAMES, MetricsRow
+from platebench.evaluation.pixel_coverage import (
+    PixelCoverage,
+    coverage_of_map,
+    coverage_of_mesh,
+    coverage_of_points,
+)
 from platebench.evaluation.point_metrics import closest_point_on_mesh
 from platebench.evaluation.stats import nearest_rank_quantile
 from platebench.evaluation.stereo_truth import (
@@ -98,7 +109,11 @@ class FieldTruth:
     ``nonocc``: (H, W) bool plate pixels
     the right camera sees too; ``disparity_right``: the right view's (Middlebury's disp1: its pixel u
     matches u + d in the left view); ``mesh``: the plate; ``top_faces``: (F,) bool, the faces of its
-    top surface (what coverage and completeness are measured on)."""
+    top surface (what surface coverage and completeness are measured on); ``points``: (H, W, 3) the
+    true world point seen at each left pixel, NaN off the plate, and ``true_left``: the left camera
+    really posed (``scenes.camera.Camera``): a cloud's points project through it, a mesh's true rays
+    start at its centre and pass through ``points`` (``coverage_frac``; None: a mesh's coverage is not
+    measured)."""
 
     rig: StereoRig
     pair: RectifiedPair
@@ -109,14 +124,19 @@ class FieldTruth:
     disparity_right: np.ndarray
     mesh: trimesh.Trimesh
     top_faces: np.ndarray
+    points: np.ndarray | None = None
+    true_left: object = None
 
     @classmethod
     def from_maps(cls, rig: StereoRig, depth_left, mask_left, points_left, depth_right, mask_right,
-                  mesh: trimesh.Trimesh, top_faces=None, disparity_left=None) -> "FieldTruth":
+                  mesh: trimesh.Trimesh, top_faces=None, disparity_left=None, true_left=None) -> "FieldTruth":
         """Derive both disparities and the non-occlusion mask from the two views' ground-truth maps.
         ``disparity_left``: the left true disparity as written (``gt/disp0GT.pfm``); it must agree with
         the depth map's (same known pixels, values within float32 rounding) and is what disparities
-        are scored against. Without it, the depth map's, rounded to float32 as the file would be."""
+        are scored against. Without it, the depth map's, rounded to float32 as the file would be.
+        ``true_left``: the left camera the true points were cast from (default ``rig.left``); given, the
+        pair was posed by a robot and ``disparity_left`` is taken as written (the disparity its images
+        have), checked only for the pixels that have a truth."""
         pair = rectified_pair(rig)
         mask_left, mask_right = np.array(mask_left, bool), np.asarray(mask_right, bool)
         depth = np.where(mask_left, np.asarray(depth_left, np.float64), np.inf)
@@ -132,14 +152,18 @@ class FieldTruth:
                                  "have a truth")
             known = np.isfinite(d0)
             far = np.abs(given[known] - d0[known])
-            if far.size and far.max() > tol.disparity_file_px:
+            # a pair a robot took (``true_left`` given) is no rectified pair: its file holds the disparity
+            # its images really have (``bench.io.sample_files.pair_disparity``), not f B / Z of the told rig
+            if true_left is None and far.size and far.max() > tol.disparity_file_px:
                 raise ValueError(f"the left true disparity (disp0GT.pfm) differs from the depth map's by up to "
                                  f"{far.max():.3g} px: allowed {tol.disparity_file_px:g} px")
         d0 = given
         top = np.ones(len(mesh.faces), bool) if top_faces is None else np.asarray(top_faces, bool)
-        for a in (depth, d0, nonocc, mask_left, d1):
+        pts = np.array(points_left, np.float64)
+        for a in (depth, d0, nonocc, mask_left, d1, pts):
             a.setflags(write=False)
-        return cls(rig, pair, depth, mask_left, d0, nonocc, d1, mesh, top)
+        return cls(rig, pair, depth, mask_left, d0, nonocc, d1, mesh, top, pts,
+                   rig.left if true_left is None else true_left)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -202,8 +226,13 @@ class DepthScore:
     bad_pct: tuple[tuple[float, float], ...]  # ((threshold mm, % of estimated plate px beyond it), ...)
 
     @property
+    def coverage(self) -> PixelCoverage:
+        return PixelCoverage(self.plate_px, self.estimated_px)
+
+    @property
     def coverage_frac(self) -> float:
-        return self.estimated_px / self.plate_px if self.plate_px else math.nan
+        """The share of the plate's pixels with an estimate (``evaluation.pixel_coverage``)."""
+        return self.coverage.coverage_frac
 
     def to_dict(self) -> dict:
         out = {"plate_px": self.plate_px, "estimated_px": self.estimated_px, "off_plate_px": self.off_plate_px,
@@ -238,10 +267,10 @@ def _score_depth_values(z: np.ndarray, truth: FieldTruth, bad_mm) -> DepthScore:
     est = valid & truth.mask
     err = z[est] - truth.depth[est]
     a_mm = np.abs(err) * MM
-    n = int(est.sum())
+    cov = coverage_of_map(valid, truth.mask)
+    n = cov.estimated_px
     bad = tuple((float(t), 100.0 * int(np.count_nonzero(a_mm > t)) / n if n else math.nan) for t in bad_mm)
-    return DepthScore(int(truth.mask.sum()), n, int((valid & ~truth.mask).sum()), AbsErrors.of(err, signed=True),
-                      bad)
+    return DepthScore(cov.plate_px, n, int((valid & ~truth.mask).sum()), AbsErrors.of(err, signed=True), bad)
 
 
 def score_depth(depth_m, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM, what: str = "depth map") -> DepthScore:
@@ -296,14 +325,16 @@ def score_disparity(disparity_px, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM,
 # ----------------------------------------------------------------------------- points
 @dataclass(frozen=True)
 class PointCloudScore:
-    """World points against the true surface: distances, outliers, coverage of the top surface."""
+    """World points against the true surface: distances, outliers, ``coverage`` (the plate's pixels
+    into which a point projects) and ``surface`` (the surface coverage of the top surface)."""
 
     count: int
     dropped_count: int  # rows with NaN/inf, left out
     distance: AbsErrors  # unsigned distance to the true surface (metres)
     outlier_threshold_m: float
     outlier_count: int
-    coverage: SurfaceScore  # outliers excluded; coverage_radius_m is the lateral radius
+    surface: SurfaceScore  # outliers excluded; coverage_radius_m is the lateral radius
+    coverage: PixelCoverage  # left plate pixels into which a point projects (true left camera)
 
     @property
     def outlier_frac(self) -> float:
@@ -312,9 +343,10 @@ class PointCloudScore:
     def to_dict(self) -> dict:
         out = {"points_count": self.count, "points_dropped_count": self.dropped_count}
         out.update(self.distance.to_dict("dist"))
-        c = self.coverage
+        c = self.surface
         out.update({"outlier_threshold_mm": self.outlier_threshold_m * MM, "outlier_count": self.outlier_count,
-                    "outlier_frac": self.outlier_frac, "coverage_frac": c.coverage_frac,
+                    "outlier_frac": self.outlier_frac, **self.coverage.to_dict(),
+                    "surface_coverage_frac": c.surface_coverage_frac,
                     "coverage_radius_mm": c.coverage_radius_m * MM, "covered_area_mm2": c.covered_area_m2 * 1e6,
                     "plate_area_mm2": c.plate_area_m2 * 1e6, "sample_spacing_mm": c.sample_spacing_m * MM})
         return out
@@ -343,7 +375,8 @@ def score_point_cloud(points_m, truth: FieldTruth, *, outlier_m: float = OUTLIER
     cov = score_surface(P, truth.mesh, sample_spacing_m=sample_spacing_m, coverage_radius_m=coverage_radius_m,
                         max_distance_m=outlier_m, coverage_faces=truth.top_faces, seed=seed)
     return PointCloudScore(len(P), dropped, AbsErrors.of(dist, signed=False), float(outlier_m),
-                           int(np.count_nonzero(dist > outlier_m)), cov)
+                           int(np.count_nonzero(dist > outlier_m)), cov,
+                           coverage_of_points(P, truth.true_left or truth.rig.left, truth.mask))
 
 
 # ----------------------------------------------------------------------------- mesh
@@ -356,6 +389,12 @@ class MeshScore:
     thresholds: tuple[tuple[float, float, float, float], ...]  # (tau m, precision, recall, F) fractions
     sample_spacing_m: float
     faces_count: int
+    coverage: PixelCoverage | None = None  # left plate pixels whose true ray hits the mesh (None: no true rays)
+
+    @property
+    def coverage_frac(self) -> float | None:
+        """The share of the plate's pixels whose true ray hits the mesh (``evaluation.pixel_coverage``)."""
+        return None if self.coverage is None else self.coverage.coverage_frac
 
     @property
     def overall_m(self) -> float:
@@ -367,6 +406,8 @@ class MeshScore:
         out.update(self.accuracy.to_dict("accuracy"))
         out.update(self.completeness.to_dict("completeness"))
         out["overall_mm"] = self.overall_m * MM
+        if self.coverage is not None:
+            out.update(self.coverage.to_dict())
         for t, p, r, f in self.thresholds:
             k = _key(t * MM)
             out[f"precision_{k}_mm_pct"] = 100.0 * p
@@ -375,7 +416,8 @@ class MeshScore:
         return out
 
     def metrics_row(self) -> MetricsRow:
-        return _row({"surface_rms_mm": self.accuracy.rms_m * MM}, self.to_dict())
+        return _row({"surface_rms_mm": self.accuracy.rms_m * MM, "coverage_frac": self.coverage_frac},
+                    self.to_dict())
 
 
 def score_mesh(mesh: trimesh.Trimesh, truth: FieldTruth, *, thresholds_m=MESH_THRESHOLDS_M,
@@ -401,6 +443,8 @@ def score_mesh(mesh: trimesh.Trimesh, truth: FieldTruth, *, thresholds_m=MESH_TH
         p = float(np.mean(acc <= t))
         r = float(np.mean(comp <= t))
         rows.append((float(t), p, r, 2 * p * r / (p + r) if p + r > 0 else 0.0))
+    cov = None if truth.points is None else coverage_of_mesh(mesh, (truth.true_left or truth.rig.left).center,
+                                                             truth.points, truth.mask)
     return MeshScore(AbsErrors.of(acc, signed=False), AbsErrors.of(comp, signed=False), tuple(rows),
-                     float(sample_spacing_m), int(len(faces)))
+                     float(sample_spacing_m), int(len(faces)), cov)
 

@@ -13,6 +13,11 @@ dense ones (over every plate pixel of a depth or disparity map) have different n
 the RMS depth error over the plate's pixels with an estimate. A table or plot that compares
 methods compares one column.
 
+``coverage_frac`` is the share of the left view's plate pixels (the truth's plate mask) that have an
+estimate, 0..1, for every kind of method (``evaluation.pixel_coverage``: a map's valid pixels, a
+cloud's projected points, a mesh's true rays that hit it). The share of the true plate's area within
+a lateral radius of an estimate is another figure, ``surface_coverage_frac`` (an extra column).
+
 ``from_score`` flattens the paper pipeline's typed ``Score``; the other kinds' scores
 (``evaluation.field_scores``) build theirs with ``metrics_row()``.
 """
@@ -43,7 +48,7 @@ class MetricsRow:
     boundary_mean_mm: float | None = _m("mm", "boundary mean")
     boundary_hausdorff_mm: float | None = _m("mm", "boundary Hausdorff")
     surface_rms_mm: float | None = _m("mm", "surface RMS (estimate to the true surface)")
-    coverage_frac: float | None = _m("fraction", "coverage of the plate")
+    coverage_frac: float | None = _m("fraction", "coverage (share of the plate's pixels with an estimate)")
     matched_count: int | None = _m("count", "points matched", "int")
     correct_match_count: int | None = _m("count", "points matched correctly", "int")
     expected_count_gt: int | None = _m("count", "points expected (truth)", "int")
@@ -73,9 +78,13 @@ class MetricsRow:
 
     @classmethod
     def from_score(cls, score, **overrides) -> "MetricsRow":
-        """Flatten the paper pipeline's ``evaluation.score.Score``."""
+        """Flatten the paper pipeline's ``evaluation.score.Score``: ``coverage_frac`` from its pixel
+        coverage (``Score.coverage``), its surface coverage as the extra ``surface_coverage_frac``."""
         p, b, s = score.points, score.boundary_3d, score.surface
         mm = 1e3
+        cov = getattr(score, "coverage", None)
+        extra = {**({"surface_coverage_frac": s.surface_coverage_frac} if s else {}),
+                 **dict(overrides.pop("extra", None) or {})}
         return cls(
             centres_depth_rms_mm=p.stats.depth.rms * mm if p else None,
             centres_depth_max_mm=p.stats.depth.max * mm if p else None,
@@ -85,14 +94,14 @@ class MetricsRow:
             boundary_mean_mm=b.mean_sym * mm if b else None,
             boundary_hausdorff_mm=b.hausdorff * mm if b else None,
             surface_rms_mm=s.dist.rms * mm if s else None,
-            coverage_frac=s.coverage_frac if s else None,
+            coverage_frac=cov.coverage_frac if cov is not None else None,
             matched_count=score.matching.matched_count,
             correct_match_count=score.matching.correct_match_count,
             expected_count_gt=score.matching.expected_count_gt,
             false_boundary_gt=score.false_boundary.ground_truth_any,
             false_boundary_detected=score.false_boundary.detected,
             paper_bound_met=score.paper_bound.met if score.paper_bound else None,
-            **overrides)
+            extra=extra, **overrides)
 
 
 def _clean(v, kind: str):
@@ -150,6 +159,8 @@ EXTRA_FAMILIES: tuple[tuple[str, str, str], ...] = (
     (r"outlier_count", "outliers (points beyond the threshold)", "count"),
     (r"outlier_frac", "outliers (share of the points)", "fraction"),
     (r"coverage_radius_mm", "coverage radius", "mm"),
+    (r"surface_coverage_frac", "surface coverage (share of the true plate's area within the coverage radius of "
+                               "the estimate)", "fraction"),
     (r"covered_area_mm2", "plate area covered", "mm^2"),
     (r"plate_area_mm2", "plate area", "mm^2"),
     (r"sample_spacing_mm", "surface sample spacing", "mm"),

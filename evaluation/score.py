@@ -11,7 +11,10 @@ carries its unit. Sections:
 * ``matching``: detected / matched / visible / expected counts and the correct-match
   rate (left and right pixels lit by the same feature).
 * ``boundary_3d`` (mm) and ``boundary_image`` (px, left image, against the GT mask).
-* ``surface``: interpolated surface against the plate mesh (RMS, max, coverage).
+* ``surface``: interpolated surface against the plate mesh (RMS, max, and ``surface_coverage_frac``:
+  the share of the true plate's area within the coverage radius of the estimate).
+* ``coverage``: the bench's ``coverage_frac`` (``evaluation.pixel_coverage``): the share of the
+  left view's plate pixels whose true ray hits the interpolated surface mesh.
 * ``false_boundary``: ground truth (a true-boundary point hidden from a camera) vs
   the counting test's verdict.
 * ``paper_bound`` (depth <= 2 mm, x/y <= 1 mm, paper V-D) and ``goals`` (depth RMS <=
@@ -31,6 +34,7 @@ from platebench.evaluation.boundary_metrics import (
     contour_pixels_distance,
     polyline_distance,
 )
+from platebench.evaluation.pixel_coverage import PixelCoverage, coverage_of_mesh
 from platebench.evaluation.point_metrics import (
     PointScore,
     point_to_surface_distance,
@@ -73,6 +77,9 @@ class SampleTruth:
     feature_ids: np.ndarray
     feature_centers: np.ndarray
     visibility: dict  # camera -> {"false_boundary": bool, "visible_fraction": float, ...}
+    # (H, W, 3) world point (metres) seen at each left pixel (gt/left_points.exr): the true rays of
+    # the coverage; None: coverage is not measured
+    points_left: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -88,6 +95,7 @@ class ReconstructionData:
     cut_points: np.ndarray | None = None
     cut_uv_left: np.ndarray | None = None
     cut_uv_right: np.ndarray | None = None
+    surface_faces: np.ndarray | None = None  # (F, 3) vertex indices of the surface mesh; None: no mesh
 
 
 def _mm(x: float | None) -> float | None:
@@ -266,10 +274,14 @@ class Score:
     # the goals): their errors against the true centres; None when it set none apart
     cut_points: PointErrors | None = None
     cut_count: int = 0
+    # ``coverage_frac``: left plate pixels whose true ray hits the surface mesh (None: no mesh or no true rays)
+    coverage: PixelCoverage | None = None
 
     def to_dict(self) -> dict:
         out: dict = {"points": self.points.to_dict() if self.points else {"count": 0},
                      "matching": self.matching.to_dict()}
+        if self.coverage is not None:
+            out["coverage"] = self.coverage.to_dict()
         for name in ("boundary_3d", "boundary_image", "surface"):
             part = getattr(self, name)
             if part is not None:
@@ -298,7 +310,8 @@ class Score:
                    part("surface", SurfaceScore.from_dict),
                    FalseBoundaryVerdict.from_dict(d.get("false_boundary") or {}),
                    part("paper_bound", PaperBound.from_dict), part("goals", Goals.from_dict),
-                   PointErrors.from_dict(cut) if "depth_rms_mm" in cut else None, int(cut.get("count") or 0))
+                   PointErrors.from_dict(cut) if "depth_rms_mm" in cut else None, int(cut.get("count") or 0),
+                   part("coverage", PixelCoverage.from_dict))
 
 
 def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
@@ -337,9 +350,12 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
     if len(rec.boundary) >= 3:
         boundary_3d = polyline_distance(rec.boundary, truth.boundary)
         boundary_image = contour_pixels_distance(truth.masks["left"], truth.rig.left.project(rec.boundary))
-    surface = None
+    surface = coverage = None
     if rec.surface_vertices is not None and len(rec.surface_vertices):
         surface = score_surface(rec.surface_vertices, truth.mesh, sample_spacing_m=SURFACE_SAMPLE_SPACING_M)
+    if truth.points_left is not None:
+        coverage = coverage_of_mesh(_surface_mesh(rec), truth.rig.left.center, truth.points_left,
+                                    truth.masks["left"])
     verdict = FalseBoundaryVerdict({cam: bool(v["false_boundary"]) for cam, v in truth.visibility.items()},
                                    bool(fb.get("false_boundary_detected", False)))
     paper_bound = goals = None
@@ -348,7 +364,18 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
                                  points.count == matching.expected_count_gt)
         goals = Goals(_mm(points.stats.depth.rms), _mm(points.xy_per_axis_rms_m),
                       _mm(boundary_3d.mean_sym) if boundary_3d is not None else float("nan"))
-    return Score(points, matching, boundary_3d, boundary_image, surface, verdict, paper_bound, goals, cut_points, n_cut)
+    return Score(points, matching, boundary_3d, boundary_image, surface, verdict, paper_bound, goals, cut_points, n_cut,
+                 coverage)
+
+
+def _surface_mesh(rec: ReconstructionData):
+    """The reconstruction's surface as a trimesh (world, metres); None without faces."""
+    if rec.surface_vertices is None or rec.surface_faces is None or not len(rec.surface_faces):
+        return None
+    import trimesh  # noqa: PLC0415  (importing trimesh takes a second)
+
+    return trimesh.Trimesh(np.asarray(rec.surface_vertices, np.float64), np.asarray(rec.surface_faces),
+                           process=False)
 
 
 def format_table(score: Score) -> str:
@@ -371,7 +398,12 @@ def format_table(score: Score) -> str:
     if score.surface is not None:
         s = score.surface
         lines.append(f"{'surface':16s} RMS {_mm(s.dist.rms):.4g} mm, max {_mm(s.dist.max):.4g} mm, "
-                     f"coverage {s.coverage_frac:.4g}")
+                     f"surface coverage {s.surface_coverage_frac:.4g} (share of the true plate's area within "
+                     f"{_mm(s.coverage_radius_m):g} mm of it)")
+    if score.coverage is not None:
+        c = score.coverage
+        lines.append(f"{'coverage':16s} {c.coverage_frac:.4g} ({c.estimated_px}/{c.plate_px} plate px of the left "
+                     f"view whose ray hits the surface)")
     if score.cut_count:
         c = score.cut_points
         errs = "" if c is None else (f"; their depth max {_mm(c.stats.depth.max):.4f} mm, x/y max "

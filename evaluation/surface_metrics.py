@@ -8,7 +8,8 @@ Accuracy
     distance of every estimated point to the GT mesh surface (exact
     point-to-triangle distance, unsigned); mean / RMS / max / p95, in mm.
 
-Coverage (how much of the plate the estimate covers)
+Surface coverage (how much of the true plate's area the estimate covers; ``surface_coverage_frac``,
+not the bench's ``coverage_frac``, a share of the plate's pixels: ``evaluation.pixel_coverage``)
     1. The GT mesh surface (all faces, or only ``coverage_faces``) is sampled
        uniformly by area with ``trimesh.sample.sample_surface(mesh, n,
        face_weight=..., seed=seed)``, n = ceil(A / sample_spacing_m^2) where A
@@ -22,14 +23,14 @@ Coverage (how much of the plate the estimate covers)
        alone does not uncover the plate (use ``max_distance_m`` to discard
        outliers).
     4. covered_area = (#covered samples) * A / n and
-       coverage_frac = covered_area / plate_area_m2 (default A).
+       surface_coverage_frac = covered_area / plate_area_m2 (default A).
     For a plate with thickness (a closed solid: top, bottom, side walls) pass
     the top faces as ``coverage_faces``: sampling the whole solid would count the
     unseen bottom as uncovered (coverage about 0.5 at best) or, when the plate
     is thinner than ``coverage_radius_m``, as covered by the top's foot points.
-    coverage_frac is not clipped to 1; a value above 1 signals such a mismatch
+    surface_coverage_frac is not clipped to 1; a value above 1 signals such a mismatch
     (e.g. plate_area_m2 smaller than the sampled area).
-    Expect coverage_frac to exceed the true covered fraction by about
+    Expect surface_coverage_frac to exceed the true covered fraction by about
     coverage_radius_m x (length of the covered region's boundary) / plate area
     (the band around the covered region); sampling noise is about
     sqrt(f (1 - f) / n).
@@ -55,10 +56,11 @@ _MAX_SURFACE_SAMPLES = 5_000_000
 
 @dataclass(frozen=True)
 class SurfaceScore:
-    """Surface accuracy (metres) and coverage; ``to_dict`` reports mm and mm^2."""
+    """Surface accuracy (metres) and surface coverage (the share of the true plate's area within
+    ``coverage_radius_m`` of the estimate); ``to_dict`` reports mm and mm^2."""
 
     dist: ErrorStats
-    coverage_frac: float
+    surface_coverage_frac: float
     covered_area_m2: float
     plate_area_m2: float
     gt_sample_count: int
@@ -68,14 +70,14 @@ class SurfaceScore:
     max_distance_m: float | None
 
     def to_dict(self) -> dict:
-        """Keys: ``dist_{mean,rms,max,p95}_mm``, ``dist_count``, ``coverage_frac``,
+        """Keys: ``dist_{mean,rms,max,p95}_mm``, ``dist_count``, ``surface_coverage_frac``,
         ``covered_area_mm2``, ``plate_area_mm2``, ``gt_sample_count``,
         ``coverage_point_count``, ``sample_spacing_mm``, ``coverage_radius_mm``,
         ``coverage_max_distance_mm`` (None = no limit)."""
         out = self.dist.to_dict("dist", "mm", M_TO_MM)
         out.update(
             {
-                "coverage_frac": self.coverage_frac,
+                "surface_coverage_frac": self.surface_coverage_frac,
                 "covered_area_mm2": self.covered_area_m2 * 1e6,
                 "plate_area_mm2": self.plate_area_m2 * 1e6,
                 "gt_sample_count": self.gt_sample_count,
@@ -91,12 +93,15 @@ class SurfaceScore:
 
     @classmethod
     def from_dict(cls, d: dict) -> "SurfaceScore":
-        """The inverse of ``to_dict`` (metres and m^2)."""
+        """The inverse of ``to_dict`` (metres and m^2); the older layout's key ``coverage_frac`` is read
+        as ``surface_coverage_frac``."""
         def value(key, scale=M_TO_MM):
             v = d.get(key)
             return math.nan if v is None else float(v) / scale
         limit = d.get("coverage_max_distance_mm")
-        return cls(ErrorStats.from_dict(d, "dist", "mm", M_TO_MM), value("coverage_frac", 1.0),
+        if "surface_coverage_frac" not in d and "coverage_frac" in d:
+            d = {**d, "surface_coverage_frac": d["coverage_frac"]}
+        return cls(ErrorStats.from_dict(d, "dist", "mm", M_TO_MM), value("surface_coverage_frac", 1.0),
                    value("covered_area_mm2", 1e6), value("plate_area_mm2", 1e6), int(d.get("gt_sample_count") or 0),
                    int(d.get("coverage_point_count") or 0), value("sample_spacing_mm"), value("coverage_radius_mm"),
                    None if limit is None else float(limit) / M_TO_MM)
@@ -200,7 +205,7 @@ def score_surface(
     covered_area = covered * sampled_area / len(samples)
     return SurfaceScore(
         dist=acc,
-        coverage_frac=covered_area / area,
+        surface_coverage_frac=covered_area / area,
         covered_area_m2=covered_area,
         plate_area_m2=area,
         gt_sample_count=int(len(samples)),

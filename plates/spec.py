@@ -40,6 +40,14 @@ MAX_BEND_RAD = math.radians(350.0)
 MAX_FOLD_RAD = math.radians(180.0)
 MAX_TWIST_RAD = math.radians(90.0)
 MAX_S_CURVE_RAD = math.radians(180.0)  # each half of an S-curve a half circle at most
+# The smallest bend a bent family takes other than 0 (a flat plate): a circular arc's radius grows as
+# 1 / angle, and below this the mesh's arc spacing can no longer be told from 0 in float64 (a bend of
+# 1e-6 deg lifts a 10 m plate's centre by 0.2 um: give 0 for a flat plate).
+MIN_BEND_DEG = 1e-6
+MIN_BEND_RAD = math.radians(MIN_BEND_DEG)
+# A plate's sides: 1 mm to 10 m (the rigs view it from 0.05 to 5 m; the mesh's facet error is absolute).
+MIN_SIDE_M = 1e-3
+MAX_SIDE_M = 10.0
 DIRECTIONS = ("up", "down")
 DEFAULT_ANGLE_RAD = math.radians(10.0)  # a family's default bend or twist (the paper's plate: 10 degrees)
 
@@ -85,6 +93,14 @@ def _check(obj: Any, name: str, lo: float, hi: float, *, unit: str = "m",
         raise PlateSpecError(f"{owner}.{name} = {shown} is out of range: allowed {allowed}")
     object.__setattr__(obj, name, value)
     return value
+
+
+def _check_bend(obj: Any, hi: float) -> None:
+    """``angle_rad`` of a bent family: 0 (flat), or ``MIN_BEND_RAD`` to ``hi``."""
+    _check(obj, "angle_rad", 0.0, hi, unit="rad")
+    if 0.0 < obj.angle_rad < MIN_BEND_RAD:
+        raise PlateSpecError(f"{type(obj).__name__}.angle_rad = {_fmt(obj.angle_rad)} ({math.degrees(obj.angle_rad):.3g} "
+                             f"deg) is out of range: allowed 0 (flat) or {MIN_BEND_DEG:g} to {math.degrees(hi):g} deg")
 
 
 def _check_direction(obj: Any) -> None:
@@ -229,8 +245,8 @@ class Flat(DeformationFamily):
 class CylindricalBend(DeformationFamily):
     """Uniform cylindrical bend, arc length preserved.
 
-    angle_rad: angle between the end tangents of the extreme material lines, 0 to
-    350 deg. The signed curvature is +-angle_rad / S (S: the plate's extent along the
+    angle_rad: angle between the end tangents of the extreme material lines, 0 (flat) or
+    ``MIN_BEND_DEG`` to 350 deg. The signed curvature is +-angle_rad / S (S: the plate's extent along the
     bending coordinate, see module docstring). The plate centre (u, v) = (0, 0)
     stays at the origin with normal +Z. direction: "up" (ends rise toward +Z) or
     "down". axis_rad: bend-axis direction in [0, pi), 0 = axis along the width (Y).
@@ -245,7 +261,7 @@ class CylindricalBend(DeformationFamily):
     by_bend: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
-        _check(self, "angle_rad", 0.0, MAX_BEND_RAD, unit="rad")
+        _check_bend(self, MAX_BEND_RAD)
         _check_direction(self)
         _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
 
@@ -270,8 +286,8 @@ class Fold(DeformationFamily):
     The band has width band_m and is centred at bending coordinate position_m; the
     plate is flat on both sides of it and C1 continuous (arc length preserved).
     Anchoring: the part with s < position_m - band_m/2 stays fixed in the z = 0
-    plane (identity map); the band and the flap beyond it move. angle_rad 0 to
-    180 deg (beyond that the flap would cut through the fixed part). direction and
+    plane (identity map); the band and the flap beyond it move. angle_rad 0 or
+    ``MIN_BEND_DEG`` to 180 deg (beyond that the flap would cut through the fixed part). direction and
     axis_rad as in CylindricalBend. The band must lie inside the plate (checked by
     PlateSpec, which knows the plate size).
     """
@@ -289,7 +305,7 @@ class Fold(DeformationFamily):
                                                  SweepKey("fold_band_m", "band_m", "fold band width, m"))
 
     def __post_init__(self) -> None:
-        _check(self, "angle_rad", 0.0, MAX_FOLD_RAD, unit="rad")
+        _check_bend(self, MAX_FOLD_RAD)
         _check(self, "position_m", -math.inf, math.inf, allowed="a finite number of metres")
         _check(self, "band_m", 0.0, math.inf, lo_open=True)
         _check_direction(self)
@@ -459,7 +475,7 @@ class SCurve(DeformationFamily):
     2 angle_rad / S (S: the plate's extent along s), so the tangent turns by angle_rad from the
     middle to either end and the two ends stay parallel: the profile is point-symmetric about
     the plate centre, which stays at the origin with normal +Z (a C1 curve, its curvature
-    jumping at s = 0). angle_rad 0 to 180 deg (at 180 each half is a half circle).
+    jumping at s = 0). angle_rad 0 or ``MIN_BEND_DEG`` to 180 deg (at 180 each half is a half circle).
     direction: "up" (the s > 0 half rises toward +Z, the other falls) or "down"; axis_rad as
     in CylindricalBend.
     """
@@ -473,7 +489,7 @@ class SCurve(DeformationFamily):
     in_default_study: ClassVar[bool] = False  # not among the study's 61 default plates: study --families s_curve
 
     def __post_init__(self) -> None:
-        _check(self, "angle_rad", 0.0, MAX_S_CURVE_RAD, unit="rad")
+        _check_bend(self, MAX_S_CURVE_RAD)
         _check_direction(self)
         _check(self, "axis_rad", 0.0, math.pi, unit="rad", hi_open=True)
 
@@ -538,6 +554,7 @@ def _size(length_m: float, width_m: float) -> str:
 class PlateSpec:
     """A rectangular plate: length_m along X, width_m along Y, thickness_m (0 = sheet).
 
+    length_m and width_m from ``MIN_SIDE_M`` to ``MAX_SIDE_M`` (1 mm to 10 m).
     thickness_m from 0 to a tenth of the smaller side and, for a curved plate, to half
     the smallest radius of curvature (so the bottom offset surface stays smooth).
     deformation: one of the families of ``FAMILIES`` (Flat, CylindricalBend, Fold, Twist, Dome,
@@ -550,8 +567,8 @@ class PlateSpec:
     deformation: Deformation = field(default_factory=Flat)
 
     def __post_init__(self) -> None:
-        _check(self, "length_m", 0.0, math.inf, lo_open=True)
-        _check(self, "width_m", 0.0, math.inf, lo_open=True)
+        _check(self, "length_m", MIN_SIDE_M, MAX_SIDE_M)
+        _check(self, "width_m", MIN_SIDE_M, MAX_SIDE_M)
         _check(self, "thickness_m", 0.0, math.inf)
         if not isinstance(self.deformation, DeformationFamily) or type(self.deformation) not in FAMILIES.values():
             raise PlateSpecError(

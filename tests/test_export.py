@@ -61,13 +61,16 @@ def test_sample_calib_txt_has_tight_range_and_rectification_figures(small_sample
     assert c["dyavg"] == 0 and c["dymax"] == 0
 
 
-@pytest.mark.parametrize("shift", ["0", "auto"])
-def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_sample_dir, tmp_path, capsys, shift):
+@pytest.mark.parametrize("shift, images", [("0", []), ("auto", ["--images", "active"])])
+def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_sample_dir, tmp_path, capsys, shift,
+                                                                          images):
     out = tmp_path / "mb"
     code, text, err = export(capsys, small_sample_dir, "--format", "middlebury", "--out", out, "--shift", shift,
-                             "--images", "active")
+                             *images)  # the active images unless told: the default and the explicit flag
     assert code == 0, err
-    d = out / small_sample_dir.name
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["export.json", "trainingF"]
+    d = out / "trainingF" / small_sample_dir.name  # the Middlebury 2014 SDK tree, the scene named by the sample id
+    assert [p.name for p in (out / "trainingF").iterdir()] == [small_sample_dir.name]
     assert sorted(p.name for p in d.iterdir()) == ["calib.txt", "disp0GT.pfm", "disp1GT.pfm", "im0.png", "im1.png",
                                                     "mask0nocc.png"]
     c = read_calib(d / "calib.txt")
@@ -83,8 +86,11 @@ def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_
     s = int(round(c["cam1"][0, 2] - c["cam0"][0, 2]))  # the shift moves the left principal point
     assert c["doffs"] == s and (s == 0) == (shift == "0")
     src = cv2.imread(str(small_sample_dir / "images" / "left_active.png"), cv2.IMREAD_UNCHANGED)
-    assert np.array_equal(im0, src[:, s:])
+    assert np.array_equal(im0, src[:, s:])  # the left image loses its first s columns, the right its last s
+    src1 = cv2.imread(str(small_sample_dir / "images" / "right_active.png"), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(cv2.imread(str(d / "im1.png"), cv2.IMREAD_UNCHANGED), src1[:, :src1.shape[1] - s])
     # every valid pixel: Z = baseline f / (d + doffs) gives the true depth (mm -> m)
+    valid_src = np.isfinite(gt_depth(small_sample_dir))
     z_true = gt_depth(small_sample_dir)[:, s:]
     valid = np.isfinite(disp)
     assert valid.sum() > 10000 and np.array_equal(valid, np.isfinite(z_true))
@@ -107,7 +113,9 @@ def test_middlebury_export_is_read_by_other_code_and_gives_back_the_depth(small_
     dd = disp[v, u][both]
     assert both.mean() > 0.95 and np.all((lo - 1e-3 <= dd) & (dd <= hi + 1e-3))
     doc = json.loads((out / "export.json").read_text())
-    assert doc["format"] == "middlebury" and doc["samples"][0]["shift_px"] == s
+    assert doc["format"] == "middlebury" and doc["samples"][0]["shift_px"] == s and doc["images"] == "active"
+    assert doc["samples"][0]["files"] == f"trainingF/{small_sample_dir.name}"
+    assert doc["max_shift_px"] == math.floor(read_pfm(small_sample_dir / "gt" / "disp0GT.pfm")[valid_src].min()) - 1
 
 
 def kitti_standard_loader(root, index: int):
@@ -171,9 +179,11 @@ def test_kitti_export_read_by_a_standard_kitti_loader_gives_the_true_depth(small
     assert doc["resample_factor"] == factor and (doc["resampled"] is None) == (factor == 1)
     if factor > 1:
         assert "reduced 2x" in doc["resampled"] and "resampled: images reduced 2x" in text
-    src = cv2.imread(str(sample / "images" / "left_passive.png"), cv2.IMREAD_UNCHANGED)
+    src = cv2.imread(str(sample / "images" / "left_active.png"), cv2.IMREAD_UNCHANGED)
     im2 = cv2.imread(str(out / "training" / "image_2" / "000000_10.png"), cv2.IMREAD_UNCHANGED)
     assert im2.shape == depth.shape == (src.shape[0] // factor, src.shape[1] // factor)
+    if factor == 1:  # the active images by default
+        assert np.array_equal(im2, src)
     d = cv2.imread(str(out / "training" / "disp_occ_0" / "000000_10.png"), cv2.IMREAD_ANYDEPTH) / 256.0
     assert 0 < d[valid].max() < 256
     noc = cv2.imread(str(out / "training" / "disp_noc_0" / "000000_10.png"), cv2.IMREAD_ANYDEPTH)
@@ -192,6 +202,32 @@ def test_kitti_export_refuses_a_shift_with_the_reason(small_sample_dir, tmp_path
         code, _, err = export(capsys, small_sample_dir, "--format", "kitti", "--out", tmp_path / "k", "--shift", shift)
         assert code == 2 and len(err.strip().splitlines()) == 1 and "equal principal points" in err, err
         assert not (tmp_path / "k").exists()
+
+
+def test_a_shift_past_the_smallest_true_disparity_is_refused_naming_the_range(small_sample_dir, tmp_path, capsys):
+    d = read_pfm(small_sample_dir / "gt" / "disp0GT.pfm")
+    top = math.floor(d[np.isfinite(d)].min()) - 1  # every exported disparity stays >= 1 px
+    for shift in (top + 1, top + 60):
+        code, text, err = export(capsys, small_sample_dir, "--format", "middlebury", "--out", tmp_path / "x",
+                                 "--shift", shift)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert f"--shift {shift} is out of range" in err and f"allowed 0 to {top} px" in err, err
+        assert not (tmp_path / "x").exists()
+    code, text, err = export(capsys, small_sample_dir, "--format", "middlebury", "--out", tmp_path / "x",
+                             "--shift", top)
+    assert code == 0, err
+    c = read_calib(tmp_path / "x" / "trainingF" / small_sample_dir.name / "calib.txt")
+    disp = read_pfm(tmp_path / "x" / "trainingF" / small_sample_dir.name / "disp0GT.pfm")
+    assert disp[np.isfinite(disp)].min() >= 1 and c["vmin"] >= 1 and c["doffs"] == top
+
+
+def test_export_help_states_the_crop_once_and_the_active_default(capsys):
+    with pytest.raises(SystemExit):
+        main(["export", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert text.count("first PX columns") == 1 and "right image's columns" not in text
+    assert "cropping the left image's first PX columns and the right image's last PX" in text
+    assert "active: the projected square grid (default" in text and "OUT/trainingF/<scene>/" in text
 
 
 def test_bad_export_requests_are_one_line_errors(small_sample_dir, tmp_path, capsys):

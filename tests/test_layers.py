@@ -84,7 +84,8 @@ def layer(name: str) -> tuple[int, int]:
     if top == "scenes":
         inner = 1 if sub == "render" else 0
     elif top == "bench":
-        inner = {"config": 0, "progress": 0, "io": 1, "run": 2, "sweep": 3, "report": 3, "perf": 4, "cli": 5}.get(sub, 0)
+        inner = {"config": 0, "progress": 0, "io": 1, "run": 2, "sweep": 3, "report": 3, "perf": 4, "benchmark": 4,
+                 "cli": 5}.get(sub, 0)
     return rank, inner
 
 

@@ -36,7 +36,7 @@ def test_points_at_known_height_full_coverage():
     for k in ("dist_mean_mm", "dist_rms_mm", "dist_max_mm", "dist_p95_mm"):
         assert d[k] == pytest.approx(0.3, abs=1e-9)
     # every surface sample is within 0.5 mm * sqrt(2) / 2 = 0.354 mm of a foot point (< 1 mm radius)
-    assert d["coverage_frac"] == pytest.approx(1.0)
+    assert d["surface_coverage_frac"] == pytest.approx(1.0)
     assert d["plate_area_mm2"] == pytest.approx(6000.0)
     assert d["gt_sample_count"] == math.ceil(LX * LY / 0.5e-3**2)  # 24000
     assert d["coverage_radius_mm"] == pytest.approx(1.0)
@@ -48,18 +48,18 @@ def test_half_plate_coverage():
     # sqrt(0.51 * 0.49 / 24000) = 0.003.
     P = grid_points(-LX / 2, 0.0, -LY / 2, LY / 2, 0.5e-3, 1e-3)
     s = score_surface(P, MESH, LX * LY, sample_spacing_m=0.5e-3)
-    assert s.coverage_frac == pytest.approx(0.51, abs=0.01)
+    assert s.surface_coverage_frac == pytest.approx(0.51, abs=0.01)
     assert s.dist.max == pytest.approx(1e-3)
     # same seed -> same samples -> same number
-    assert score_surface(P, MESH, LX * LY, sample_spacing_m=0.5e-3).coverage_frac == s.coverage_frac
+    assert score_surface(P, MESH, LX * LY, sample_spacing_m=0.5e-3).surface_coverage_frac == s.surface_coverage_frac
 
 
 def test_depth_error_does_not_uncover_but_outlier_gate_does():
     P = grid_points(-LX / 2, LX / 2, -LY / 2, LY / 2, 1e-3, 3e-3)  # 3 mm above the plate
     s = score_surface(P, MESH, LX * LY, sample_spacing_m=1e-3)
-    assert s.coverage_frac == pytest.approx(1.0)  # lateral test: foot points cover the plate
+    assert s.surface_coverage_frac == pytest.approx(1.0)  # lateral test: foot points cover the plate
     g = score_surface(P, MESH, LX * LY, sample_spacing_m=1e-3, max_distance_m=2e-3)
-    assert g.coverage_frac == 0.0 and g.points_used_for_coverage == 0
+    assert g.surface_coverage_frac == 0.0 and g.points_used_for_coverage == 0
     assert g.dist.mean == pytest.approx(3e-3)  # accuracy still counts every point
     assert g.to_dict()["coverage_max_distance_mm"] == pytest.approx(2.0)
 
@@ -68,7 +68,7 @@ def test_plate_area_normalises_coverage():
     P = grid_points(-LX / 2, LX / 2, -LY / 2, LY / 2, 0.5e-3, 0.0)
     # e.g. a two-sided plate mesh whose visible face is half the mesh area
     s = score_surface(P, MESH, 2 * LX * LY, sample_spacing_m=1e-3)
-    assert s.coverage_frac == pytest.approx(0.5)
+    assert s.surface_coverage_frac == pytest.approx(0.5)
     assert score_surface(P, MESH, None, sample_spacing_m=1e-3).plate_area_m2 == pytest.approx(LX * LY)
 
 
@@ -107,8 +107,8 @@ def test_coverage_faces_restricts_the_sampled_area():
     P = grid_points(-LX / 2, 0.0, -LY / 2, LY / 2, 0.5e-3, 0.0)
     s = score_surface(P, MESH, None, sample_spacing_m=1e-3, coverage_faces=left)
     assert s.plate_area_m2 == pytest.approx(LX * LY / 2)
-    assert s.coverage_frac == pytest.approx(1.0)
+    assert s.surface_coverage_frac == pytest.approx(1.0)
     s2 = score_surface(P, MESH, None, sample_spacing_m=1e-3, coverage_faces=np.nonzero(~left)[0])
-    assert s2.coverage_frac == pytest.approx(2e-3 / (LX / 2), abs=0.01)  # the 2 mm band beyond x = 0
+    assert s2.surface_coverage_frac == pytest.approx(2e-3 / (LX / 2), abs=0.01)  # the 2 mm band beyond x = 0
     with pytest.raises(ValueError, match="coverage_faces"):
         score_surface(P, MESH, None, coverage_faces=np.zeros(3, bool))

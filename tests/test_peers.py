@@ -333,3 +333,21 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown method 'nonsense': choose from paper, graycode" in err[0]
     assert "or module:function" in err[0]
+
+
+@pytest.mark.render
+def test_peers_that_render_their_own_patterns_run_on_a_pair_a_robot_took(tmp_path):
+    """A 1995-rig sample (robot-posed cameras, estimated calibration): the re-created scene is the one
+    the sample was taken with (its left passive image byte for byte), and the phase-shift peer decodes
+    it through the told calibration, with depth errors of the rig's order (millimetres), not a failure."""
+    from platebench.bench.run.compare import compare_sample
+    from tests.conftest import run_cli
+    r = run_cli("render", "--out", tmp_path / "s", "--realism", "1995", "--realism-seed", "3", "--spp", "1",
+                "--bend-deg", "30")
+    assert r.returncode == 0, r.stderr
+    cmp = compare_sample(tmp_path / "s", ("phase",))
+    assert not any("differs" in n for n in cmp.notes), cmp.notes
+    row = next(x for x in cmp.rows if x.name == "phase")
+    f = row.figures
+    assert row.result is not None and f.coverage_frac > 0.8, (row.notes, f)
+    assert 0.05 < f.error_rms_mm < 30.0, f

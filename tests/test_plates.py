@@ -140,7 +140,9 @@ def test_from_dict_defaults_to_flat_sheet():
 
 @pytest.mark.parametrize("make, words", [
     (lambda: PlateSpec(-0.1, W), ["PlateSpec.length_m", "-0.1", "allowed"]),
-    (lambda: PlateSpec(L, 0.0), ["PlateSpec.width_m", "0", "allowed > 0"]),
+    (lambda: PlateSpec(L, 0.0), ["PlateSpec.width_m", "0", "allowed 0.001 to 10 m"]),
+    (lambda: PlateSpec(1e300, W), ["PlateSpec.length_m", "1e+300", "allowed 0.001 to 10 m"]),
+    (lambda: CylindricalBend(1e-14), ["CylindricalBend.angle_rad", "1e-14", "allowed 0 (flat) or 1e-06 to 350 deg"]),
     (lambda: PlateSpec(float("nan"), W), ["PlateSpec.length_m", "nan", "allowed"]),
     (lambda: PlateSpec(L, float("inf")), ["PlateSpec.width_m", "inf", "allowed"]),
     (lambda: PlateSpec(L, W, -0.001), ["PlateSpec.thickness_m", "-0.001", "allowed"]),

@@ -1,7 +1,10 @@
 """README's code runs as written: its Python blocks are taken from README.md itself and run as a user
 runs them (``python my_script.py`` in a folder holding ``examples/``, the plug-in as a module on the
-path), its TOML parses, and every ``platebench`` command line of its shell blocks is accepted by
-the command's parser. So README and the product cannot drift apart.
+path), its TOML parses, and every ``platebench`` command line of the shell blocks of README.md,
+docs/*.md and docs/findings/*.md is accepted by the command's parser (a line starting with ``... ``
+repeats the command above it with the options that follow). The guide's Python blocks are README's,
+so they run too; README stays short (at most 200 lines). So the documents and the product cannot
+drift apart.
 
 A script that calls ``platebench.sweep`` at its top level, without the main guard, fails with the
 reason: its spawned workers refuse to run the script again, and ``sweep`` raises instead of
@@ -24,8 +27,27 @@ from tests.conftest import REPO
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.M | re.S)
 
 
+README_MAX_LINES = 200
+DOCS = ("README.md", *sorted(p.relative_to(REPO).as_posix() for p in (REPO / "docs").glob("*.md")),
+        *sorted(p.relative_to(REPO).as_posix() for p in (REPO / "docs" / "findings").glob("*.md")))
+
+
+def doc_blocks(doc: str, lang: str) -> list[str]:
+    return [body for kind, body in FENCE.findall((REPO / doc).read_text()) if kind == lang]
+
+
 def readme_blocks(lang: str) -> list[str]:
-    return [body for kind, body in FENCE.findall((REPO / "README.md").read_text()) if kind == lang]
+    return doc_blocks("README.md", lang)
+
+
+def readme_python_blocks() -> tuple[str, str, str]:
+    """README's three Python blocks, found by what they are: the facade script, the plug-in, the reader."""
+    py = readme_blocks("python")
+    api = [b for b in py if "platebench.sweep(" in b]
+    plugin = [b for b in py if b.startswith("# my_method.py")]
+    reader = [b for b in py if "PlateBenchDataset(" in b and b not in api]
+    assert len(py) == 3 and len(api) == len(plugin) == len(reader) == 1, [b.splitlines()[0] for b in py]
+    return api[0], plugin[0], reader[0]
 
 
 def _run(args, cwd, timeout=900, **env):
@@ -34,17 +56,27 @@ def _run(args, cwd, timeout=900, **env):
 
 
 def test_readme_has_the_blocks_this_test_runs():
-    py = readme_blocks("python")
-    assert len(py) == 3, [b.splitlines()[0] for b in py]
-    assert "platebench.sweep(" in py[0] and py[1].startswith("# my_method.py") and "PlateBenchDataset(" in py[2]
-    for block in (py[0], py[2]):  # scripts: their work is under the main guard
+    api, _plugin, reader = readme_python_blocks()
+    for block in (api, reader):  # scripts: their work is under the main guard
         assert 'if __name__ == "__main__":' in block
+
+
+def test_readme_is_short():
+    n = len((REPO / "README.md").read_text().splitlines())
+    assert n <= README_MAX_LINES, f"README.md has {n} lines: at most {README_MAX_LINES} (the rest goes to docs/)"
+
+
+def test_the_guides_python_blocks_are_readmes():
+    # the guide shows README's blocks in full: the same text, so the run below checks both
+    readme = set(readme_blocks("python"))
+    guide = doc_blocks("docs/guide.md", "python")
+    assert guide and all(b in readme for b in guide), [b.splitlines()[0] for b in guide if b not in readme]
 
 
 @pytest.mark.slow
 @pytest.mark.render
 def test_readme_python_blocks_run_as_written(tmp_path):
-    api, plugin, reader = readme_blocks("python")
+    api, plugin, reader = readme_python_blocks()
     shutil.copytree(REPO / "examples", tmp_path / "examples")
     (tmp_path / "api_script.py").write_text(api)
     r = _run([sys.executable, "api_script.py"], tmp_path)
@@ -64,34 +96,66 @@ def test_readme_python_blocks_run_as_written(tmp_path):
     assert "my_method:my_matcher" in (tmp_path / "cmp" / "compare.json").read_text()
 
 
-def test_readme_toml_blocks_parse():
-    blocks = readme_blocks("toml")
-    assert blocks
-    for b in blocks:
+@pytest.mark.parametrize("doc", DOCS)
+def test_toml_blocks_parse(doc):
+    if doc == "README.md":
+        assert readme_blocks("toml")
+    for b in doc_blocks(doc, "toml"):
         tomllib.loads(b)
 
 
-def _command_lines() -> list[list[str]]:
+TIMED = "/usr/bin/time -v "
+
+
+def _commands_of(text: str) -> list[list[str]]:
+    """argv (without the program) of every ``platebench`` line of the text's shell blocks. A line
+    ``... ARGS`` is the command line above it with ARGS appended (argparse: a later option replaces an
+    earlier one); ``/usr/bin/time -v`` before a command is the timing, not the command."""
     out = []
-    for block in readme_blocks("sh"):
+    for kind, block in FENCE.findall(text):
+        if kind != "sh":
+            continue
+        last = None
         for line in block.splitlines():
             line = line.split(" #")[0].strip()
-            if not line.startswith("platebench ") or re.search(r"\[|COMMAND", line):
+            line = line[len(TIMED):] if line.startswith(TIMED) else line
+            if re.search(r"\[|COMMAND", line):
                 continue
-            out.append(shlex.split(line)[1:])
+            if line.startswith("platebench "):
+                last = shlex.split(line)[1:]
+            elif line.startswith("... ") and last is not None:
+                last = last + shlex.split(line[4:])
+            else:
+                continue
+            out.append(last)
     return out
 
 
-def test_readme_command_lines_are_accepted_by_their_parsers():
-    lines = _command_lines()
-    assert len(lines) >= 30
+def _command_lines(doc: str = "README.md") -> list[list[str]]:
+    return _commands_of((REPO / doc).read_text())
+
+
+def test_the_documents_show_commands():
+    assert len(_command_lines("README.md")) >= 10
+    assert sum(len(_command_lines(doc)) for doc in DOCS) >= 60
+
+
+@pytest.mark.parametrize("doc", DOCS)
+def test_command_lines_are_accepted_by_their_parsers(doc):
     bad = []
-    for argv in lines:
+    for argv in _command_lines(doc):
         try:
             build_parser(argv).parse_args(argv)
         except SystemExit:
             bad.append(" ".join(argv))
-    assert not bad, "README command lines the parser refuses:\n" + "\n".join(bad)
+    assert not bad, f"{doc}: command lines the parser refuses:\n" + "\n".join(bad)
+
+
+def test_a_continuation_line_repeats_the_command_above():
+    text = ("```sh\n/usr/bin/time -v platebench study false-boundary --out st   # timed\n... --seed 2 --out st2\n"
+            "make demo\n```\n")
+    assert _commands_of(text) == [["study", "false-boundary", "--out", "st"],
+                                  ["study", "false-boundary", "--out", "st", "--seed", "2", "--out", "st2"]]
 
 
 UNGUARDED = """

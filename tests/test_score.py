@@ -110,7 +110,7 @@ def test_boundary_and_surface_offsets(truth):
     assert s.boundary_3d.mean_sym == pytest.approx(3e-4, rel=1e-6)
     assert s.boundary_3d.hausdorff == pytest.approx(3e-4, rel=1e-6)
     assert s.surface.dist.rms == pytest.approx(2e-4, rel=1e-6)
-    assert s.surface.coverage_frac > 0.95
+    assert s.surface.surface_coverage_frac > 0.95
     row = MetricsRow.from_score(s)
     assert row.boundary_mean_mm == pytest.approx(0.3, rel=1e-6) and row.surface_rms_mm == pytest.approx(0.2, rel=1e-6)
     assert not s.goals.met  # boundary mean 0.3 mm > 0.2 mm goal

@@ -214,7 +214,7 @@ def test_points_moved_one_mm_along_the_normal_are_one_mm_away(small_sample_dir, 
     assert sc["dist_median_mm"] == pytest.approx(1.0, abs=2e-3)
     assert sc["outlier_count"] == int(far.sum()) and sc["outlier_frac"] == pytest.approx(far.mean())
     assert sc["dist_max_mm"] == pytest.approx(10.0, abs=2e-3)
-    assert sc["coverage_frac"] > 0.95 and sc["points_count"] == len(moved)
+    assert sc["coverage_frac"] > 0.95 and sc["surface_coverage_frac"] > 0.95 and sc["points_count"] == len(moved)
     # without the outliers, through CSV: every point 1 mm away
     csv = tmp_path / "pts.csv"
     np.savetxt(csv, P[~far] + 1e-3 * N[~far], delimiter=",", header="x,y,z", comments="")
@@ -223,8 +223,8 @@ def test_points_moved_one_mm_along_the_normal_are_one_mm_away(small_sample_dir, 
     sc = json.loads((tmp_path / "pts.score.json").read_text())["score"]
     for k in ("dist_mean_mm", "dist_median_mm", "dist_rms_mm", "dist_max_mm", "dist_a99_mm"):
         assert sc[k] == pytest.approx(1.0, abs=2e-3), k
-    # every point is an outlier at 0.5 mm: none covers the plate
-    assert sc["outlier_frac"] == 1.0 and sc["coverage_frac"] == 0.0
+    # every point is an outlier at 0.5 mm: none covers the plate's surface, yet they land on its pixels
+    assert sc["outlier_frac"] == 1.0 and sc["surface_coverage_frac"] == 0.0 and sc["coverage_frac"] > 0.5
 
 
 # ----------------------------------------------------------------------------- mesh

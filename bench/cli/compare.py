@@ -22,19 +22,31 @@ directory) holding ``points.csv`` (world x, y, z in metres) and optionally
 their left-image projection and by distance to the true plate surface. Without such
 files the row is left out, with a note.
 
+A reconstruction is scored only against the sample it was made from (``bench.run.score.check_made_from``,
+the check ``platebench evaluate`` makes): one made from other images is refused, as is a ``--recon``
+that is not a reconstruction directory.
+
 Outputs (``--out``, default ``SAMPLE_DIR/compare``): ``compare.json`` (every figure)
 and ``compare.png`` (signed depth-error map per method).
+
+What the flags name is checked before the output path: the methods (built in, installed or
+``module:function``), ``--recon``, the SGBM search range; whether the reconstruction was made from the
+sample right after it; all of it before any render. Exit status
+(``bench/cli/main.py``): 0 when every method gave its row; 1 when a method failed (recorded in
+compare.json) or no method gave a row, with one summary line on stderr; 2 refused.
 """
 from __future__ import annotations
 
 import argparse
+import inspect
+import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from platebench.bench.files import require_dir
 from platebench.bench.io.atomic import write_bytes, write_json
-from platebench.bench.io.outputs import output_dir
+from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
 
 if TYPE_CHECKING:
@@ -59,10 +71,7 @@ def _cells(r) -> tuple[str, float | None, float | None, str, str]:
     """(measure, median mm, RMS mm, coverage, bad-1 %) of a row (``MethodFigures``): depth error for maps
     and the paper's points, distance to the surface for point clouds, accuracy for meshes."""
     f = r.figures
-    if f.measure == "centres":
-        cov = f"{f.points_on_plate} pts"
-    else:
-        cov = "-" if f.coverage_frac is None else f"{100 * f.coverage_frac:.1f} %"
+    cov = "-" if f.coverage_frac is None else f"{100 * f.coverage_frac:.1f} %"
     bad = "-" if f.mb_all_bad_1_0_pct is None else f"{f.mb_all_bad_1_0_pct:.1f}"
     return f.measure or "-", f.error_median_mm, f.error_rms_mm, cov, bad
 
@@ -80,7 +89,8 @@ def format_table(cmp: Comparison) -> str:
                      f"{r.time_s:7.3f} {r.render_s:8.1f}")
     lines.append("median/RMS: |depth error| over the plate's pixels (maps: disparity, depth), at the square centres "
                  "(kind centres: the paper's 16 points, sparse: not comparable with a map's), distance to the true "
-                 "surface (clouds), accuracy (meshes; coverage = recall at 1 mm)")
+                 "surface (clouds), accuracy (meshes); coverage = share of the plate's pixels with an estimate (paper: "
+                 "those whose ray hits its surface.ply)")
     return "\n".join(lines)
 
 
@@ -102,6 +112,70 @@ def _recon_inputs(sample: Path, recon: Path | None) -> list[Path]:
         return [Path(recon)]
     return [d / n for d in (Path(sample).resolve().parent, Path(sample) / "recon") for n in ("points.csv", "recon.json")
             if (d / n).exists()]
+
+
+def _check_methods(methods) -> None:
+    """Refuse an unknown method (UserValueError naming it and what is allowed), before anything else."""
+    from platebench.bench.run.compare import _resolve_plugins  # noqa: PLC0415  (the one check compare_sample makes)
+
+    _resolve_plugins(methods)
+
+
+def _check_recon_flag(recon: Path | None) -> None:
+    """An explicit ``--recon`` must be a directory holding points.csv (a reconstruction directory)."""
+    if recon is not None:
+        recon = Path(recon)
+        if not recon.exists():
+            raise UserValueError(f"{recon}: --recon directory does not exist (give the directory 'platebench "
+                                 "reconstruct' wrote for this sample)")
+        if not recon.is_dir():
+            raise UserValueError(f"{recon}: --recon is not a directory (give the directory 'platebench "
+                                 "reconstruct' wrote for this sample)")
+        if not (recon / "points.csv").is_file():
+            raise UserValueError(f"{recon / 'points.csv'}: file is missing (--recon is the directory 'platebench "
+                                 "reconstruct' wrote for this sample)")
+
+
+def _check_paper_recon(sample: Path, recon: Path | None) -> None:
+    """The paper row's reconstruction (``--recon``, or the one beside the sample) must have been made from
+    this sample (``bench.run.score.check_made_from``, the check of ``platebench evaluate``)."""
+    from platebench.bench.run.compare import find_paper_reconstruction  # noqa: PLC0415
+    from platebench.bench.run.score import check_made_from  # noqa: PLC0415
+
+    found = find_paper_reconstruction(sample, recon)
+    if found is not None:
+        _points, meta, d = found
+        check_made_from(sample, d, meta)
+
+
+def _check_sgbm_range(sample: Path, depth_range_m) -> None:
+    """Refuse an SGBM disparity search that OpenCV cannot run on the sample's images: it needs
+    ``width - (minDisparity + numDisparities) > blockSize // 2`` (numDisparities is a positive multiple of
+    16, ``reconstruction.peers.sgbm.disparity_range``)."""
+    from platebench.bench.io.images import DatasetError  # noqa: PLC0415
+    from platebench.bench.io.sample_files import load_calibration  # noqa: PLC0415
+    from platebench.reconstruction.peers.sgbm import default_depth_range, disparity_range, sgbm  # noqa: PLC0415
+
+    try:
+        rig = load_calibration(sample).rig
+    except (DatasetError, OSError):
+        return  # a damaged sample: the reader refuses it, after the output rule
+    block = inspect.signature(sgbm).parameters["block_size"].default
+    try:
+        rng = depth_range_m if depth_range_m is not None else default_depth_range(rig)
+        d_min, n_disp = disparity_range(rig, rng)
+    except ValueError as e:
+        raise UserValueError(f"sgbm: {e}") from None
+    width = rig.left.width
+    end = width - block // 2 - 1  # the largest minDisparity + numDisparities OpenCV accepts
+    if d_min + n_disp > end:
+        fb = rig.left.f_px * rig.baseline_m
+        what = (f"--min-depth-mm {depth_range_m[0] * 1e3:g} to --max-depth-mm {depth_range_m[1] * 1e3:g}"
+                if depth_range_m is not None else f"the default depth range {rng[0] * 1e3:.1f}-{rng[1] * 1e3:.1f} mm")
+        raise UserValueError(f"sgbm: {what} asks for disparities {d_min} to {d_min + n_disp} px (numDisparities "
+                             f"{n_disp}, a multiple of 16), beyond the {width} px wide images: allowed a search that "
+                             f"ends by {end} px (minDisparity + numDisparities < width - blockSize/2), i.e. "
+                             f"--min-depth-mm above about {fb / max(end - 16, 1) * 1e3:.1f} here")
 
 
 def _method_list(text: str) -> tuple:
@@ -160,12 +234,20 @@ def run(args) -> int:
     if args.method_time_limit_s is not None:
         from platebench.bench.run.plugins import check_time_limit  # noqa: PLC0415
         check_time_limit(args.method_time_limit_s)
+    # what the flags name, before the output rule and before any render (module doc)
+    _check_methods(args.methods)
+    _check_recon_flag(args.recon)
+    if "sgbm" in args.methods:
+        _check_sgbm_range(Path(args.sample), depth_range)
     t0 = time.perf_counter()
     out = Path(args.out) if args.out is not None else Path(args.sample) / "compare"
     # the output rule (bench.io.outputs): never into the sample or the reconstruction it reads, except the
     # sample's own compare/; checked before the renders, staged, replaced only with --overwrite and complete
     rule = {"overwrite": args.overwrite, "inputs": [args.sample, *_recon_inputs(args.sample, args.recon)],
             "slots": [Path(args.sample) / "compare"]}
+    check_output(out, "comparison", **rule)
+    if "paper" in args.methods:  # the pair, once the output rule has been checked
+        _check_paper_recon(Path(args.sample), args.recon)
     with output_dir(out, "comparison", **rule) as stage, bar(len(args.methods) + 1, "compare", unit="method") as pbar:
         def say(msg):  # progress on a terminal only: a failure's one line stands alone on stderr
             if pbar.n < pbar.total - 1:
@@ -184,4 +266,17 @@ def run(args) -> int:
     if failed:
         print(f"failed      {len(failed)} of {len(cmp.rows)} method(s): {', '.join(failed)} (recorded in compare.json)")
     print(f"wrote       {out / 'compare.json'}, {out / 'compare.png'}  ({total_s:.1f} s)")
+    return _status(cmp, args.sample, failed)
+
+
+def _status(cmp: Comparison, sample, failed: list) -> int:
+    """The exit status (module doc); its summary line on stderr when not 0."""
+    if not cmp.rows:
+        print(f"platebench: compare {sample}: no method gave a result (see the notes above)", file=sys.stderr)
+        return 1
+    if failed:
+        what = "every method failed" if len(failed) == len(cmp.rows) else "some methods failed"
+        print(f"platebench: compare {sample}: {what}: {len(failed)} of {len(cmp.rows)} ({', '.join(failed)}; "
+              "recorded in compare.json)", file=sys.stderr)
+        return 1
     return 0

@@ -20,7 +20,7 @@ import math
 from pathlib import Path
 
 from platebench.bench.io.atomic import write_json
-from platebench.bench.io.outputs import check_output
+from platebench.bench.io.outputs import KINDS, check_output
 from platebench.errors import UserValueError
 
 # the readers and scores (trimesh, SciPy, OpenCV, the pipeline's types) are imported where they are used
@@ -144,13 +144,15 @@ def format_field_table(score) -> str:
                      f"{_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
                      f"{_f(e.max_m * 1e3)} mm; {q} mm; bias {_f(e.signed_mean_m * 1e3)} mm")
     if isinstance(score, PointCloudScore):
-        e, c = score.distance, score.coverage
+        e, c = score.distance, score.surface
         lines.append(f"{'points':16s} {score.count} (+{score.dropped_count} non-finite dropped); distance to the "
                      f"surface mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
                      f"{_f(e.max_m * 1e3)} mm")
         lines.append(f"{'outliers':16s} {score.outlier_count} beyond {score.outlier_threshold_m * 1e3:g} mm "
                      f"({_f(100 * score.outlier_frac, '.2f')} %)")
-        lines.append(f"{'coverage':16s} {_f(c.coverage_frac, '.4f')} of the plate's top within "
+        lines.append(f"{'coverage':16s} {_f(score.coverage.coverage_frac, '.4f')} ({score.coverage.estimated_px}/"
+                     f"{score.coverage.plate_px} plate px of the left view hold a point)")
+        lines.append(f"{'surface cov.':16s} {_f(c.surface_coverage_frac, '.4f')} of the plate's top within "
                      f"{c.coverage_radius_m * 1e3:g} mm")
     if isinstance(score, MeshScore):
         for name, e in (("accuracy", score.accuracy), ("completeness", score.completeness)):
@@ -171,8 +173,25 @@ def _out(args, kind: str, path: Path) -> Path:
     return out
 
 
+def _check_roles(args, kind: str, path: Path) -> None:
+    """Refuse a reconstruction given as SAMPLE_DIR and a sample given as RECON_DIR (the arguments in the
+    wrong order, or the wrong directory), naming which is which."""
+    sample_is_recon = KINDS["reconstruction"].recognised(args.sample_dir)
+    recon_is_sample = kind == "recon" and KINDS["sample"].recognised(path)
+    if sample_is_recon and recon_is_sample:
+        raise UserValueError(f"SAMPLE_DIR {args.sample_dir} is a reconstruction and RECON_DIR {path} is a sample: "
+                             f"the arguments are swapped (run 'platebench evaluate {path} {args.sample_dir}')")
+    if sample_is_recon:
+        raise UserValueError(f"SAMPLE_DIR {args.sample_dir} is a reconstruction (from 'platebench reconstruct'), not "
+                             "a sample: give the sample directory first, then the reconstruction")
+    if recon_is_sample:
+        raise UserValueError(f"RECON_DIR {path} is a sample (from 'platebench render'), not a reconstruction: give "
+                             "the sample directory first, then the directory 'platebench reconstruct' wrote")
+
+
 def run(args) -> int:
     kind, path = _kind(args)
+    _check_roles(args, kind, path)
     if kind == "recon":
         if path.is_file():
             raise UserValueError(f"{path}: is a file, not a reconstruction directory: score another program's output "

@@ -29,33 +29,42 @@ def _shift(text: str):
 
 def add_parser(sub) -> None:
     from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX  # noqa: PLC0415
-    from platebench.bench.io.export import FORMATS  # noqa: PLC0415
+    from platebench.bench.io.export import FORMATS, IMAGES, MIDDLEBURY_TREE  # noqa: PLC0415
 
     p = sub.add_parser(
         "export", help=HELP,
         description="Write every sample under DATASET (a sample directory, a sweep dataset or a folder of samples) "
-                    "in a layout stereo code reads. middlebury: OUT/<id>/im0.png, im1.png, disp0GT.pfm, "
-                    "disp1GT.pfm, mask0nocc.png (255 seen by both cameras, 128 occluded, 0 unknown), calib.txt "
-                    "(tight vmin/vmax, dyavg/dymax, doffs). kitti: OUT/training/image_2, image_3, disp_occ_0, "
-                    "disp_noc_0 (uint16 = 256 d), calib_cam_to_cam (P_rect_02/03, one K: Z = f B / d as KITTI "
-                    "loaders read it; images reduced by a whole factor where the true disparities exceed 256 px, "
-                    "said in export.json). Disparities and masks are computed from the samples' exact ground truth. "
-                    "--shift (Middlebury only) crops the right image's columns against the left's so that "
-                    "disparities fall where learned stereo works; doffs records it (Z = f B / (d + doffs)).")
+                    "in a layout stereo code reads unchanged. middlebury: the Middlebury 2014 SDK tree, "
+                    f"OUT/{MIDDLEBURY_TREE}/<scene>/im0.png, im1.png, calib.txt (tight vmin/vmax, dyavg/dymax, "
+                    "doffs; Z = baseline f / (d + doffs), baseline in mm), disp0GT.pfm, mask0nocc.png (255 seen by "
+                    "both cameras, 128 occluded, 0 unknown) and disp1GT.pfm; <scene> is the sample id (a sweep's "
+                    "0003), characters other than letters, digits and . _ - replaced by _; full resolution only. "
+                    "kitti: OUT/training/image_2, image_3, disp_occ_0, disp_noc_0 (uint16 = 256 d), "
+                    "calib_cam_to_cam (P_rect_02/03, one K: Z = f B / d as KITTI loaders read it; images reduced "
+                    "by a whole factor where the true disparities exceed 256 px, said in export.json). "
+                    "OUT/export.json lists the samples and their folders. Disparities and masks are computed from "
+                    "the samples' exact ground truth. A sweep dataset that holds fewer rendered samples than its "
+                    "manifest lists (interrupted, still running) is refused unless --allow-incomplete.")
     p.add_argument("dataset", type=Path, metavar="DATASET",
                    help="a sample directory, a sweep dataset or a folder of samples")
     p.add_argument("--format", required=True, choices=FORMATS, dest="fmt",
-                   help="middlebury (v3 / 2014 layout, calib.txt with doffs) or kitti (2015 layout, "
-                        "calib_cam_to_cam with P_rect_02/03)")
+                   help=f"middlebury (2014 SDK tree OUT/{MIDDLEBURY_TREE}/<scene>/, calib.txt with doffs) or kitti "
+                        "(2015 layout, calib_cam_to_cam with P_rect_02/03)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created; must not exist "
                    "unless --overwrite)")
-    p.add_argument("--images", choices=("passive", "active"), default="passive",
-                   help="passive: plate under the overhead light; active: the projected square grid (default passive)")
+    p.add_argument("--images", choices=("active", "passive"), default=IMAGES,
+                   help="active: the projected square grid (default: what a matcher can match on a plain plate); "
+                        "passive: the plate under the overhead light")
     p.add_argument("--shift", type=str, default="0", metavar="PX|auto",
-                   help="middlebury: shift disparities down by PX (crop the left image's first PX columns and the "
-                        "right's last PX), or 'auto': per sample, so the smallest true disparity is "
-                        f"{MIN_DISPARITY_PX} to {MIN_DISPARITY_PX + 1} px (default 0; not with kitti, whose loaders assume equal "
-                        "principal points)")
+                   help="middlebury: lower every disparity by PX by cropping the left image's first PX columns and "
+                        "the right image's last PX (doffs grows by PX, so Z = baseline f / (d + doffs) still holds); "
+                        "allowed 0 to floor(smallest true disparity of the dataset's plates) - 1, so every exported "
+                        "disparity stays >= 1 px. 'auto': per sample, so the smallest true disparity is "
+                        f"{MIN_DISPARITY_PX} to {MIN_DISPARITY_PX + 1} px (default 0; not with kitti, whose loaders "
+                        "assume equal principal points)")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="export the samples an incomplete sweep dataset holds (interrupted or still running), with "
+                        "a note saying how many of how many; without it such a dataset is refused")
     p.add_argument("--overwrite", action="store_true", help="replace a DIR 'platebench export' wrote (nothing else "
                    "is replaced)")
     p.set_defaults(run=run)
@@ -71,9 +80,13 @@ def run(args) -> int:
             pbar.update(1)
             pbar.set_postfix_str(msg)
         summary = export_dataset(args.dataset, args.out, args.fmt, images=args.images, shift=shift,
-                                 overwrite=args.overwrite, progress=step)
+                                 allow_incomplete=args.allow_incomplete, overwrite=args.overwrite, progress=step)
     for s in summary.samples:
         print(f"{s.id:24s} {s.width}x{s.height}  shift {s.shift_px} px, disparity {s.vmin} to "
               f"{s.vmax} px, doffs {s.doffs_px:g} px" + (f"; resampled: {s.resampled}" if s.resampled else ""))
-    print(f"exported    {len(summary.samples)} sample(s), {args.fmt} layout, {args.images} images -> {summary.out}")
+    if summary.note:
+        print(f"note: {summary.note}")
+    print(f"exported    {len(summary.samples)} sample(s), {args.fmt} layout, {args.images} images -> {summary.out}"
+          + (f" (largest --shift this dataset allows: {summary.max_shift_px} px)" if summary.max_shift_px is not None
+             else ""))
     return 0

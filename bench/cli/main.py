@@ -1,15 +1,26 @@
 """``platebench``: the command line. Each sub-command lives in its own ``bench.cli.<name>`` module
 (argparse and printing only; the work is in ``bench.run``, ``bench.sweep``, ``bench.report``).
 
-Errors a user can fix (``platebench.errors.PlateBenchError``: bad flags, bad files, bad
-configurations) and file-system errors (a path missing, existing, unreadable or unwritable)
-print one line ``platebench: error: ...`` and exit with status 2; nothing half-written is left
-behind. Anything else is a bug and keeps its traceback. PLATEBENCH_DEBUG=1 shows the traceback
-of user errors too.
+Exit status, the same for every command, so that a script can trust it:
 
-Ctrl-C and SIGTERM end every command with status 130 and 143 (``bench.interrupts``: the handlers
-are installed before any command module is imported, and a signal swallowed by a library on the
-way still sets the status); completed outputs are kept, partial ones removed.
+* 0: all well: every sample and every method of the run gave its result.
+* 1: some work failed and was recorded (a sweep's failed samples in its results, a comparison's
+  failed methods in compare.json); also a run that produced no result at all, or in which every
+  sample or every method failed. One summary line ``platebench: ...`` goes to stderr.
+* 2: refused: a bad flag, file, configuration or input. Errors a user can fix
+  (``platebench.errors.PlateBenchError``) and file-system errors (a path missing, existing,
+  unreadable or unwritable) print one line ``platebench: error: ...``; nothing half-written is
+  left behind. argparse's own usage errors exit 2 as well. PLATEBENCH_DEBUG=1 shows the traceback
+  of user errors too. Anything else is a bug and keeps its traceback (status 1, Python's).
+* 130 and 143: interrupted by Ctrl-C or terminated by SIGTERM (``bench.interrupts``: the handlers
+  are installed before any command module is imported, and a signal swallowed by a library on the
+  way still sets the status); completed outputs are kept, partial ones removed.
+
+A working directory that no longer exists (deleted under the shell) is refused with one line
+before any command runs. Python itself may stop before PlateBench's code runs at all: when the
+working directory is gone and ``PYTHONPATH`` names a relative folder, the interpreter fails while
+building its import path ("Fatal Python error: error evaluating path"); only the interpreter's
+own status can be reported then.
 """
 from __future__ import annotations
 
@@ -26,9 +37,11 @@ from platebench.errors import PlateBenchError
 # A command module imports only what its parser needs at the top; the work's modules (renderer, pipeline,
 # trimesh, SciPy, pandas, ...) are imported where they are used, so --help and a bad flag or file answer
 # in a fraction of a second.
+EXIT_OK, EXIT_FAILED, EXIT_REFUSED = 0, 1, 2  # the exit statuses of the module doc (and 130 / 143)
+
 COMMANDS = {name: f"platebench.bench.cli.{name}" for name in (
     "render", "reconstruct", "evaluate", "compare", "sense", "study", "sweep", "calibrate", "report", "demo",
-    "perf", "info", "export")}
+    "perf", "info", "export", "benchmark")}
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
@@ -42,8 +55,10 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
                     "(Chen & Zheng 1995): render bent plates with Mitsuba 3, reconstruct them with the "
                     "paper's pipeline and peer methods, score against exact ground truth.",
         epilog="Units: metres and radians in files; flags say when they take mm or degrees. "
-               "Run 'platebench COMMAND --help' for each command. Exit status: 0 done, 2 a user error "
-               "(one line on stderr), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+               "Run 'platebench COMMAND --help' for each command. Exit status: 0 all well; 1 some work failed "
+               "(failed samples or methods are recorded; also when the run produced no result or every sample "
+               "or method failed; a summary line on stderr); 2 refused: bad input (one line on stderr); "
+               "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     parser.add_argument("--version", action=_Version, help="show the installed version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, help="what to do (below)")
     for name, modname in COMMANDS.items():
@@ -96,8 +111,24 @@ def main(argv: list[str] | None = None) -> int:
             interrupts.uninstall()
 
 
+def _working_directory_error() -> str | None:
+    """The one-line refusal when the working directory no longer exists, else None."""
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        return ("the working directory no longer exists (it was removed while the shell was in it): "
+                "change to an existing directory and run the command again")
+    except OSError as e:
+        return f"the working directory cannot be read ({e.strerror}): change to another directory"
+    return None
+
+
 def _run(argv: list[str], done) -> int:
     """The command's exit status, passed through ``done`` as soon as it is known."""
+    cwd_error = _working_directory_error()
+    if cwd_error is not None:
+        print(f"platebench: error: {cwd_error}", file=sys.stderr)
+        return done(EXIT_REFUSED)
     try:
         parser = build_parser(argv)
         args = parser.parse_args(argv)
@@ -112,7 +143,7 @@ def _run(argv: list[str], done) -> int:
         if not isinstance(e, (PlateBenchError, OSError)) or os.environ.get("PLATEBENCH_DEBUG"):
             raise  # argparse's exits (--help, a bad flag), and bugs: their traceback
         print(f"platebench: error: {_one_line(e)}", file=sys.stderr)
-        return done(2)
+        return done(EXIT_REFUSED)
 
 
 if __name__ == "__main__":

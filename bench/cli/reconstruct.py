@@ -1,4 +1,12 @@
-"""``platebench reconstruct``: the paper's pipeline on a sample's images and calibration."""
+"""``platebench reconstruct``: the paper's pipeline on a sample's images and calibration.
+
+The files it reads (``INPUTS``: the four PNG images, calib.json, pattern.json) are verified as every
+reader verifies a sample (``bench.io.verify``): a symbolic link is refused before anything is opened;
+once they are read (a damaged file is named by its reader), a file that differs from the checksum
+recorded when the sample was written (the stamp of ``platebench render``, a sweep's manifest) is
+refused before the pipeline runs: an image swapped in from another sample, an edited calibration.
+A sample without recorded checksums is read as it is. Nothing is written when a file is refused.
+"""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,6 +18,8 @@ from platebench.errors import UserValueError
 from platebench.scenes.naming import IMAGE_NAMES
 
 HELP = "run the paper's passive + active stereo pipeline on a sample"
+INPUTS = (*(f"images/{n}.png" for n in IMAGE_NAMES), "calib.json", "pattern.json")  # what it reads of a sample
+_REFUSING = "refusing to reconstruct it"
 
 
 def add_parser(sub) -> None:
@@ -32,6 +42,9 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     if not (0.1 <= args.grid_mm <= 20):
         raise UserValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
+    from platebench.bench.io.verify import refuse_linked_inputs  # noqa: PLC0415
+
+    refuse_linked_inputs(args.sample_dir, INPUTS, then=_REFUSING)
     with output_dir(args.out, "reconstruction", overwrite=args.overwrite,
                     inputs=[args.sample_dir, args.calibration]) as stage:
         r = _reconstruct(args, stage)
@@ -45,6 +58,9 @@ def _reconstruct(args, stage: Path):
     from platebench.bench.io.sample_files import load_inputs  # noqa: PLC0415
 
     inputs = load_inputs(args.sample_dir)
+    from platebench.bench.io.verify import verify_inputs  # noqa: PLC0415
+
+    verify_inputs(args.sample_dir, INPUTS, then=_REFUSING)  # the files read are the sample's, as written
     from platebench.bench.io.recon_files import image_checksums, write_reconstruction  # noqa: PLC0415
     from platebench.reconstruction.paper.pipeline import (  # noqa: PLC0415
         PipelineOptions,

@@ -2,6 +2,11 @@
 
 The spec format is documented in ``bench/sweep/spec.py``, the dataset layout in
 ``bench/sweep/dataset.py`` and ``bench/io/layout.py``, the executors in ``bench/sweep/executors.py``.
+
+Exit status (``bench/cli/main.py``): 0 when every sample of the dataset is done and ok; 1 when a
+sample failed (its failure is recorded in the dataset, the others are kept; a sample fails when one
+of its methods does) or when the dataset holds no sample that is ok, with one summary line on
+stderr; 2 for a spec or flag refused before any work.
 """
 from __future__ import annotations
 
@@ -64,31 +69,6 @@ def _methods(text: str | None):
     return tuple(m.strip() for m in text.split(",") if m.strip())
 
 
-def _executor(args, stack):
-    """The executor the flags ask for, connected (a cluster started for --pipeline without --scheduler
-    is closed by ``stack``)."""
-    from platebench.bench.sweep.executors import (  # noqa: PLC0415
-        DaskExecutor,
-        LocalExecutor,
-        LoopbackCluster,
-        PipelineExecutor,
-    )
-    if not args.scheduler and not args.pipeline:
-        return LocalExecutor(1 if args.workers is None else args.workers)
-    address = args.scheduler
-    if address is None:  # --pipeline on this machine: one render worker and --workers CPU workers
-        n = 1 if args.workers is None else args.workers
-        if not 1 <= n <= 256:
-            raise UserValueError(f"--workers = {n} is out of range with --pipeline: allowed 1 to 256 CPU workers")
-        cluster = stack.enter_context(LoopbackCluster(n_workers=n + 1, render_workers=1))
-        address = cluster.address
-    kind = PipelineExecutor if args.pipeline else DaskExecutor
-    executor = kind(address, connect_timeout_s=args.connect_timeout_s, worker_timeout_s=args.worker_timeout_s)
-    executor.connect()  # fail fast, before the dataset is created
-    stack.callback(executor.close)
-    return executor
-
-
 def run(args) -> int:
     from platebench.bench.io.outputs import guard_output  # noqa: PLC0415
     from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
@@ -120,7 +100,9 @@ def run(args) -> int:
     from platebench.bench.sweep.executors import run_sweep  # noqa: PLC0415  (after the spec and flags are checked)
 
     with contextlib.ExitStack() as stack:
-        executor = _executor(args, stack)
+        from platebench.bench.sweep.executors import executor_for  # noqa: PLC0415
+        executor = executor_for(stack, workers=args.workers, scheduler=args.scheduler, pipeline=args.pipeline,
+                                connect_timeout_s=args.connect_timeout_s, worker_timeout_s=args.worker_timeout_s)
         summary = run_sweep(spec, args.out, executor, resume=args.resume, overwrite=args.overwrite,
                             retry_failed=args.retry_failed, progress=args.progress,
                             log=lambda m: print(m, file=sys.stderr), method_time_limit_s=args.method_time_limit_s)
@@ -142,4 +124,15 @@ def run(args) -> int:
         print(f"failed      ... and {len(failed) - 5} more (see results.csv)")
     out = summary.dataset
     print(f"written     {out / 'manifest.json'}, {out / 'results.csv'}, {out / 'results.parquet'}")
+    return _status(summary)
+
+
+def _status(summary) -> int:
+    """The exit status of a finished sweep (module doc), its summary line printed on stderr when not 0."""
+    if summary.failed or summary.ok == 0:
+        what = "every sample failed" if summary.failed and summary.failed == summary.total else \
+            "some samples failed" if summary.failed else "no sample gave a result"
+        print(f"platebench: sweep {summary.dataset}: {what}: {summary.ok} ok, {summary.failed} failed of "
+              f"{summary.total} (recorded in results.csv)", file=sys.stderr)
+        return 1
     return 0

@@ -52,6 +52,7 @@ from platebench.bench.config.realism import Realism, RealismError
 from platebench.bench.files import CONFIG_MAX_BYTES, read_capped
 from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
+from platebench.plates.spec import MIN_BEND_DEG
 from platebench.scenes.camera import Camera, intrinsics
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.pattern import square_grid
@@ -66,11 +67,46 @@ from platebench.scenes.scene_spec import (
 from platebench.scenes.sensor_model import SensorModel
 
 __all__ = ["ConfigError", "SceneParams", "RigPose", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid",
-           "with_overrides", "read_toml", "read_toml_text", "check_types", "check_value_type"]
+           "with_overrides", "read_toml", "read_toml_text", "check_types", "check_value_type", "check_render_size",
+           "WAVEFRONT_LIMIT", "TOML_MAX_DEPTH"]
+
+# Mitsuba's JIT variants trace at most 2^32 - 1 samples in one wavefront (SamplingIntegrator::render): a larger
+# image (width x height x spp) is split into passes of spp // ceil(samples / limit) samples per pixel, and spp
+# must be a multiple of that (else "sample_count should be a multiple of samples_per_wavefront").
+WAVEFRONT_LIMIT = 0xFFFFFFFF
+# tables and arrays nested deeper than this in a TOML file are refused (no configuration nests beyond 4)
+TOML_MAX_DEPTH = 64
 
 
 class ConfigError(UserValueError):
     """A configuration key or value is not allowed."""
+
+
+def _spp_per_pass(width: int, height: int, spp: int) -> int:
+    """The samples per pixel of one of Mitsuba's passes for this image (``WAVEFRONT_LIMIT``)."""
+    samples = width * height * spp
+    if samples <= WAVEFRONT_LIMIT:
+        return spp
+    return spp // -(-samples // WAVEFRONT_LIMIT)
+
+
+def _renders(width: int, height: int, spp: int) -> bool:
+    per_pass = _spp_per_pass(width, height, spp)
+    return per_pass >= 1 and spp % per_pass == 0
+
+
+def check_render_size(width: int, height: int, spp: int, what: str = "render.spp") -> None:
+    """Refuse (ConfigError, one line) an image size and samples per pixel that Mitsuba's JIT variants
+    cannot render (``WAVEFRONT_LIMIT``), naming the nearest spp that can be rendered at this size."""
+    width, height, spp = int(width), int(height), int(spp)
+    if _renders(width, height, spp):
+        return
+    below = next((k for k in range(spp - 1, 0, -1) if _renders(width, height, k)), None)
+    above = next((k for k in range(spp + 1, 2 * spp + 2) if _renders(width, height, k)), None)
+    near = " or ".join(str(k) for k in (below, above) if k is not None)
+    raise ConfigError(f"{what} = {spp} cannot be rendered at {width} x {height} px: {width * height * spp} samples "
+                      f"exceed Mitsuba's {WAVEFRONT_LIMIT + 1:.3g} per pass, and spp must then be a multiple of "
+                      f"the passes' {_spp_per_pass(width, height, spp)} samples per pixel: allowed here e.g. {near}")
 
 
 _SCENE_KEYS = {"distance_m", "width", "height", "f_px", "baseline_m", "projector_kind", "ambient",
@@ -267,6 +303,9 @@ class SampleConfig:
     variant: str | None = None
     realism: Realism = field(default_factory=Realism)  # error sources of a real rig; ideal: none
 
+    def __post_init__(self):
+        check_render_size(self.scene.width, self.scene.height, self.render.spp)
+
     def to_dict(self) -> dict:
         d = {"plate": self.plate.to_dict(), "scene": self.scene.to_dict(),
              "render": {"spp": self.render.spp, "seed": self.render.seed, "variant": self.variant},
@@ -337,10 +376,27 @@ def read_toml_text(path: Path, what: str = "TOML") -> tuple[dict, str]:
     except UnicodeDecodeError as e:
         raise ConfigError(f"{path}: not UTF-8 text (byte 0x{data[e.start]:02x} at offset {e.start}): allowed a "
                           f"UTF-8 {what} file (TOML)") from None
+    too_deep = f"{path}: tables and arrays nested deeper than {TOML_MAX_DEPTH} levels: allowed at most {TOML_MAX_DEPTH}"
     try:
-        return tomllib.loads(text), text
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: invalid TOML ({str(e).splitlines()[0]})") from None
+    except RecursionError:  # the parser recurses once per level of nesting
+        raise ConfigError(too_deep) from None
+    if _depth(doc) > TOML_MAX_DEPTH:
+        raise ConfigError(too_deep)
+    return doc, text
+
+
+def _depth(doc) -> int:
+    """How deep tables and arrays nest in ``doc`` (a parsed TOML document: 1), counted without recursion."""
+    deepest, stack = 0, [(doc, 1)]
+    while stack:
+        node, level = stack.pop()
+        deepest = max(deepest, level)
+        children = node.values() if isinstance(node, dict) else node
+        stack.extend((c, level + 1) for c in children if isinstance(c, (dict, list)))
+    return deepest
 
 
 def parse_grid(text: str) -> dict:
@@ -369,6 +425,9 @@ def with_overrides(cfg: SampleConfig, bend_deg=None, width=None, height=None, sp
     if bend_deg is not None or bend_direction is not None or bend_axis_deg is not None:
         if bend_deg is not None and (not math.isfinite(bend_deg) or not (0.0 <= bend_deg <= 350.0)):
             raise ConfigError(f"--bend-deg = {bend_deg} is out of range: allowed 0 to 350 degrees")
+        if bend_deg is not None and 0.0 < bend_deg < MIN_BEND_DEG:
+            raise ConfigError(f"--bend-deg = {bend_deg:g} is out of range: allowed 0 (flat) or {MIN_BEND_DEG:g} to "
+                              "350 degrees")
         if bend_direction is not None and bend_direction not in ("up", "down"):
             raise ConfigError(f"--bend-direction = {bend_direction!r}: allowed 'down' (convex) or 'up' (concave)")
         if bend_axis_deg is not None and (not math.isfinite(bend_axis_deg) or not (0.0 <= bend_axis_deg < 180.0)):

@@ -1,47 +1,85 @@
-"""Export a PlateBench dataset to the layouts stereo code reads: Middlebury (v3 / 2014) and KITTI 2015.
+"""Export a PlateBench dataset to the layouts stereo code reads: Middlebury (2014 SDK) and KITTI 2015.
 
-Each sample is read as a ``PlateBenchDataset`` item (``bench.io.dataset_reader``: passive or active
-images, optional shift so disparities fall where learned stereo works) and written as:
+Each sample is read as a ``PlateBenchDataset`` item (``bench.io.dataset_reader``) and written in
+the layout the format's own tools read unchanged.
 
-Middlebury (``--format middlebury``), one folder per sample ``OUT/<sample id>/``::
+Images: ``images="active"`` (default) takes the camera images under the projected square grid,
+``"passive"`` those under the overhead light. A plain white plate under passive light has no
+texture: a matcher finds nothing to match inside it, so the active images are the ones a stereo
+method can be scored on.
 
-    im0.png, im1.png     left / right image (the camera's 8- or 16-bit grey DN)
-    disp0GT.pfm          left true disparity, float32 px, +inf unknown (Middlebury PFM, rows bottom-up)
-    disp1GT.pfm          right true disparity (its pixel u matches the left u + d)
-    mask0nocc.png        255 = seen by both cameras, 128 = occluded in the right view, 0 = unknown
-    calib.txt            cam0, cam1, doffs (shift included), baseline (mm), width, height, ndisp,
-                         isint, tight vmin/vmax, dyavg/dymax (``bench.io.middlebury``)
+Middlebury (``fmt="middlebury"``): the tree of the Middlebury 2014 SDK (MiddEval3), full
+resolution only::
 
-KITTI 2015 (``--format kitti``), ``OUT/training/``::
+    OUT/trainingF/<scene>/im0.png    left image (the camera's 8- or 16-bit grey DN)
+    OUT/trainingF/<scene>/im1.png    right image
+    OUT/trainingF/<scene>/calib.txt  cam0, cam1 ([f 0 cx; 0 f cy; 0 0 1], px), doffs (px, the shift
+                                     included), baseline (mm), width, height, ndisp, isint, tight
+                                     vmin/vmax, dyavg/dymax (``bench.io.middlebury``)
+    OUT/trainingF/<scene>/disp0GT.pfm    left true disparity, float32 px, +inf unknown (PFM, scale
+                                         -1: little-endian, rows bottom-up)
+    OUT/trainingF/<scene>/mask0nocc.png  255 = seen by both cameras, 128 = occluded in the right
+                                         view, 0 = unknown
+    OUT/trainingF/<scene>/disp1GT.pfm    right true disparity (its pixel u matches the left u + d);
+                                         beyond what the SDK reads
+
+Depth from a disparity d (px): Z = baseline f / (d + doffs), in the baseline's unit (mm). Only
+``trainingF`` (F: full resolution) is written: the SDK takes the resolution as an argument (F, H,
+Q) and finds the scenes under ``training<res>``; a half or quarter resolution would be a resampling
+of the images and of the truth, which is not written. ``<scene>`` is the sample id
+(``PlateBenchDataset.sample_id``: ``0003`` for a sweep's ``samples/0003/sample``, the folder name
+of a single render) with every character outside letters, digits and ``. _ -`` replaced by ``_``
+(``scene_name``); two samples whose names collide are refused.
+
+Shift (Middlebury only): ``shift`` = s crops the left image to columns [s, W) and the right one to
+[0, W - s): every disparity becomes d - s and doffs grows by s, so the depth rule above still
+holds. The largest shift a dataset allows is ``floor(d_min) - 1`` px, d_min the smallest true
+disparity of any sample's plate (the whole unshifted view), so that every exported true disparity
+is at least 1 px (``max_shift_px``; export.json records it as ``max_shift_px``). A larger shift is
+refused, naming the value and the range, before anything is written. ``shift="auto"`` picks s per
+sample (the plate's disparities then start at ``min_disparity_px``).
+
+KITTI 2015 (``fmt="kitti"``), ``OUT/training/``::
 
     image_2/NNNNNN_10.png, image_3/NNNNNN_10.png        left / right image
     disp_occ_0/NNNNNN_10.png, disp_noc_0/NNNNNN_10.png  uint16 = round(256 d), 0 = unknown; all / non-occluded
     calib_cam_to_cam/NNNNNN.txt                          S/R/P_rect_02 and _03: both cameras' rectified
                                                          projection matrices (3 x 4), the same K (equal
-                                                         principal points), P_rect_03[0, 3] = -f B (m)
+                                                         principal points), P_rect_02[0, 3] = 0,
+                                                         P_rect_03[0, 3] = -f B (f px, B metres)
 
 What KITTI's tools assume, and this layout keeps: the two rectified cameras share K, so depth is
-Z = f B / d with f = P_rect_02[0, 0] and B = P_rect_02[0, 3] / f - P_rect_03[0, 3] / f (no disparity
-offset: the Middlebury ``doffs`` has no place in KITTI's calibration), and 0 < d < 256 px (the
-uint16 PNG holds 256 d). The bench's rigs give larger disparities (about 500 px at 1280 x 960, f
-2000 px, B 0.1 m, Z 0.4 m), and a crop (``--shift``) would make the principal points differ, which
-KITTI loaders misread. So the KITTI export resamples instead: each sample's images are reduced by
-the smallest whole factor k that brings its largest true disparity under 256 px (area averaging of
-k x k pixel blocks, OpenCV INTER_AREA), K with them (f / k; a principal point (c + 0.5) / k - 0.5),
-and the disparities are the mean over each block where all its pixels have a true disparity,
-divided by k (exact for a plane, where d is affine in the image). ``export.json`` says so for every
-sample (``resample_factor``, ``resampled``, ``f_px``, ``baseline_m``). A rig whose principal points
-differ (doffs not 0) or a ``--shift`` is refused with the reason.
+Z = f B / d with f = P_rect_02[0, 0] and B = (P_rect_02[0, 3] - P_rect_03[0, 3]) / f (metres; no
+disparity offset: the Middlebury ``doffs`` has no place in KITTI's calibration), and 0 < d < 256 px
+(the uint16 PNG holds 256 d, so a disparity is known to 1/512 px). The bench's rigs give larger
+disparities (about 500 px at 1280 x 960, f 2000 px, B 0.1 m, Z 0.4 m), and a crop (``shift``)
+would make the principal points differ, which KITTI loaders misread. So the KITTI export resamples
+instead: each sample's images are reduced by the smallest whole factor k that brings its largest
+true disparity under 256 px (area averaging of k x k pixel blocks, OpenCV INTER_AREA), K with
+them (f / k; a principal point (c + 0.5) / k - 0.5), and the disparities are the mean over each
+block where all its pixels have a true disparity, divided by k (exact for a plane, where d is
+affine in the image). ``export.json`` says so for every sample (``resample_factor``,
+``resampled``, ``f_px``, ``baseline_m``). A rig whose principal points differ (doffs not 0) or a
+``shift`` is refused with the reason.
 
-``OUT/export.json`` lists every exported sample with its source directory and shift. The output
-follows the output rule (``bench.io.outputs``: never the dataset itself nor inside it; an existing
-``OUT`` is replaced only with ``overwrite`` and only when it is an export), is staged and renamed
-into place: it appears complete or not at all. Every sample is checked against its recorded
-checksums (``PlateBenchDataset.check``) before the first is written or ``progress`` is told.
+Sweep datasets (``platebench sweep``): a sweep whose manifest lists more samples than the dataset
+holds rendered (interrupted, still running, or a sample failed before its render was written) is
+refused with one line naming how many of how many samples are there, unless ``allow_incomplete``:
+then the samples that are there are exported, ``ExportSummary.note`` says how many of how many
+(the command line prints it), and export.json records it under ``sweep``.
+
+``OUT/export.json`` lists every exported sample (``samples``: its id, its folder or files in the
+export, its source directory, shift, doffs, vmin/vmax and size). The output follows the output
+rule (``bench.io.outputs``: never the dataset itself nor inside it; an existing ``OUT`` is replaced
+only with ``overwrite`` and only when it is an export), is staged and renamed into place: it
+appears complete or not at all. Every sample is checked against its recorded checksums (every
+file but the linear-radiance EXRs, both lightings' camera images included) before the first is
+written or ``progress`` is told.
 """
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,16 +88,21 @@ import numpy as np
 
 from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.dataset_reader import MIN_DISPARITY_PX, PlateBenchDataset, StereoPair
-from platebench.bench.io.images import DatasetError, write_pfm, write_png
+from platebench.bench.io.images import DatasetError, read_pfm, write_pfm, write_png
+from platebench.bench.io.layout import SAMPLES
 from platebench.bench.io.middlebury import write_calib
 from platebench.bench.io.outputs import check_output, output_dir
 from platebench.bench.io.records import Record
+from platebench.bench.io.verify import dataset_manifest, sample_checksums, verify_sample
 from platebench.tolerances import tol
 
-__all__ = ["FORMATS", "ExportSummary", "ExportedSample", "export_dataset", "KITTI_SCALE", "KITTI_MAX_DISPARITY_PX", "nocc_mask_png",
-           "KittiPair", "kitti_pair", "kitti_resample_factor"]
+__all__ = ["FORMATS", "IMAGES", "MIDDLEBURY_TREE", "ExportSummary", "ExportedSample", "export_dataset", "KITTI_SCALE",
+           "KITTI_MAX_DISPARITY_PX", "nocc_mask_png", "KittiPair", "kitti_pair", "kitti_resample_factor", "scene_name",
+           "max_shift_px", "sweep_completeness"]
 
 FORMATS = ("middlebury", "kitti")
+IMAGES = "active"  # the images exported unless told: the projected grid (module doc)
+MIDDLEBURY_TREE = "trainingF"  # the Middlebury SDK's folder of full-resolution training scenes
 KITTI_SCALE = 256.0  # KITTI's disparity PNG: uint16 value = 256 d
 KITTI_MAX_DISPARITY_PX = 65535 / KITTI_SCALE  # the largest disparity a KITTI PNG holds (255.996 px)
 _DEPTH_RULE = {"middlebury": "Z = baseline f / (d + doffs), from calib.txt (baseline in mm)",
@@ -98,14 +141,92 @@ class ExportedSample(Record):
 
 @dataclass(frozen=True)
 class ExportSummary:
+    """What ``export_dataset`` wrote: the output folder, the format, a row per exported sample, the
+    images taken ("active"/"passive"), the largest shift the dataset allows (px; None for KITTI) and
+    a note for the user (None, or how many of a sweep's samples an incomplete export holds)."""
+
     out: Path
     format: str
     samples: tuple[ExportedSample, ...]
+    images: str = IMAGES
+    max_shift_px: int | None = None
+    note: str | None = None
 
 
 def nocc_mask_png(pair: StereoPair) -> np.ndarray:
     """Middlebury's mask0nocc: 255 non-occluded, 128 occluded (truth known), 0 unknown."""
     return np.where(pair.nonocc, 255, np.where(pair.mask, 128, 0)).astype(np.uint8)
+
+
+_UNSAFE_SCENE = re.compile(r"[^A-Za-z0-9._-]")
+
+
+def scene_name(sample_id: str) -> str:
+    """The Middlebury scene folder of a sample: its id with every character outside letters, digits
+    and ``. _ -`` replaced by ``_``, and a leading ``.`` too (a folder the SDK's listing would skip)."""
+    name = _UNSAFE_SCENE.sub("_", str(sample_id))
+    return "_" + name[1:] if name.startswith(".") else name or "_"
+
+
+def max_shift_px(ds: PlateBenchDataset) -> tuple[int, float, str]:
+    """(the largest shift ``ds`` allows (px, >= 0 unless a plate has disparities under 1 px: then -1
+    or less, and only 0 is allowed), the smallest true disparity of any sample's plate (px, whole
+    unshifted view), the id of that sample): floor(d_min) - 1 (module doc). Reads each sample's
+    ``gt/disp0GT.pfm``, the truth the items are made of."""
+    d_min, where = math.inf, ""
+    for i, d in enumerate(ds.sample_dirs):
+        disp = read_pfm(d / "gt" / "disp0GT.pfm")
+        known = disp[np.isfinite(disp)]
+        if known.size and float(known.min()) < d_min:
+            d_min, where = float(known.min()), ds.sample_id(i)
+    if not math.isfinite(d_min):
+        raise DatasetError(f"{ds.root}: no sample has a plate pixel with a true disparity")
+    return math.floor(d_min) - 1, d_min, where
+
+
+def _refuse_shift(ds: PlateBenchDataset, shift: int, allowed: int, d_min: float, where: str) -> None:
+    """One line: ``shift`` is beyond ``allowed``, and what it would do to the first sample it spoils."""
+    rng = f"allowed 0 to {allowed} px" if allowed >= 0 else "allowed 0 only"
+    what = ""
+    worst = math.inf
+    for i, d in enumerate(ds.sample_dirs):
+        disp = read_pfm(d / "gt" / "disp0GT.pfm")[:, shift:]
+        kept = disp[np.isfinite(disp)]
+        if kept.size == 0:
+            what = (f"; at {shift} px sample {ds.sample_id(i)} keeps no plate pixel with a true disparity in the "
+                    "exported view")
+            break
+        if float(kept.min()) - shift < min(worst, 1.0):
+            worst = float(kept.min()) - shift
+            what = f"; at {shift} px sample {ds.sample_id(i)}'s true disparities would go down to {worst:.2f} px"
+    raise DatasetError(f"--shift {shift} is out of range for {ds.root}: {rng} (floor of its smallest true disparity, "
+                       f"{d_min:.2f} px in sample {where}, minus 1: every exported disparity stays >= 1 px), or "
+                       f"'auto'{what}")
+
+
+def sweep_completeness(ds: PlateBenchDataset) -> tuple[int, int, str] | None:
+    """(samples rendered, samples the sweep's manifest lists, its state) when ``ds.root`` is a sweep
+    dataset (``platebench sweep``), else None. The state is as it stands ("running" only while a sweep
+    holds the dataset; "interrupted" for one that was killed: ``bench.io.dataset_state.live_state``)."""
+    manifest = dataset_manifest(ds.root)
+    if manifest is None or not isinstance(manifest.get("samples"), list):
+        return None
+    from platebench.bench.io.dataset_state import live_state  # noqa: PLC0415
+    state = str(live_state(manifest, ds.root).get("state"))
+    under = (ds.root / SAMPLES).resolve()
+    rendered = sum(1 for d in ds.sample_dirs if d.resolve().is_relative_to(under))
+    return rendered, len(manifest["samples"]), state
+
+
+def _check_files(ds: PlateBenchDataset) -> None:
+    """Every sample's files against their recorded checksums (``bench.io.verify``): all of them but the
+    linear-radiance EXRs of the camera images, both lightings' PNGs included (module doc)."""
+    manifest = dataset_manifest(ds.root)
+    for d in ds.sample_dirs:
+        checks = sample_checksums(d, manifest)
+        if checks is not None:
+            verify_sample(d, checks, [n for n in checks.files
+                                      if not (n.startswith("images/") and n.endswith(".exr"))])
 
 
 def _write_middlebury(d: Path, pair: StereoPair) -> None:
@@ -203,10 +324,17 @@ def _write_kitti(root: Path, k: int, kp: KittiPair) -> None:
     write_text(t / "calib_cam_to_cam" / f"{k:06d}.txt", _kitti_calib(kp))
 
 
-def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", shift: int | str = 0,
-                   min_disparity_px: float = MIN_DISPARITY_PX, overwrite: bool = False,
-                   progress=None) -> ExportSummary:
-    """Write every sample under ``root`` to ``out`` in ``fmt`` ("middlebury" or "kitti"; module doc)."""
+def export_dataset(root: Path, out: Path, fmt: str, *, images: str = IMAGES, shift: int | str = 0,
+                   min_disparity_px: float = MIN_DISPARITY_PX, allow_incomplete: bool = False,
+                   overwrite: bool = False, progress=None) -> ExportSummary:
+    """Write every sample under ``root`` to ``out`` in ``fmt`` ("middlebury": ``OUT/trainingF/<scene>/``;
+    "kitti": ``OUT/training/``), with ``OUT/export.json`` (module doc).
+
+    ``images``: "active" (the projected grid, default) or "passive". ``shift``: Middlebury only, a
+    whole number of px from 0 to ``max_shift_px`` or "auto"; ``min_disparity_px``: the smallest true
+    disparity "auto" leaves. ``allow_incomplete``: export the samples an incomplete sweep dataset
+    holds (else it is refused). ``progress(message)`` is told of each sample as it is written.
+    Raises ``DatasetError`` (one line) for a request or a dataset that cannot be exported."""
     if fmt not in FORMATS:
         raise DatasetError(f"format {fmt!r} is not known: choose {' or '.join(FORMATS)}")
     if fmt == "kitti" and shift != 0:
@@ -215,7 +343,28 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
                            "instead where the disparities exceed 256 px (leave --shift out)")
     check_output(out, "export", overwrite=overwrite, inputs=[root])
     ds = PlateBenchDataset(root, images=images, shift=shift, min_disparity_px=min_disparity_px)
-    ds.check()
+    note, sweep = None, None
+    done = sweep_completeness(ds)
+    if done is not None and done[0] < done[1]:
+        n, total, state = done
+        if not allow_incomplete:
+            raise DatasetError(f"{ds.root}: the sweep is {state} and holds {n} of its {total} samples rendered: finish "
+                               "it (platebench sweep SPEC --out DATASET --resume), or export the samples it holds with "
+                               "--allow-incomplete")
+        note = f"{ds.root} is an incomplete sweep ({state}): exporting the {n} of its {total} samples it holds"
+        sweep = {"state": state, "samples_total": total, "samples_exported": n}
+    _check_files(ds)
+    allowed = None
+    if fmt == "middlebury":
+        allowed, d_min, where = max_shift_px(ds)
+        if shift != "auto" and shift > max(allowed, 0):
+            _refuse_shift(ds, int(shift), allowed, d_min, where)
+    names = [scene_name(ds.sample_id(k)) for k in range(len(ds))]
+    if fmt == "middlebury" and len(set(names)) < len(names):
+        a = next(k for k in range(len(names)) if names.count(names[k]) > 1)
+        b = next(k for k in range(a + 1, len(names)) if names[k] == names[a])
+        raise DatasetError(f"{ds.sample_dirs[a]} and {ds.sample_dirs[b]} both give the Middlebury scene name "
+                           f"{names[a]!r}: rename one of the folders")
     say = progress or (lambda msg: None)
     rows = []
     with output_dir(out, "export", overwrite=overwrite, inputs=[root]) as d:
@@ -225,8 +374,9 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
             if not np.isfinite(pair.disparity).any():
                 raise DatasetError(f"{pair.sample_dir}: no plate pixel with a true disparity in the exported view")
             if fmt == "middlebury":
-                _write_middlebury(d / pair.sample_id, pair)
-                rows.append(ExportedSample(id=pair.sample_id, files=pair.sample_id, source=str(pair.sample_dir.resolve()),
+                folder = f"{MIDDLEBURY_TREE}/{names[k]}"
+                _write_middlebury(d / folder, pair)
+                rows.append(ExportedSample(id=pair.sample_id, files=folder, source=str(pair.sample_dir.resolve()),
                                            shift_px=pair.shift_px, doffs_px=pair.calib.doffs, vmin=pair.calib.vmin,
                                            vmax=pair.calib.vmax, width=pair.calib.width, height=pair.calib.height))
             else:
@@ -244,9 +394,13 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = "passive", 
                     vmin=math.floor(known.min()) if known.size else 0,
                     vmax=math.ceil(known.max()) if known.size else 0,
                     width=int(kp.left.shape[1]), height=int(kp.left.shape[0])))
-        write_json(d / "export.json", {"format": fmt, "images": images, "shift": shift,
-                                       "min_disparity_px": min_disparity_px, "samples": [r.to_dict() for r in rows],
-                                       "units": "px; baseline in calib.txt in mm (Middlebury), in P_rect_03 in m "
-                                                "(KITTI)",
-                                       "depth": _DEPTH_RULE[fmt]})
-    return ExportSummary(Path(out), fmt, tuple(rows))
+        doc = {"format": fmt, "images": images, "shift": shift, "min_disparity_px": min_disparity_px}
+        if fmt == "middlebury":
+            doc.update(tree=f"{MIDDLEBURY_TREE}/<scene>", max_shift_px=max(allowed, 0))
+        if sweep is not None:
+            doc["sweep"] = sweep
+        doc.update(samples=[r.to_dict() for r in rows],
+                   units="px; baseline in calib.txt in mm (Middlebury), in P_rect_03 in m (KITTI)",
+                   depth=_DEPTH_RULE[fmt])
+        write_json(d / "export.json", doc)
+    return ExportSummary(Path(out), fmt, tuple(rows), images, max(allowed, 0) if allowed is not None else None, note)

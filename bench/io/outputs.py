@@ -18,7 +18,9 @@ then made with ``output_dir``, which stages them, ``bench.io.atomic``):
    dataset lists them in its samples' ``result.json``. A file no stamp lists (a user's note put in
    a sample folder) makes the directory foreign, except PlateBench outputs added later (a stamped
    folder such as ``compare/`` or ``report/``, a score JSON of ``platebench evaluate``) and the
-   temporary names and locks of ``bench.io.atomic``.
+   temporary names and locks of ``bench.io.atomic``. A listed file counts as PlateBench's only while
+   it still has the sha256 listed for it: a file edited since (or replaced by a link or a folder)
+   is the user's, and ``--overwrite`` refuses to replace the output, naming the file.
 
 Messages name the path as the user gave it. Paths are compared after resolving symbolic links
 and ``..`` (``canonical``), so a relative, absolute, trailing-slash or linked spelling of the same
@@ -46,8 +48,8 @@ from platebench.bench.io.atomic import (
 from platebench.bench.io.layout import FORMAT, MANIFEST, RESULT, RESULTS_CSV, RESULTS_PARQUET, SAMPLES, SPEC_COPY
 
 __all__ = ["STAMP", "KINDS", "OutputKind", "OutputRefusedError", "canonical", "check_output", "guard_output",
-           "check_replace", "output_dir", "write_stamp", "read_stamp", "foreign_entries", "recognise",
-           "describe_path", "file_sha256", "GENERATOR_REPORT"]
+           "check_replace", "output_dir", "write_stamp", "read_stamp", "foreign_entries", "unowned_entries",
+           "recognise", "describe_path", "file_sha256", "GENERATOR_REPORT"]
 
 STAMP = ".platebench-output.json"
 STAMP_FORMAT = "platebench-output"
@@ -140,6 +142,10 @@ KINDS: dict[str, OutputKind] = {k.label: k for k in (
     OutputKind("report", "report", "index.html", _report_index),
     OutputKind("demo output", "demo", "demo.json", lambda p: _dict_with(p, generator="platebench demo")),
     OutputKind("dataset", "sweep", MANIFEST, lambda p: _dict_with(p, format=FORMAT)),
+    OutputKind("benchmark results", "benchmark score", "benchmark-results.json",
+               lambda p: _dict_with(p, format="platebench-benchmark-results")),
+    OutputKind("leaderboard", "benchmark leaderboard", "leaderboard.json",
+               lambda p: _dict_with(p, format="platebench-leaderboard")),
     OutputKind("score", "evaluate", "", _score_file, directory=False),
     OutputKind("perf figures", "perf", "", _perf_file, directory=False),
     OutputKind("perf images", "perf variants --save", "", _npz_images, directory=False),
@@ -275,14 +281,19 @@ def check_replace(target, kind: str, overwrite: bool, shown: str | None = None) 
         raise OutputRefusedError(f"{shown}: is {describe_path(t)}, not a PlateBench {k.label}: refusing to replace "
                                  f"it (--overwrite replaces only what 'platebench {k.command}' wrote)")
     if k.directory:
-        foreign = foreign_entries(t, kind)
-        if foreign is None:
+        unowned = unowned_entries(t, kind, limit=1)
+        if unowned is None:
             raise OutputRefusedError(f"{shown}: is a PlateBench {k.label} without the {STAMP} that lists what "
                                      "PlateBench wrote in it (made by hand or by an older version): what else it "
                                      "holds cannot be told, so it is not replaced; remove it yourself or choose "
                                      "another --out")
-        if foreign:
-            raise OutputRefusedError(f"{shown}: holds {foreign[0]}, which PlateBench did not write: refusing to "
+        if unowned:
+            rel, changed = unowned[0]
+            if changed:
+                raise OutputRefusedError(f"{shown}: holds {rel}, which was changed after PlateBench wrote it (it no "
+                                         "longer has the sha256 recorded for it): refusing to replace it (copy your "
+                                         "edit elsewhere, or choose another --out)")
+            raise OutputRefusedError(f"{shown}: holds {rel}, which PlateBench did not write: refusing to "
                                      "replace it (move it out, or choose another --out)")
 
 
@@ -359,11 +370,12 @@ def read_stamp(directory: Path) -> dict | None:
     return d
 
 
-def _dataset_listing(root: Path) -> set[str] | None:
-    """Every file a sweep dataset's manifest and committed samples list (relative paths)."""
+def _dataset_listing(root: Path) -> dict[str, str | None] | None:
+    """Every file a sweep dataset's manifest and committed samples list (relative path -> its recorded
+    sha256, None for the dataset's own records, which a sweep rewrites)."""
     if not _dict_with(root / MANIFEST, format=FORMAT):
         return None
-    listed = {MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET}
+    listed: dict[str, str | None] = dict.fromkeys((MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET))
     samples = root / SAMPLES
     with contextlib.suppress(OSError):
         for e in os.scandir(samples):
@@ -371,19 +383,25 @@ def _dataset_listing(root: Path) -> set[str] | None:
                 continue
             res = _json(Path(e.path) / RESULT)
             if isinstance(res, dict) and isinstance(res.get("files"), dict):
-                listed.add(f"{SAMPLES}/{e.name}/{RESULT}")
-                listed.update(f"{SAMPLES}/{e.name}/{rel}" for rel in res["files"] if isinstance(rel, str))
+                listed[f"{SAMPLES}/{e.name}/{RESULT}"] = None
+                listed.update((f"{SAMPLES}/{e.name}/{rel}", _sha(v)) for rel, v in res["files"].items()
+                              if isinstance(rel, str))
     return listed
 
 
-def _listing(root: Path, kind: str | None) -> set[str] | None:
-    """What PlateBench wrote in ``root``: its stamp's files (of ``kind`` when given), or a dataset's."""
+def _sha(v) -> str | None:
+    return v if isinstance(v, str) else None
+
+
+def _listing(root: Path, kind: str | None) -> dict[str, str | None] | None:
+    """What PlateBench wrote in ``root`` (relative path -> the sha256 recorded for it, None where none is):
+    its stamp's files (of ``kind`` when given), or a dataset's."""
     if kind == "dataset" or (kind is None and not (root / STAMP).is_file()):
         return _dataset_listing(root)
     st = read_stamp(root)
     if st is None or (kind is not None and st.get("kind") != kind):
         return None
-    return {STAMP, *(k for k in st["files"] if isinstance(k, str))}
+    return {STAMP: None, **{k: _sha(v) for k, v in st["files"].items() if isinstance(k, str)}}
 
 
 def _is_lock(path: Path) -> bool:
@@ -392,49 +410,73 @@ def _is_lock(path: Path) -> bool:
 
 
 def foreign_entries(root: Path, kind: str | None = None, limit: int = _MAX_NAMED) -> list[str] | None:
-    """Paths under ``root`` (relative, POSIX) that PlateBench did not write (module doc, 3), at most
-    ``limit``; None when nothing lists what it wrote there (no stamp of ``kind``, no dataset manifest).
-    Symbolic links are never followed."""
+    """Paths under ``root`` (relative, POSIX) that are not what PlateBench wrote (module doc, 3: not
+    listed, or changed since), at most ``limit``; None when nothing lists what it wrote there (no stamp
+    of ``kind``, no dataset manifest). Symbolic links are never followed."""
+    found = unowned_entries(root, kind, limit)
+    return None if found is None else [rel for rel, _ in found]
+
+
+def unowned_entries(root: Path, kind: str | None = None, limit: int = _MAX_NAMED) -> list[tuple[str, bool]] | None:
+    """``foreign_entries`` with the reason: (relative path, changed), ``changed`` True for a file PlateBench
+    listed whose bytes no longer have the recorded sha256 (or that is now a link or a folder), False for
+    a path PlateBench never wrote."""
     root = Path(root)
     listed = _listing(root, kind)
     if listed is None:
         return None
-    found: list[str] = []
+    found: list[tuple[str, bool]] = []
     _walk(root, "", listed, found, limit)
     return found
 
 
-def _walk(d: Path, rel: str, listed: set[str], found: list, limit: int, dirs: set[str] | None = None) -> None:
+def _changed(p: Path, entry: os.DirEntry, sha: str | None) -> bool:
+    """Whether the listed path ``p`` is no longer the file PlateBench recorded with ``sha``."""
+    if sha is None:
+        return False
+    if not entry.is_file(follow_symlinks=False):
+        return True
+    try:
+        return file_sha256(p) != sha
+    except OSError:
+        return True
+
+
+def _walk(d: Path, rel: str, listed: dict, found: list, limit: int, dirs: set[str] | None = None) -> None:
     if dirs is None:  # every folder on the way to a listed file ("a/", "a/b/")
         dirs = {p.rsplit("/", k)[0] + "/" for p in listed for k in range(1, p.count("/") + 1)}
     try:
         entries = sorted(os.scandir(d), key=lambda e: e.name)
     except OSError:
-        found.append(rel or "./")
+        found.append((rel or "./", False))
         return
     for e in entries:
         if len(found) >= limit:
             return
         r = rel + e.name
         p = Path(e.path)
-        if is_temp_name(e.name) or r in listed:
+        if is_temp_name(e.name):
+            continue
+        if r in listed:
+            if _changed(p, e, listed[r]):
+                found.append((r, True))
             continue
         if e.is_dir(follow_symlinks=False):
             own = _listing(p, None)
             if own is not None:  # a PlateBench output added inside (compare/, report/, a dataset)
-                sub: list[str] = []
+                sub: list[tuple[str, bool]] = []
                 _walk(p, "", own, sub, limit - len(found))
-                found += [r + "/" + s for s in sub]
+                found += [(r + "/" + s, changed) for s, changed in sub]
             elif r + "/" in dirs:
                 _walk(p, r + "/", listed, found, limit, dirs)
             else:
                 first = _first_file(p)
                 if first is not None:  # an empty folder holds nothing to lose
-                    found.append(f"{r}/{first}")
+                    found.append((f"{r}/{first}", False))
         elif e.is_file(follow_symlinks=False) and (_score_file(p) or _is_lock(p)):
             continue  # a score of 'platebench evaluate' beside an output, a lock of a finished writer
         else:
-            found.append(r)
+            found.append((r, False))
 
 
 def _first_file(d: Path) -> str | None:

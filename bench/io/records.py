@@ -279,7 +279,8 @@ class MethodFigures(Record):
     and the figures of its kind (None where they do not apply): |depth error| at the square centres
     (sparse) or over the plate's pixels with an estimate (dense: never compared with the sparse
     ones), distance of a cloud to the true surface, accuracy of a mesh, coverage of the plate
-    (``coverage_frac``: pixels with an estimate, a cloud's covered area, a mesh's recall at 1 mm),
+    (``coverage_frac``: the share of the left view's plate pixels with an estimate, for every kind:
+    ``evaluation.pixel_coverage``),
     Middlebury's bad 1.0 px on all pixels (disparities) and the centres on the plate (paper)."""
 
     measure: str | None = None

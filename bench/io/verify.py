@@ -6,7 +6,10 @@ entry), the sample's ``result.json`` (a committed sweep sample), the sample's ow
 (``bench.io.outputs.STAMP``, written by ``platebench render``). ``verify_sample`` compares the
 files with them: a file changed, truncated or swapped with another sample's is refused, naming
 the sample and the file. ``refuse_links`` refuses a symbolic link anywhere under a dataset (a
-sample folder or an image replaced by a link could lead out of it).
+sample folder or an image replaced by a link could lead out of it). ``verify_inputs`` is what a
+command that reads some of a sample's files checks before its work (``platebench reconstruct``):
+none of them is a link (``refuse_linked_inputs``, checked before any is opened), and each still
+has its recorded checksum.
 """
 from __future__ import annotations
 
@@ -21,8 +24,8 @@ from platebench.bench.io.images import DatasetError
 from platebench.bench.io.layout import FORMAT, MANIFEST, RESULT, SAMPLE, SAMPLES
 from platebench.bench.io.outputs import STAMP, file_sha256, read_stamp
 
-__all__ = ["Checksums", "sample_checksums", "verify_sample", "refuse_links", "find_links", "file_sha256",
-           "dataset_manifest"]
+__all__ = ["Checksums", "sample_checksums", "verify_sample", "verify_inputs", "refuse_linked_inputs", "refuse_links",
+           "find_links", "file_sha256", "dataset_manifest"]
 
 
 @dataclass(frozen=True)
@@ -83,11 +86,36 @@ def verify_sample(sample_dir: Path, checksums: Checksums | None, names=None, the
     d = Path(sample_dir)
     for rel in sorted(checksums.files if names is None else [n for n in names if n in checksums.files]):
         p = d / rel
-        if os.path.islink(p) or not p.is_file():
+        if os.path.islink(p):
+            raise DatasetError(f"{p}: is a symbolic link (to {os.readlink(p)}), not the file {checksums.source} "
+                               f"records for sample {checksums.sample_id}{end}")
+        if not p.is_file():
             raise DatasetError(f"{p}: is missing (sample {checksums.sample_id}; {checksums.source} lists it){end}")
         if file_sha256(p) != checksums.files[rel]:
             raise DatasetError(f"{p}: differs from the checksum {checksums.source} records for sample "
                                f"{checksums.sample_id} (changed, truncated or swapped){end}")
+
+
+def refuse_linked_inputs(sample_dir: Path, names, then: str) -> None:
+    """Refuse (one-line ``DatasetError`` naming it) any of the sample's files ``names`` (paths relative to
+    ``sample_dir``) that is a symbolic link or lies in a linked folder of the sample; nothing is opened.
+    ``then``: what the reader does about it, ending the message."""
+    d = Path(sample_dir)
+    for rel in names:
+        parts = Path(rel).parts
+        for k in range(1, len(parts) + 1):
+            p = d.joinpath(*parts[:k])
+            if os.path.islink(p):
+                raise DatasetError(f"{p}: is a symbolic link (to {os.readlink(p)}): a sample's files are read only "
+                                   f"from the sample itself: {then}")
+
+
+def verify_inputs(sample_dir: Path, names, then: str) -> None:
+    """Refuse (one-line ``DatasetError`` naming the file) any of the sample's files ``names`` that is a link
+    (``refuse_linked_inputs``) or, where the sample's checksums are recorded (``sample_checksums``), that
+    differs from its checksum (``verify_sample``)."""
+    refuse_linked_inputs(sample_dir, names, then)
+    verify_sample(sample_dir, sample_checksums(Path(sample_dir)), names, then=then)
 
 
 def find_links(root: Path, limit: int = 1) -> list[Path]:

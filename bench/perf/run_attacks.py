@@ -308,8 +308,8 @@ def _plugins_in_compare(folder: Path, env: dict):
     methods = ["misbehave:good", *FAILURES]
     r = _run(["compare", good, "--methods", ",".join(methods), "--out", folder / "cmp", "--method-time-limit-s", 3],
              folder, env)
-    problems = [] if r.returncode == 0 else [f"exit {r.returncode}, expected 0 (failures recorded)"]
-    if r.returncode == 0:
+    problems = [] if r.returncode == 1 else [f"exit {r.returncode}, expected 1 (failures recorded)"]
+    if r.returncode == 1:
         doc = json.loads((folder / "cmp" / "compare.json").read_text())["methods"]
         problems.append(None if doc["misbehave:good"]["status"] == "ok" else "the good plug-in did not run")
         problems += [f"{m}: {doc.get(m)}" for m, said in FAILURES.items()
@@ -333,8 +333,8 @@ def _plugins_in_a_sweep(folder: Path, env: dict):
     ds = folder / "ds"
     r = _run(["sweep", _spec(folder, [10], methods, limit=3), "--out", ds, "--workers", 1, "--no-progress"], folder,
              env)
-    problems = [] if r.returncode == 0 else [f"exit {r.returncode}, expected 0 (failures recorded)"]
-    if r.returncode == 0:
+    problems = [] if r.returncode == 1 else [f"exit {r.returncode}, expected 1 (failures recorded)"]
+    if r.returncode == 1:
         from platebench.bench.sweep.dataset import read_results  # noqa: PLC0415
         rows = {x["method"]: x for x in read_results(ds).to_pylist()}
         st = _state(ds)

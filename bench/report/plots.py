@@ -457,7 +457,7 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
     fractions = [k for k in METRIC_FIELDS if metric_unit(k) == "fraction"]
     err_metrics = [k for k in metrics if k not in fractions
                    and any(_num(t.get(k)) is not None for t in table.values())]
-    cov = next(iter(fractions))  # one fraction column: the coverage of the plate
+    cov = "coverage_frac"  # the share of the plate's pixels with an estimate (``evaluation.pixel_coverage``)
     has_cov = any(_num(t.get(cov)) is not None for t in table.values())
     fig = _figure(9.5 if has_cov else 7.5, 4.2)
     if has_cov:
@@ -500,7 +500,7 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
         axc.set_xticks(range(len(methods)))
         axc.set_xticklabels(methods, rotation=30, ha="right", fontsize=8)
         axc.set_ylim(0, 1.1)
-        axc.set_ylabel("coverage (fraction of plate, 0..1)")
+        axc.set_ylabel("coverage (share of plate pixels, 0..1)")
         axc.grid(True, axis="y", alpha=0.3)
     fig.suptitle(title or "Method comparison", fontsize=10)
     fig.tight_layout()

@@ -7,8 +7,9 @@ with one renderer (``bench.run.pattern_sequences``), runs each method
 the sample's ground truth with ``evaluation.dense``:
 
 * depth: |Z_est - Z_gt| (left camera z-depth, mm) over plate pixels with an estimate:
-  mean, median, RMS, max, A50-A99, signed mean; coverage = those pixels / plate pixels (gt
-  mask); estimates off the plate are counted separately (the disparity metrics ignore them);
+  mean, median, RMS, max, A50-A99, signed mean; ``coverage_frac`` = those pixels / plate pixels
+  (gt mask; ``evaluation.pixel_coverage``); estimates off the plate are counted separately (the
+  disparity metrics ignore them);
 * disparity: Middlebury v3 and ETH3D two-view metrics on all and on non-occluded pixels
   (``evaluation.field_scores.score_disparity``).
 
@@ -19,9 +20,14 @@ plug-in that fails (raises, exits, runs past the limit, returns what is not an o
 with ``status`` "failed" and its one-line ``error``, as in a sweep; the other methods go on.
 
 The "paper" row is read, not computed: a directory holding ``points.csv`` (world x, y, z in
-metres) and optionally ``recon.json`` from ``platebench reconstruct``; its points are scored
-by depth error at their left-image projection and by distance to the true plate surface.
-Without such files the row is left out, with a note.
+metres) and optionally ``recon.json`` and ``surface.ply`` from ``platebench reconstruct``; its
+points are scored by depth error at their left-image projection and by distance to the true plate
+surface, and its ``coverage_frac`` is the share of the left plate pixels whose true ray hits
+``surface.ply`` (0 without a surface). Without points.csv the row is left out, with a note.
+
+The stereo matchers that take a pair rather than a pattern sequence of their own ("sgbm") match
+the active pair (``left_active``/``right_active``: the projected grid gives them texture inside
+the plate) by default; "sgbm-passive" matches the passive pair.
 """
 from __future__ import annotations
 
@@ -38,12 +44,13 @@ from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.points import read_points_csv
 from platebench.bench.io.records import MethodFigures
-from platebench.bench.io.sample_files import load_ground_truth, load_inputs
+from platebench.bench.io.sample_files import load_ground_truth, load_inputs, load_true_cameras, read_mesh
 from platebench.bench.run.pattern_sequences import render_pattern_sequence
 from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
 from platebench.errors import UserValueError
 from platebench.evaluation.dense import SparseDepthScore, score_points_depth
 from platebench.evaluation.field_scores import DepthScore, DisparityScore, MeshScore, PointCloudScore, score_disparity
+from platebench.evaluation.pixel_coverage import coverage_of_mesh
 from platebench.plates import build_plate
 from platebench.reconstruction.peers import graycode, phase_shift, sgbm
 from platebench.scenes.naming import image_seed
@@ -51,7 +58,7 @@ from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings
 from platebench.tolerances import tol
 
-__all__ = ["METHODS", "ALL_METHODS", "DESCRIPTIONS", "MethodRow", "Comparison", "compare_sample",
+__all__ = ["METHODS", "ALL_METHODS", "DESCRIPTIONS", "PAIR_IMAGES", "MethodRow", "Comparison", "compare_sample",
            "find_paper_reconstruction", "comparison_json"]
 
 
@@ -64,11 +71,14 @@ DESCRIPTIONS = {
     "graycode-subpx": "Gray code, sub-pixel column matching along rows (numpy)",
     "phase": "4-step phase shifting + Gray-code unwrapping (numpy)",
     "phase-opencv": "3-step phase shifting, OpenCV SinusoidalPattern wrapped phase + Gray-code unwrapping",
-    "sgbm": "OpenCV StereoSGBM on the passive pair",
+    "sgbm": "OpenCV StereoSGBM on the active pair (the projected grid; sgbm-passive: the passive pair)",
+    "sgbm-passive": "OpenCV StereoSGBM on the passive pair (nothing to match inside a plain plate)",
 }
 
 
-ALL_METHODS = METHODS + ("phase-opencv",)
+ALL_METHODS = METHODS + ("phase-opencv", "sgbm-passive")
+# the built-in stereo matchers of one pair: (left image, right image) of the sample they match
+PAIR_IMAGES = {"sgbm": ("left_active", "right_active"), "sgbm-passive": ("left_passive", "right_passive")}
 
 
 def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
@@ -111,10 +121,6 @@ class MethodRow:
         return method_figures(self)
 
 
-# a mesh's coverage of the plate: its recall at this distance (``field_scores.MESH_THRESHOLDS_M``)
-MESH_COVERAGE_AT_M = 1e-3
-
-
 def method_figures(row: MethodRow) -> MethodFigures:
     """The key figures of a row's typed score, by its kind (``MethodFigures``)."""
     mm = 1e3
@@ -125,7 +131,8 @@ def method_figures(row: MethodRow) -> MethodFigures:
     if isinstance(s, SparseDepthScore):
         return MethodFigures("centres", **times, centres_depth_median_mm=s.centres_depth_median_mm,
                              centres_depth_rms_mm=s.centres_depth_rms_mm, centres_depth_max_mm=s.centres_depth_max_mm,
-                             points_on_plate=s.points_on_plate, surface_rms_mm=s.surface_rms_mm)
+                             points_on_plate=s.points_on_plate, surface_rms_mm=s.surface_rms_mm,
+                             coverage_frac=s.coverage_frac)
     if isinstance(s, (DisparityScore, DepthScore)):
         d = s.depth if isinstance(s, DisparityScore) else s
         bad = dict(s.middlebury.all.bad_pct).get(1.0) if isinstance(s, DisparityScore) else None
@@ -136,10 +143,9 @@ def method_figures(row: MethodRow) -> MethodFigures:
                              dist_rms_mm=s.distance.rms_m * mm, surface_rms_mm=s.distance.rms_m * mm,
                              coverage_frac=s.coverage.coverage_frac)
     if isinstance(s, MeshScore):
-        recall = next((r for t, _, r, _ in s.thresholds if abs(t - MESH_COVERAGE_AT_M) <= tol.relative * MESH_COVERAGE_AT_M), None)
         return MethodFigures("mesh", **times, accuracy_median_mm=s.accuracy.median_m * mm,
                              accuracy_rms_mm=s.accuracy.rms_m * mm, surface_rms_mm=s.accuracy.rms_m * mm,
-                             coverage_frac=recall)
+                             coverage_frac=s.coverage_frac)
     raise TypeError(f"{row.name}: no figures for a score of type {type(s).__name__}")
 
 
@@ -161,9 +167,10 @@ class Comparison:
     gt_mask: np.ndarray
 
 
-def _check_calibration(spec, calib) -> None:
+def _check_calibration(told, calib) -> None:
+    """Refuse a sample whose re-created told rig (``told``, a ``StereoRig``) is not its calib.json's."""
     for name in ("left", "right"):
-        a, b = getattr(spec.rig, name), getattr(calib.rig, name)
+        a, b = getattr(told, name), getattr(calib.rig, name)
         if not (np.allclose(a.K, b.K, atol=tol.rebuilt_px) and np.allclose(a.R, b.R, atol=tol.rebuilt_pose)
                 and np.allclose(a.t, b.t, atol=tol.rebuilt_pose) and (a.width, a.height) == (b.width, b.height)):
             raise DatasetError(f"sample.json's configuration does not reproduce calib.json ({name} camera); "
@@ -185,7 +192,12 @@ def _recreate_scene(cfg: SampleConfig, inputs, gt, renderer):
     same variant and seed should)."""
     plate = build_plate(cfg.plate)
     spec = cfg.scene.build()
-    _check_calibration(spec, inputs.calibration)
+    told = spec.rig
+    if not cfg.realism.is_ideal:  # the rig as the sample took it: the same draw of its errors (bench.run.render)
+        from platebench.bench.run.realism import realise_sample  # noqa: PLC0415
+        acq = realise_sample(cfg, spec.rig)
+        spec, told = spec.with_rig(acq.taken), acq.told
+    _check_calibration(told, inputs.calibration)
     if renderer is None:
         renderer = PlateRenderer(spec, plate, cfg.variant)
     else:
@@ -217,7 +229,7 @@ def _plugin_row(name: str, fn, sample_dir: Path, truth, time_limit_s: float | No
 
 def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
     """The paper's row from a ``platebench reconstruct`` output beside the sample (None, with a note,
-    when there is none)."""
+    when there is none); its coverage from ``surface.ply`` through the left camera really posed."""
     found = find_paper_reconstruction(sample_dir, recon_dir)
     if found is None:
         where = recon_dir if recon_dir is not None else f"{sample_dir.resolve().parent} or {sample_dir / 'recon'}"
@@ -226,6 +238,10 @@ def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow |
         return None
     pts, meta, d = found
     sc = score_points_depth(pts, rig.left, gt.depth["left"], gt.mesh)
+    surface = read_mesh(d / "surface.ply") if (d / "surface.ply").is_file() else None
+    posed = load_true_cameras(sample_dir)
+    eye = (rig if posed is None else posed).left.center
+    sc = dataclasses.replace(sc, coverage=coverage_of_mesh(surface, eye, gt.points["left"], gt.mask["left"]))
     t = meta.get("timings_s", meta.get("timings", {}))
     t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
     return MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
@@ -247,7 +263,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     notes, rows = [], []
     truth = load_field_truth(sample_dir) if any(m != "paper" for m in methods) else None
     scene_reproduced = None
-    if any(m not in ("paper", "sgbm") and m not in plugins for m in methods):
+    if any(m not in ("paper", *PAIR_IMAGES) and m not in plugins for m in methods):
         say("scene")
         renderer, scene_reproduced = _recreate_scene(cfg, inputs, gt, renderer)
         if not scene_reproduced:
@@ -311,9 +327,9 @@ def _run_peer(name, gray_seq, gray_cap, sequence, inputs, rig, pw, ph, depth_ran
         cap = sequence(seq.images, name)
         say(f"method {name}")
         return phase_shift.decode_phase_shift(cap["left"], cap["right"], seq, rig), cap.timings_s["render_s"]
-    if name == "sgbm":
-        return sgbm.sgbm(inputs.images["left_passive"], inputs.images["right_passive"], rig,
-                         depth_range_m=depth_range_m), 0.0
+    if name in PAIR_IMAGES:
+        left, right = PAIR_IMAGES[name]
+        return sgbm.sgbm(inputs.images[left], inputs.images[right], rig, depth_range_m=depth_range_m), 0.0
     raise ValueError(f"not a built-in peer: {name!r}")
 
 

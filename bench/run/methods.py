@@ -4,7 +4,7 @@ A method is a function ``run(ctx: MethodContext) -> MethodOutput``: it reads the
 images and calibration (``ctx.sample_dir``; never its ground truth), writes what it made to
 ``ctx.recon_dir`` and returns its ``MetricsRow`` (scored against the truth by the bench) with
 its timings. Built in: "paper" (the paper's pipeline) and the peers of ``platebench compare``
-(Gray code, phase shifting, SGBM).
+(Gray code, phase shifting, SGBM on the active pair, "sgbm-passive" on the passive one).
 
 Plug-ins (``bench.run.plugins``: one function from a sample's inputs to a disparity, depth,
 point or mesh output) are found by ``get_method`` on first use, in any process: an entry point
@@ -25,7 +25,7 @@ import numpy as np
 from platebench.bench.io.atomic import staged_directory, write_json
 from platebench.bench.io.images import write_pfm
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
-from platebench.bench.run.compare import ALL_METHODS, DESCRIPTIONS, compare_sample
+from platebench.bench.run.compare import ALL_METHODS, DESCRIPTIONS, PAIR_IMAGES, compare_sample
 from platebench.bench.run.paper_method import reconstruct_dir
 from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
 from platebench.bench.run.score import score_files
@@ -146,4 +146,4 @@ def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
 register_method("paper", "the paper's pipeline: projected squares + passive boundary (Chen & Zheng 1995)", _run_paper)
 for _name in ALL_METHODS:
     if _name != "paper":
-        register_method(_name, DESCRIPTIONS[_name], _peer_runner(_name), rerenders_from_config=_name != "sgbm")
+        register_method(_name, DESCRIPTIONS[_name], _peer_runner(_name), rerenders_from_config=_name not in PAIR_IMAGES)

@@ -18,6 +18,7 @@ from platebench.bench.io.sample_files import (
     load_ground_truth,
     load_pattern,
     load_true_cameras,
+    read_json,
 )
 from platebench.evaluation.score import (
     ReconstructionData,
@@ -27,7 +28,7 @@ from platebench.evaluation.score import (
 )
 
 __all__ = ["truth_from_sample", "truth_from_files", "recon_data", "score_in_memory", "score_files",
-           "score_any"]
+           "score_any", "check_made_from"]
 
 
 def _feature_table(pattern) -> tuple[np.ndarray, np.ndarray]:
@@ -42,7 +43,7 @@ def truth_from_sample(sample) -> SampleTruth:
     return SampleTruth(sample.plate.mesh, np.asarray(sample.plate.boundary),
                        {c: g.mask for c, g in sample.gt.items()}, {c: g.feature for c, g in sample.gt.items()},
                        sample.scene.rig, sample.scene.projector.camera, ids, centres,
-                       {c: v.to_dict() for c, v in sample.visibility.items()})
+                       {c: v.to_dict() for c, v in sample.visibility.items()}, sample.gt["left"].points)
 
 
 def truth_from_files(sample_dir: Path) -> tuple[SampleTruth, dict]:
@@ -52,7 +53,7 @@ def truth_from_files(sample_dir: Path) -> tuple[SampleTruth, dict]:
     ids, centres = _feature_table(load_pattern(sample_dir))
     rig = load_true_cameras(sample_dir) or calib.rig  # the cameras really posed (realism), else calib.json's
     truth = SampleTruth(gt.mesh, gt.boundary, gt.mask, gt.feature, rig, calib.projector_camera, ids, centres,
-                        gt.visibility)
+                        gt.visibility, gt.points["left"])
     return truth, gt.meta
 
 
@@ -60,7 +61,7 @@ def recon_data(rec) -> ReconstructionData:
     """A pipeline ``Reconstruction`` as evaluation's ``ReconstructionData``."""
     return ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,
                               rec.surface_vertices, rec.false_boundary.to_dict(),
-                              rec.cut.points, rec.cut.uv_left, rec.cut.uv_right)
+                              rec.cut.points, rec.cut.uv_left, rec.cut.uv_right, rec.surface_faces)
 
 
 def score_in_memory(sample, rec) -> Score:
@@ -68,19 +69,41 @@ def score_in_memory(sample, rec) -> Score:
     return score_reconstruction(truth_from_sample(sample), recon_data(rec))
 
 
-def score_files(sample_dir: Path, recon_dir: Path) -> Score:
-    """Score a reconstruction directory against a sample directory (refused if it was made from
-    other images: recon.json records the checksums of the images it read)."""
-    truth, meta = truth_from_files(sample_dir)
-    rec = load_reconstruction(recon_dir)
-    want = meta.get("images", {})
-    for name, digest in rec.meta.get("input_checksums", {}).items():
-        if want.get(name) != digest:
+def check_made_from(sample_dir: Path, recon_dir: Path, recon_meta: dict | None = None,
+                    sample_meta: dict | None = None) -> None:
+    """Refuse (one-line ``DatasetError``) a reconstruction that was not made from this sample: every image
+    checksum its recon.json records (``input_checksums``, written by ``platebench reconstruct``) must be
+    the sample.json's checksum of that image. ``recon_meta`` / ``sample_meta``: the recon.json and
+    sample.json documents when the caller has read them (read from the directories otherwise; a
+    reconstruction without recon.json records nothing to compare). Every reader that scores a
+    reconstruction against a sample (``score_files``, ``platebench compare``) checks the pair here."""
+    if recon_meta is None:
+        path = Path(recon_dir) / "recon.json"
+        recon_meta = read_json(path) if path.is_file() else {}
+    recorded = recon_meta.get("input_checksums") or {}
+    if not recorded:
+        return
+    if not isinstance(recorded, dict):
+        raise DatasetError(f"{Path(recon_dir) / 'recon.json'}: input_checksums is not a table of image checksums")
+    if sample_meta is None:
+        sample_meta = read_json(Path(sample_dir) / "sample.json")
+    want = sample_meta.get("images") or {}
+    for name, digest in sorted(recorded.items()):
+        if not isinstance(want, dict) or want.get(name) != digest:
             raise DatasetError(f"{recon_dir} was not made from {sample_dir}: image {name} differs "
                                "(reconstruct this sample first)")
+
+
+def score_files(sample_dir: Path, recon_dir: Path) -> Score:
+    """Score a reconstruction directory against a sample directory (refused if it was made from
+    other images: ``check_made_from``)."""
+    truth, meta = truth_from_files(sample_dir)
+    rec = load_reconstruction(recon_dir)
+    check_made_from(sample_dir, recon_dir, rec.meta, meta)
     data = ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,
                               None if rec.surface is None else np.asarray(rec.surface.vertices),
-                              rec.meta.get("false_boundary", {}), rec.cut_points, rec.cut_uv_left, rec.cut_uv_right)
+                              rec.meta.get("false_boundary", {}), rec.cut_points, rec.cut_uv_left, rec.cut_uv_right,
+                              None if rec.surface is None else np.asarray(rec.surface.faces))
     return score_reconstruction(truth, data)
 
 

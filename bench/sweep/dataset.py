@@ -18,9 +18,9 @@ Layout (format ``platebench-sweep`` version 1)::
 Results columns: the sample's parameters as rendered (bend_deg, axis_deg in degrees, sizes
 in metres, pixels, ...; ``params_json`` holds the spec's axis values), then the metrics
 (``METRIC_COLUMNS``, units in the names, empty when a method does not produce them or
-failed), timings and the worker. ``coverage_frac``: for "paper" the fraction of the plate
-area covered by its interpolated surface; for dense peer methods the fraction of plate
-pixels with a depth estimate. ``time_render_s`` is the sample's render (+ the method's own
+failed), timings and the worker. ``coverage_frac``, for every method: the share of the left
+view's plate pixels with an estimate (``evaluation.pixel_coverage``; for "paper" those whose true
+ray hits its interpolated surface). ``time_render_s`` is the sample's render (+ the method's own
 pattern sequence for peers), ``time_total_s`` the whole sample task.
 
 One writer per sample: a worker makes a sample in its own attempt directory
@@ -74,6 +74,7 @@ from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the datase
     SPEC_COPY,
     VERSION,
 )
+from platebench.bench.io.dataset_state import dataset_lock, live_state  # noqa: F401  (re-exported)
 from platebench.bench.io.outputs import file_sha256, foreign_entries, guard_output
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
@@ -403,22 +404,6 @@ def read_manifest(dataset: Path) -> dict | None:
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         return None
     return live_state(m, dataset)
-
-
-def live_state(manifest: dict, dataset: Path) -> dict:
-    """``manifest`` with its state as it stands: "running" only while a sweep holds the dataset lock; a
-    manifest whose writer is gone (killed with -9, its machine lost) is "interrupted", with a
-    ``state_note`` saying so. The one rule every reader applies (sweep, report)."""
-    if manifest.get("state") == "running" and dataset_lock(dataset).holder() is None:
-        manifest = dict(manifest)
-        manifest["state"] = "interrupted"
-        manifest["state_note"] = "the sweep that was writing it is gone (killed); finish it with --resume"
-    return manifest
-
-
-def dataset_lock(dataset: Path) -> OutputLock:
-    """The lock a sweep holds on its dataset (a sibling file ``.NAME.lock``)."""
-    return OutputLock(Path(dataset).absolute(), "dataset")
 
 
 def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None:

@@ -63,7 +63,7 @@ from platebench.bench.sweep.tasks import (
     tasks_from_spec,
     worker_init,
 )
-from platebench.errors import PlateBenchError
+from platebench.errors import PlateBenchError, UserValueError
 
 
 class ExecutorError(PlateBenchError):
@@ -689,6 +689,28 @@ def worker_stats(results) -> dict:
         e["samples"] += 1
         e["maxrss_mb"] = max(e["maxrss_mb"], float(w.get("maxrss_mb") or 0.0))
     return out
+
+
+def executor_for(stack, *, workers: int | None = None, scheduler: str | None = None, pipeline: bool = False,
+                 connect_timeout_s: float = 10.0, worker_timeout_s: float = 60.0):
+    """The executor a sweep's flags ask for, connected: a local pool of ``workers`` processes (default 1;
+    0 runs in this process); a Dask cluster at ``scheduler``; ``pipeline``: render and finish in two
+    stages (on ``scheduler``, or a loopback cluster of one render worker and ``workers`` CPU workers,
+    closed by ``stack``, a ``contextlib.ExitStack``, as is the executor)."""
+    if not scheduler and not pipeline:
+        return LocalExecutor(1 if workers is None else workers)
+    address = scheduler
+    if address is None:  # --pipeline on this machine: one render worker and --workers CPU workers
+        n = 1 if workers is None else workers
+        if not 1 <= n <= 256:
+            raise UserValueError(f"--workers = {n} is out of range with --pipeline: allowed 1 to 256 CPU workers")
+        cluster = stack.enter_context(LoopbackCluster(n_workers=n + 1, render_workers=1))
+        address = cluster.address
+    kind = PipelineExecutor if pipeline else DaskExecutor
+    executor = kind(address, connect_timeout_s=connect_timeout_s, worker_timeout_s=worker_timeout_s)
+    executor.connect()  # fail fast, before the dataset is created
+    stack.callback(executor.close)
+    return executor
 
 
 def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: bool = False,
