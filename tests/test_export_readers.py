@@ -246,3 +246,25 @@ def test_an_incomplete_sweep_is_refused_or_exported_with_a_note(sweep_dataset, t
     assert doc["sweep"] == {"state": "interrupted", "samples_total": 2, "samples_exported": 1}
     r = run_cli("export", sweep_dataset, "--format", fmt, "--out", tmp_path / "whole")  # complete: no note
     assert r.returncode == 0 and "note:" not in r.stdout, r.stderr
+
+
+@pytest.mark.parametrize("fmt", ["middlebury", "kitti"])
+def test_a_pair_a_robot_took_is_left_out_or_exported_marked(tmp_path, fmt):
+    """A 1995-rig sample (robot-posed, distorting lens) is no rectified pair: left out with a note (the
+    rectified sample beside it exported, KITTI numbering without a gap), or exported and marked."""
+    root = tmp_path / "root"
+    for name, extra in (("a95", ["--realism", "1995"]), ("b", ["--width", "640", "--height", "480",
+                                                                "--distance-m", "0.6"])):
+        r = run_cli("render", "--out", root / name, "--spp", "1", *extra)
+        assert r.returncode == 0, r.stderr
+    r = run_cli("export", root, "--format", fmt, "--out", tmp_path / "x")
+    assert r.returncode == 0 and "1 of the 2 samples are left out" in r.stdout, r.stdout + r.stderr
+    doc = json.loads((tmp_path / "x" / "export.json").read_text())
+    assert [s["id"] for s in doc["samples"]] == ["b"] and doc["left_out_unrectified"] == ["a95"]
+    if fmt == "kitti":
+        assert (tmp_path / "x" / "training" / "disp_occ_0" / "000000_10.png").is_file()
+    r = run_cli("export", root, "--format", fmt, "--out", tmp_path / "y", "--include-unrectified")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "y" / "export.json").read_text())
+    marks = {s["id"]: s.get("unrectified") for s in doc["samples"]}
+    assert marks["b"] is None and "robot" in marks["a95"]

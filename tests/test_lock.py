@@ -3,6 +3,7 @@ pyproject.toml), README's commands and CI install from it, ``platebench info`` c
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -51,3 +52,36 @@ def test_info_prints_versions_against_the_lock_and_flags_differences(tmp_path):
     assert status == {"numpy": "differs", "mitsuba": "ok", "not-installed-pkg": "missing",
                       "winonly": "not for this platform"}
     assert check.to_dict()["differs"]["numpy"]["locked"] == "0.0.1"
+
+
+def _fake_numpy(folder: Path) -> Path:
+    """A stray ``numpy-99.0.dist-info`` (metadata only, no package): what ``importlib.metadata`` finds first
+    when ``folder`` leads the Python path, while ``import numpy`` still takes the installed one."""
+    d = folder / "numpy-99.0.dist-info"
+    d.mkdir(parents=True)
+    (d / "METADATA").write_text("Metadata-Version: 2.1\nName: numpy\nVersion: 99.0\n")
+    return folder
+
+
+def test_lock_check_compares_what_python_imports_and_names_a_shadowing_copy(tmp_path, monkeypatch):
+    import numpy
+    locked = read_lock(LOCK)["numpy"][0]
+    monkeypatch.syspath_prepend(str(_fake_numpy(tmp_path)))
+    check = check_lock(LOCK)
+    row = next(r for r in check.rows if r[0] == "numpy")
+    assert row == ("numpy", locked, numpy.__version__, "shadowed")
+    (line,) = [ln for ln in check.problem_lines() if ln.startswith("numpy ")]
+    assert "99.0" in line and numpy.__version__ in line and str(tmp_path / "numpy-99.0.dist-info") in line
+    assert check.to_dict()["shadowed"]["numpy"]["imported"] == numpy.__version__
+
+
+def test_info_check_lock_fails_on_a_shadowing_copy_and_passes_without_it(tmp_path):
+    import numpy
+    r = run_cli("info", "--check-lock")
+    assert r.returncode == 0, r.stderr  # this environment is the lock's
+    pythonpath = os.pathsep.join(p for p in (str(_fake_numpy(tmp_path)), os.environ.get("PYTHONPATH")) if p)
+    r = run_cli("info", "--check-lock", env={"PYTHONPATH": pythonpath})
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith("platebench: error: ") and "numpy" in last and "99.0" in last
+    assert numpy.__version__ in last and str(tmp_path) in last

@@ -1,8 +1,8 @@
-"""Plug-ins are isolated: whatever a plug-in does (sys.exit, at import too; an exception; a crash; a
-loop that never returns; an output of the wrong type or dtype; a library function given as a method)
-is that method's recorded failure with one clear line, in ``compare``, in a local sweep and in a sweep
-on a real Dask cluster, and the other methods go on. A per-sample time limit (``--method-time-limit-s``,
-``sweep.method_time_limit_s``) stops a plug-in that never returns.
+"""Plug-ins are isolated: whatever a plug-in does (sys.exit, at import too, which only its own process
+does; an exception; a crash; a loop that never returns; an output of the wrong type or dtype; a library
+function given as a method) is that method's recorded failure with one clear line, in ``compare``, in a
+local sweep and in a sweep on a real Dask cluster, and the other methods go on. A per-sample time limit
+(``--method-time-limit-s``, ``sweep.method_time_limit_s``) stops a plug-in that never returns.
 
 Real processes throughout: the plug-ins are a module on PYTHONPATH, run by the CLI in fresh processes.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from platebench.bench.perf.run_attacks import FAILURES, write_plugins
+from platebench.bench.perf.run_attacks import FAILURES, IMPORT_FAILURES, write_plugins
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 4}}
@@ -56,10 +56,17 @@ def test_every_misbehaviour_is_the_methods_failure_with_one_line(plugin_env, sma
     # and the process that runs plug-ins is fresh again for one that works
     ok = run_plugin(resolve_plugin("misbehave:good"), "misbehave:good", small_sample_dir)
     assert 0 < ok.row.columns()["depth_rms_mm"] < 50 and ok.row.columns()["method_plane_mm"] > 0
-    for name, said in (("exits_on_import:f", "cannot import module 'exits_on_import' (sys.exit(3))"),
-                       ("dies_on_import:f", "exited with status 0")):
-        with pytest.raises(PluginError, match=rf"method '{name}': .*{said.replace('(', '.').replace(')', '.')}"):
-            resolve_plugin(name)
+    # a module that fails at import: found without importing it, and failed by its first call, in its process
+    for module, (_, said) in IMPORT_FAILURES.items():
+        name = f"{module}:f"
+        plugin = resolve_plugin(name)
+        assert module not in sys.modules and plugin.description == f"plug-in {name}"
+        with pytest.raises(PluginError) as e:
+            run_plugin(plugin, name, small_sample_dir, time_limit_s=2)
+        assert str(e.value).startswith(f"method {name!r}") and said in str(e.value), str(e.value)
+    with pytest.raises(PluginError, match=r"method 'no_such_module:f': cannot import module 'no_such_module' "
+                                          r"\(not found on the Python path\)"):
+        resolve_plugin("no_such_module:f")
 
 
 # ----------------------------------------------------------------------------- compare
@@ -82,11 +89,16 @@ def test_compare_records_plugin_failures_as_a_sweep_does(plugin_env, small_sampl
         assert entry["status"] == "failed" and FAILURES[m] in entry["error"], (m, entry)
         assert f"{m}" in r.stdout and FAILURES[m] in r.stdout
     assert "failed      6 of 7 method(s)" in r.stdout
-    # a plug-in whose module exits on import: refused before anything is written, one line
-    line = one_error_line(cli(plugin_env, "compare", small_sample_dir, "--methods", "exits_on_import:f", "--out",
-                              tmp_path / "cmp2"))
-    assert "cannot import module 'exits_on_import' (sys.exit(3))" in line
-    assert not (tmp_path / "cmp2").exists()
+    # a plug-in whose module exits on import: its recorded failure, found in its own process
+    r = cli(plugin_env, "compare", small_sample_dir, "--methods", "exits_on_import:f", "--out", tmp_path / "cmp2")
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    entry = json.loads((tmp_path / "cmp2" / "compare.json").read_text())["methods"]["exits_on_import:f"]
+    assert entry["status"] == "failed" and IMPORT_FAILURES["exits_on_import"][1] in entry["error"]
+    # a plug-in whose module is not on the path: refused before anything is written, one line
+    line = one_error_line(cli(plugin_env, "compare", small_sample_dir, "--methods", "no_such_module:f", "--out",
+                              tmp_path / "cmp4"))
+    assert "method 'no_such_module:f': cannot import module 'no_such_module' (not found on the Python path)" in line
+    assert not (tmp_path / "cmp4").exists()
     line = one_error_line(cli(plugin_env, "compare", small_sample_dir, "--methods", "misbehave:good",
                               "--method-time-limit-s", 0, "--out", tmp_path / "cmp3"))
     assert "--method-time-limit-s = 0.0 is out of range: allowed 1 to 86400 s" in line

@@ -233,3 +233,92 @@ def test_an_interrupted_study_keeps_its_finished_plates_and_resume_runs_the_rest
     again = json.loads((whole / "study.json").read_text())
     for a, b in zip(doc["rows"], again["rows"]):
         assert {k: v for k, v in a.items() if k != "time_s"} == {k: v for k, v in b.items() if k != "time_s"}
+
+
+def test_axes_and_families_restrict_every_set_of_plates():
+    """--axes 0 --families cylinder: every plate, the second aspect's and second distance's too, is a
+    cylinder about axis 0; the default set keeps its axes 0 and 90 there (61 plates)."""
+    cases = study_cases(families=["cylinder"], axes_deg=(0.0,))
+    assert cases and {c.family for c in cases} == {"cylinder"} and {c.axis_deg for c in cases} == {0.0}
+    assert {c.aspect for c in cases} >= {OTHER_ASPECT} and {c.distance_m for c in cases} >= {OTHER_DISTANCE_M}
+    assert len({c.name for c in cases}) == len(cases)
+    default = study_cases()
+    assert len(default) == 61
+    other = [c for c in default if c.family == "cylinder" and (c.aspect == OTHER_ASPECT or c.distance_m == OTHER_DISTANCE_M)]
+    assert {c.axis_deg for c in other} == {0.0, 90.0}
+    few = study_cases((30.0,), ["fold"])  # the second aspect's fold only where the set's folds reach it
+    assert [c.bend_deg for c in few] == [60.0, 60.0]
+
+
+def test_dry_run_lists_the_plates_the_flags_select_and_writes_nothing(tmp_path):
+    p = run_cli("study", "false-boundary", "--axes", "0", "--families", "cylinder", "--bend", "60,240",
+                "--dry-run", "--out", tmp_path / "t")
+    assert p.returncode == 0, p.stderr
+    lines = p.stdout.strip().splitlines()
+    plates = lines[1:-1]
+    assert plates and all(" axis 0" in line and "axis 90" not in line for line in plates), lines
+    assert lines[-1].startswith(f"{len(plates)} plates") and not (tmp_path / "t").exists()
+
+
+def _help(*argv) -> str:
+    import contextlib
+    import io
+
+    from platebench.bench.cli.main import build_parser
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+        build_parser(list(argv)).parse_args(list(argv))
+    return buf.getvalue()
+
+
+def test_each_study_kind_has_its_own_help():
+    import re
+
+    def flags(h):
+        return set(re.findall(r"^  (--[\w-]+)", h, re.M))
+    fb, acc, cut = (_help("study", k, "--help") for k in ("false-boundary", "accuracy", "cut-squares"))
+    common = {"--out", "--overwrite", "--seed", "--spp"}
+    assert flags(fb) >= common | {"--families", "--perturb", "--workers", "--realism", "--dry-run"}
+    assert flags(acc) >= common | {"--draws", "--corners", "--targets", "--realism"}
+    assert flags(cut) >= common | {"--distances", "--bend", "--axes", "--width"}
+    assert not flags(fb) & {"--draws", "--corners", "--distances"} and not flags(acc) & {"--families", "--perturb"}
+    assert not flags(cut) & {"--families", "--draws", "--realism", "--perturb", "--workers"}
+    top = _help("study", "--help")
+    assert all(k in top for k in ("false-boundary", "accuracy", "cut-squares")) and not flags(top) - {"--help"}
+
+
+def _fa_row(**kw) -> StudyRow:
+    from platebench.reconstruction.strategy.detectors import DETECTORS
+    base = dict(case="cylinder 60 down axis 0", family="cylinder", bend_deg=60.0, outcome="false_alarm",
+                boundary_verified=True, cures=1, views=5, detectors=dict.fromkeys(DETECTORS, False),
+                gt_visible_first_frac=1.0, gt_visible_final_frac=1.0, gt_hidden_first=False, gt_hidden_final=False,
+                gt_reachable=True, gt_verifiable=True, merged_boundary_mean_mm=0.3, merged_coverage_frac=0.9,
+                time_s=2.0, verdict="the confirmed pieces close into one loop")
+    return StudyRow(**{**base, **kw})
+
+
+def test_a_false_alarm_and_its_verdict_never_read_as_a_contradiction():
+    """A false alarm whose boundary the loop's poses confirmed (it applied a cure nothing hidden called
+    for) is said so; the verdict line never reads as a bare "boundary verified: yes"."""
+    text = _fa_row().verdict_text(with_reason=True)
+    assert "confirmed the whole boundary" in text and "1 cure that nothing hidden called for" in text
+    assert "false alarm" in text and text.endswith(": the confirmed pieces close into one loop")
+    assert "verified: yes" not in text.lower() and "verified = true" not in text.lower()
+    assert "false alarm" in _fa_row(boundary_verified=False, cures=0).verdict_text()
+    assert "false alarm" not in _fa_row(outcome="clean", cures=0).verdict_text()
+    assert "silent" in _fa_row(outcome="silent", cures=0, gt_hidden_first=True, gt_hidden_final=True).verdict_text()
+    assert "none" in _fa_row(outcome="error").verdict_text()
+
+
+def test_the_study_table_explains_its_columns():
+    from platebench.bench.cli.study import table_lines
+    from platebench.bench.run.study import StudyResult
+    lines = table_lines(StudyResult((_fa_row(),), {}, 2.0))
+    head = lines[0]
+    legend = " ".join(line for line in lines if line.startswith(("columns:", "  ")))
+    for col in ("cur", "vws", "cnt", "arr", "vpc", "occ", "end", "GT vis 1st", "final", "reach", "pairs", "bnd mm",
+                "cover", "time s"):
+        assert col in head and f"{col}:" in legend, col
+    assert "false_alarm: nothing was hidden" in legend
+    assert "  cylinder 60 down axis 0: loop's verdict (no ground truth): its poses confirmed the whole boundary, " \
+           "after 1 cure that nothing hidden called for" in "\n".join(lines)

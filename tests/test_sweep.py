@@ -267,3 +267,33 @@ def test_local_worker_killed_mid_sweep_is_retried(tmp_path):
     pids = {json.loads((out / "samples" / f"{i:04d}" / RESULT).read_text())["worker"]["pid"] for i in range(6)}
     assert killed[0] in pids and len(pids) >= 2  # the killed worker made one; the rebuilt pool the rest
     assert not stale_files(out)
+
+
+# ----------------------------------------------------------------------------- example specs shipped with the package
+def _platebench_outside_the_repo(cwd: Path, *args) -> subprocess.CompletedProcess:
+    """``platebench ARGS`` run from ``cwd`` (outside the repository), as a user of the installed package would."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    return subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_an_example_spec_runs_from_anywhere(tmp_path):
+    from platebench.bench.cli.sweep import example_names
+    repo = Path(__file__).resolve().parents[1]
+    assert example_names() == sorted(p.stem for p in (repo / "examples").glob("*.toml"))
+    r = _platebench_outside_the_repo(tmp_path, "sweep", "--example", "bend_sweep", "--dry-run")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("spec        bend_sweep (") and "samples, methods" in r.stdout
+    assert not any(tmp_path.iterdir())  # a dry run writes nothing
+    # an unknown name: one line, exit 2, naming the allowed ones
+    r = _platebench_outside_the_repo(tmp_path, "sweep", "--example", "nosuch", "--dry-run")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "nosuch" in r.stderr and all(n in r.stderr for n in example_names())
+    # exactly one of SPEC.toml and --example
+    for args in (["--dry-run"], [str(repo / "examples" / "bend_sweep.toml"), "--example", "bend_sweep", "--dry-run"]):
+        r = _platebench_outside_the_repo(tmp_path, "sweep", *args)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert "exactly one of SPEC.toml and --example" in r.stderr
+    # the names are in --help
+    r = _platebench_outside_the_repo(tmp_path, "sweep", "--help")
+    assert r.returncode == 0 and all(n in " ".join(r.stdout.split()) for n in example_names())

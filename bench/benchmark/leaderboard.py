@@ -42,7 +42,7 @@ import io
 import json
 import math
 import os
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from importlib import metadata
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -51,12 +51,14 @@ import numpy as np
 import pandas as pd
 
 from platebench.bench.benchmark.records import BEND_BINS, PRIMARY, STATUSES, BenchmarkRow, SparseRow
+from platebench.bench.benchmark.records import COLUMNS as C
 from platebench.bench.files import JSON_MAX_BYTES, TABLE_MAX_BYTES, read_capped, require_dir
 from platebench.bench.io.atomic import write_bytes, write_json, write_text
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.layout import RESULTS_CSV, RESULTS_PARQUET
 from platebench.bench.io.outputs import canonical, output_dir
 from platebench.bench.io.records import Record
+from platebench.bench.report.colours import method_colours
 from platebench.errors import UserValueError
 from platebench.tolerances import tol
 
@@ -547,8 +549,8 @@ def _effective(frame: pd.DataFrame) -> pd.DataFrame:
     out = frame.copy()
     bad = out["status"] != "ok"
     out.loc[bad, PRIMARY] = FAILED_PCT
-    out.loc[bad, "bad_0_5mm_pct"] = FAILED_PCT
-    out.loc[bad, "coverage_frac"] = 0.0
+    out.loc[bad, C.bad_0_5mm_pct] = FAILED_PCT
+    out.loc[bad, C.coverage_frac] = 0.0
     return out
 
 
@@ -557,16 +559,16 @@ def _mean(values) -> float:
     return math.fsum(v) / len(v)
 
 
-def _rank_order(stats: list[dict]) -> list[dict]:
-    """The ranking rule (module doc) on dicts with "primary", "bad_0_5mm_pct" and "method"."""
-    by_primary = sorted(stats, key=lambda s: (s["primary"], s["bad_0_5mm_pct"], s["method"]))
-    groups: list[list[dict]] = []
+def _rank_order(stats: list["MethodRank"]) -> list["MethodRank"]:
+    """The ranking rule (module doc) on unranked ``MethodRank`` records."""
+    by_primary = sorted(stats, key=lambda s: (s.primary, s.bad_0_5mm_pct, s.method))
+    groups: list[list[MethodRank]] = []
     for s in by_primary:
-        if groups and s["primary"] - groups[-1][-1]["primary"] <= tol.rank_tie_pct:
+        if groups and s.primary - groups[-1][-1].primary <= tol.rank_tie_pct:
             groups[-1].append(s)
         else:
             groups.append([s])
-    return [s for g in groups for s in sorted(g, key=lambda s: (s["bad_0_5mm_pct"], s["method"]))]
+    return [s for g in groups for s in sorted(g, key=lambda s: (s.bad_0_5mm_pct, s.method))]
 
 
 def ranking(table: ResultsTable) -> tuple[MethodRank, ...]:
@@ -576,13 +578,13 @@ def ranking(table: ResultsTable) -> tuple[MethodRank, ...]:
     for m in table.methods:
         g = eff[eff["method"] == m]
         ok = g[g["status"] == "ok"]
-        rms = ok["depth_rms_mm"].dropna()
-        stats.append({"method": m, "primary": _mean(g[PRIMARY]), "coverage_frac": _mean(g["coverage_frac"]),
-                      "bad_0_5mm_pct": _mean(g["bad_0_5mm_pct"]),
-                      "median_depth_rms_mm": float(np.median(rms)) if len(rms) else None, "n_samples": len(g),
-                      "n_ok": len(ok), "n_failed": int((g["status"] == "failed").sum()),
-                      "n_missing": int((g["status"] == "missing").sum())})
-    return tuple(MethodRank(rank=i + 1, **s) for i, s in enumerate(_rank_order(stats)))
+        rms = ok[C.depth_rms_mm].dropna()
+        stats.append(MethodRank(rank=0, method=m, primary=_mean(g[PRIMARY]), coverage_frac=_mean(g[C.coverage_frac]),
+                                bad_0_5mm_pct=_mean(g[C.bad_0_5mm_pct]),
+                                median_depth_rms_mm=float(np.median(rms)) if len(rms) else None, n_samples=len(g),
+                                n_ok=len(ok), n_failed=int((g["status"] == "failed").sum()),
+                                n_missing=int((g["status"] == "missing").sum())))
+    return tuple(replace(s, rank=i + 1) for i, s in enumerate(_rank_order(stats)))
 
 
 def _group_text(v) -> str:
@@ -614,28 +616,11 @@ def breakdowns(table: ResultsTable, by: Sequence[str] = BREAKDOWNS) -> tuple[Bre
                 s = sub[sub["method"] == m]
                 if len(s):
                     out.append(BreakdownRow(method=m, by=b, group=g, primary=_mean(s[PRIMARY]),
-                                            coverage_frac=_mean(s["coverage_frac"]), n=len(s)))
+                                            coverage_frac=_mean(s[C.coverage_frac]), n=len(s)))
     return tuple(out)
 
 
 # ----------------------------------------------------------------------------- plots
-def method_colours(methods: Iterable[str]) -> dict[str, str]:
-    """One colour (``#rrggbb``) per method, the same whatever the order the methods come in (they
-    are coloured in sorted order): tab10 up to 10 methods, tab20 up to 20, else hues around the
-    circle. Every plot of one leaderboard takes its colours from one such map."""
-    from matplotlib import colormaps  # noqa: PLC0415
-    from matplotlib.colors import to_hex  # noqa: PLC0415
-    names = sorted(set(methods))
-    n = len(names)
-    if n <= 10:
-        cs = [colormaps["tab10"](i) for i in range(n)]
-    elif n <= 20:
-        cs = [colormaps["tab20"](i) for i in range(n)]
-    else:
-        cs = [colormaps["hsv"](i / n) for i in range(n)]
-    return {m: to_hex(c) for m, c in zip(names, cs)}
-
-
 def _grid(n: int, w: float, h: float, legend_in: float = 0.0, per_row: int = 3):
     """A figure of ``n`` panels of ``w`` x ``h`` inches, ``per_row`` to a row, ``legend_in`` inches
     on the right kept for a legend; returns (figure, the n axes)."""

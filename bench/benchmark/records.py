@@ -13,11 +13,12 @@ None in a file (NaN in a pandas frame). Definitions: ``docs/benchmark.md`` and
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from types import SimpleNamespace
 
 from platebench.bench.io.records import Record
 
-__all__ = ["BenchmarkRow", "SparseRow", "STATUSES", "PRIMARY", "BEND_BINS", "bend_bin"]
+__all__ = ["BenchmarkRow", "SparseRow", "STATUSES", "PRIMARY", "BEND_BINS", "bend_bin", "COLUMNS"]
 
 STATUSES = ("ok", "failed", "missing")  # ok: an output was scored; failed: the method raised or its
 # output could not be read; missing: no output for the sample. Failed and missing rows count every
@@ -90,3 +91,8 @@ class SparseRow(Record):
     dist_rms_mm: float | None  # RMS distance of the points to the true surface
     dist_max_mm: float | None  # largest distance of a point to the true surface
     depth_rms_mm: float | None  # RMS z-depth error in the left camera at the points (None: not known)
+
+
+# The results table's column names as attributes (``COLUMNS.coverage_frac``): a misspelt one is an
+# AttributeError where a misspelt string would be a missing column.
+COLUMNS = SimpleNamespace(**{f.name: f.name for f in fields(BenchmarkRow)})

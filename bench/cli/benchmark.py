@@ -207,7 +207,7 @@ def _outputs(items) -> list:
 def run_score(args) -> int:
     from platebench.bench.benchmark.leaderboard import ranking, write_results  # noqa: PLC0415
     from platebench.bench.benchmark.score import score_benchmark  # noqa: PLC0415
-    from platebench.bench.benchmark.verify import check_built  # noqa: PLC0415
+    from platebench.bench.benchmark.verify import NotTheSplitError, verify_benchmark  # noqa: PLC0415
     from platebench.bench.io.outputs import check_output  # noqa: PLC0415
     from platebench.bench.run.methods import get_method  # noqa: PLC0415
 
@@ -225,17 +225,28 @@ def run_score(args) -> int:
     split = _split_of(args.dataset, args.split)
     check_output(args.out, "benchmark results", overwrite=args.overwrite,
                  inputs=[args.dataset, *[o.path for o in outputs]])  # before any work; again when written
-    check_built(args.dataset, split)
+    copy = verify_benchmark(args.dataset, split)  # whole and intact, else refused (NotTheSplitError)
+    if copy.truth_differ or copy.images_differ:
+        raise NotTheSplitError(f"{args.dataset} is not {split.name}: {len(copy.truth_differ)} ground-truth files and "
+                               f"{len(copy.images_differ)} images differ from the published checksums (platebench "
+                               "benchmark verify lists them)")
     summary = score_benchmark(args.dataset, split, methods=methods, outputs=outputs, workers=args.workers,
                               time_limit_s=args.method_time_limit_s, progress=args.progress,
                               say=lambda m: print(m, file=sys.stderr))
     sources = {m: "run by the bench" for m in methods} | {o.name: f"outputs folder {o.path.name}" for o in outputs}
     table = write_results(args.out, summary.rows, summary.sparse, split.name, split.sha256, methods=list(sources),
                           overwrite=args.overwrite, sources=sources, leaderboard=True,
-                          inputs=[args.dataset, *[o.path for o in outputs]])
+                          inputs=[args.dataset, *[o.path for o in outputs]],
+                          extra={"copy": {"compared_with_published_checksums": copy.checked_truth,
+                                          "renderer_variant": copy.variant,
+                                          "images_byte_for_byte": copy.images_bytes_equal,
+                                          "images_within_render_noise": copy.images_within_noise}})
     ranks = ranking(table)
     print(f"split       {split.name}: {len(split.samples)} samples x {len(sources)} method(s), "
           f"{summary.wall_s:.0f} s")
+    print("copy        " + ("the published split (ground truth byte for byte" + (
+        ")" if not copy.images_within_noise else f"; {copy.images_within_noise} images within render noise)")
+        if copy.checked_truth else "whole and intact; no published checksums to compare with"))
     print(f"{'rank':<5} {'method':<24} {'bad 2 mm %':>10} {'coverage':>9} {'ok':>5} {'failed':>7} {'missing':>8}")
     for r in ranks:
         print(f"{r.rank:<5} {r.method:<24} {r.primary:>10.2f} {r.coverage_frac:>9.3f} {r.n_ok:>5} {r.n_failed:>7} "

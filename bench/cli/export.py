@@ -65,6 +65,10 @@ def add_parser(sub) -> None:
     p.add_argument("--allow-incomplete", action="store_true",
                    help="export the samples an incomplete sweep dataset holds (interrupted or still running), with "
                         "a note saying how many of how many; without it such a dataset is refused")
+    p.add_argument("--include-unrectified", action="store_true",
+                   help="also export samples whose image pair is no rectified pair (taken by a robot, or through a "
+                        "distorting lens: the realism presets), marked 'unrectified' in export.json: for them "
+                        "Z = f B / (d + doffs) holds only approximately; without it they are left out, with a note")
     p.add_argument("--overwrite", action="store_true", help="replace a DIR 'platebench export' wrote (nothing else "
                    "is replaced)")
     p.set_defaults(run=run)
@@ -80,7 +84,8 @@ def run(args) -> int:
             pbar.update(1)
             pbar.set_postfix_str(msg)
         summary = export_dataset(args.dataset, args.out, args.fmt, images=args.images, shift=shift,
-                                 allow_incomplete=args.allow_incomplete, overwrite=args.overwrite, progress=step)
+                                 allow_incomplete=args.allow_incomplete, include_unrectified=args.include_unrectified,
+                                 overwrite=args.overwrite, progress=step)
     for s in summary.samples:
         print(f"{s.id:24s} {s.width}x{s.height}  shift {s.shift_px} px, disparity {s.vmin} to "
               f"{s.vmax} px, doffs {s.doffs_px:g} px" + (f"; resampled: {s.resampled}" if s.resampled else ""))

@@ -1,5 +1,6 @@
-"""``platebench info``: which libLLVM and Mitsuba variant this machine uses, and the installed package
-versions against the lock file."""
+"""``platebench info``: which libLLVM and Mitsuba variant this machine uses, and the versions of the
+packages Python imports against the lock file (``bench.io.versions``: a copy whose metadata shadows the
+imported one is an error of ``--check-lock``)."""
 from __future__ import annotations
 
 import json
@@ -11,7 +12,8 @@ HELP = "show the renderer set-up (libLLVM, Mitsuba variant) and versions vs the 
 
 
 class LockMismatch(PlateBenchError):
-    """Installed packages differ from the lock file (``info --check-lock``)."""
+    """The packages Python imports differ from the lock file, or a stray copy shadows one
+    (``info --check-lock``)."""
 
 
 def add_parser(sub) -> None:
@@ -20,7 +22,8 @@ def add_parser(sub) -> None:
                                    "picks, package versions, and every package of requirements.lock against the "
                                    "installed version (JSON on stdout; differences flagged on stderr).")
     p.add_argument("--check-lock", action="store_true",
-                   help="exit with status 2 (one line) if an installed package differs from requirements.lock")
+                   help="exit with status 2 (one line) if a package Python imports differs from requirements.lock, or "
+                        "if another copy's metadata shadows it on the Python path")
     p.set_defaults(run=run)
 
 
@@ -34,11 +37,13 @@ def run(args) -> int:
         print("platebench: note: no requirements.lock beside this installation: versions not checked",
               file=sys.stderr)
         return 0
-    for name, locked, have, status in lock.problems:
-        print(f"platebench: lock: {name} {status}: locked {locked}, installed {have or 'none'}", file=sys.stderr)
+    lines = lock.problem_lines()
+    for line in lines:
+        print(f"platebench: lock: {line}", file=sys.stderr)
     if lock.problems:
-        msg = (f"{len(lock.problems)} of {len(lock.rows)} packages differ from {lock.path}: reinstall with "
-               f"'pip install -r {lock.path.name}' (see README, Set-up)")
+        msg = (f"{len(lock.problems)} of {len(lock.rows)} packages differ from {lock.path} ({lines[0]}"
+               f"{'; ...' if len(lines) > 1 else ''}): reinstall with 'pip install -r {lock.path.name}' and take "
+               "stray copies off the Python path (see README, Set-up)")
         if args.check_lock:
             raise LockMismatch(msg)
         print(f"platebench: note: {msg}", file=sys.stderr)

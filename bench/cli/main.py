@@ -12,6 +12,12 @@ Exit status, the same for every command, so that a script can trust it:
   unreadable or unwritable) print one line ``platebench: error: ...``; nothing half-written is
   left behind. argparse's own usage errors exit 2 as well. PLATEBENCH_DEBUG=1 shows the traceback
   of user errors too. Anything else is a bug and keeps its traceback (status 1, Python's).
+* An argument that is not UTF-8 text (a file name's bytes that decode to no characters) is refused
+  with status 2 before any work: every output records its names as UTF-8 text.
+* Printing never changes the status: text the terminal's encoding cannot show is printed with
+  backslash escapes (``\\xe9``), and when standard output cannot be written (a full disk, a closed
+  pipe) the command's outputs are still completed and kept, its status stays what the work gave, and
+  one line ``platebench: note: ...`` on stderr says that its summary was not printed.
 * 130 and 143: interrupted by Ctrl-C or terminated by SIGTERM (``bench.interrupts``: the handlers
   are installed before any command module is imported, and a signal swallowed by a library on the
   way still sets the status); completed outputs are kept, partial ones removed.
@@ -100,15 +106,102 @@ def _interrupted(e: KeyboardInterrupt | None) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command. ``argv`` None: this process's command line (the handlers of ``bench.interrupts`` stay
-    to its very end: ``finish``); a list: a call from Python, which gets its own handlers back."""
+    to its very end: ``finish``); a list: a call from Python, which gets its own handlers and its own
+    ``sys.stdout`` back. Printing never fails the command (module doc, ``_GuardedStdout``)."""
     whole_process = argv is None
     interrupts.install(whole_process)  # first: a signal at any later moment ends the command with 130 / 143
+    if whole_process:
+        _escape_unprintable(sys.stderr)
+    previous = sys.stdout
+    guard = None if previous is None else _GuardedStdout(previous, whole_process)  # None: no console at all
+    if guard is not None:
+        sys.stdout = guard
     try:
-        return _run(sys.argv[1:] if argv is None else list(argv),
-                    interrupts.finish if whole_process else (lambda status: status))
+        status = _run(sys.argv[1:] if argv is None else list(argv),
+                      interrupts.finish if whole_process else (lambda status: status))
+        if guard is not None:
+            guard.flush()
+        if guard is not None and guard.failure is not None:
+            why = guard.failure.strerror or type(guard.failure).__name__
+            print(f"platebench: note: the summary was not printed (standard output: {why}); the command's "
+                  "outputs are complete and kept", file=sys.stderr)
+        return status
     finally:
         if not whole_process:
+            sys.stdout = previous
             interrupts.uninstall()
+
+
+def _escape_unprintable(stream) -> None:
+    """``stream`` (a text stream) writes characters its encoding cannot hold as backslash escapes, never
+    raising UnicodeEncodeError (a name like 'sé' printed under ``LC_ALL=C PYTHONIOENCODING=ascii``)."""
+    reconfigure = getattr(stream, "reconfigure", None)
+    if reconfigure is not None:
+        try:
+            reconfigure(errors="backslashreplace")
+        except (ValueError, OSError, TypeError):  # a stream that cannot change its error handler keeps it
+            pass
+
+
+class _GuardedStdout:
+    """``sys.stdout`` while a command runs: characters the stream's encoding cannot hold are written as
+    backslash escapes, and the first write or flush that fails (``OSError``: a full disk, a closed pipe)
+    is kept in ``failure`` and never raised; nothing is written after it. In the whole process the
+    file descriptor is then pointed at the null device, so that the interpreter's own flush at exit
+    does not fail either. Every other attribute is the stream's."""
+
+    def __init__(self, stream, whole_process: bool):
+        self._stream = stream
+        self._whole_process = whole_process
+        self.failure: OSError | None = None
+        if whole_process:
+            _escape_unprintable(stream)
+
+    def write(self, text: str) -> int:
+        if self.failure is None:
+            try:
+                return self._stream.write(text)
+            except UnicodeEncodeError:  # a stream whose error handler could not be changed
+                enc = getattr(self._stream, "encoding", None) or "utf-8"
+                return self.write(text.encode(enc, "backslashreplace").decode(enc))
+            except OSError as e:
+                self._failed(e)
+        return len(text)
+
+    def flush(self) -> None:
+        if self.failure is None:
+            try:
+                self._stream.flush()
+            except OSError as e:
+                self._failed(e)
+
+    def _failed(self, e: OSError) -> None:
+        self.failure = e
+        if not self._whole_process:
+            return
+        try:
+            fd = self._stream.fileno()
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, fd)
+            os.close(null)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _not_utf8_argument(argv: list[str]) -> str | None:
+    """The one-line refusal of the first argument that is not UTF-8 text (bytes passed through
+    ``os.fsdecode`` as lone surrogates), else None."""
+    for arg in argv:
+        try:
+            arg.encode("utf-8")
+        except UnicodeEncodeError:
+            shown = os.fsencode(arg).decode("utf-8", "backslashreplace")
+            return (f"argument '{shown}' is not UTF-8 text: allowed names and values are UTF-8 characters "
+                    "(every output records them as UTF-8): rename the file or folder")
+    return None
 
 
 def _working_directory_error() -> str | None:
@@ -125,9 +218,9 @@ def _working_directory_error() -> str | None:
 
 def _run(argv: list[str], done) -> int:
     """The command's exit status, passed through ``done`` as soon as it is known."""
-    cwd_error = _working_directory_error()
-    if cwd_error is not None:
-        print(f"platebench: error: {cwd_error}", file=sys.stderr)
+    refusal = _working_directory_error() or _not_utf8_argument(argv)
+    if refusal is not None:
+        print(f"platebench: error: {refusal}", file=sys.stderr)
         return done(EXIT_REFUSED)
     try:
         parser = build_parser(argv)

@@ -48,7 +48,7 @@ def add_sample_flags(p: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args):
-    cfg = load_config(args.config)
+    cfg = load_config(args.config, args.width, args.height)  # the lens checked at the size asked for
     if getattr(args, "camera", None) and getattr(args, "realism", None):
         raise UserValueError("--camera and --realism both choose the camera: give one (a realism preset names its "
                              "camera)")
@@ -101,7 +101,7 @@ def run(args) -> int:
         from platebench.bench.run.render import render_sample  # noqa: PLC0415
 
         with bar(8 if sample_moves(cfg) else 7, "render") as pbar:
-            sample, _ = render_sample(cfg, progress=step_callback(pbar))
+            sample, _ = render_sample(cfg, progress=step_callback(pbar), on_pass=pass_postfix(pbar))
             pbar.set_postfix_str("write")
             write_sample(stage, sample, into=True)
             pbar.update(pbar.total - pbar.n)
@@ -122,6 +122,15 @@ def run(args) -> int:
     print(f"time        {t['total_s']:.1f} s (renders {sum(v for k, v in t.items() if k.startswith('render_')):.1f} s, "
           f"ground truth {t['ground_truth_s']:.1f} s)")
     return 0
+
+
+def pass_postfix(pbar):
+    """An ``on_pass(image_name, done_spp, spp)`` callback (``bench.run.render.render_sample``) that shows a
+    render split into passes advancing on ``pbar``'s postfix."""
+    def on_pass(name: str, done: int, spp: int) -> None:
+        if done < spp:
+            pbar.set_postfix_str(f"render {name} {done}/{spp} spp")
+    return on_pass
 
 
 def refuse_robot_errors(cfg, command: str, allow_estimates: bool = False) -> None:

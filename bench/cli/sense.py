@@ -107,10 +107,11 @@ def step_lines(s: SensingResult) -> list[str]:
 
 def summary_lines(s: SensingResult) -> list[str]:
     """The verdict, the detectors, the outcome, the counts and the time."""
+    from platebench.bench.io.records import loop_verdict_text  # noqa: PLC0415
     from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
 
     f = s.final
-    lines = [f"verdict: boundary_verified = {str(f.boundary_verified).lower()}: {f.verdict_reason}"]
+    lines = [loop_verdict_text(f.outcome, f.boundary_verified, s.cures, f.verdict_reason)]
     for u in f.unverified_parts[:6]:
         lines.append(f"  unverified: {u.get('what', u)}")
     if len(f.unverified_parts) > 6:

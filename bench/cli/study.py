@@ -1,5 +1,8 @@
-"""``platebench study false-boundary``: the sensing loop on plates of every family; outcome classes,
-each detector's precision and recall, the targets; the smallest hiding bend and the L formula."""
+"""``platebench study KIND``: one sub-command per study, each with only its own flags (``args.which``
+names the kind). ``false-boundary``: the sensing loop on plates of every family; outcome classes, each
+detector's precision and recall, the targets; the smallest hiding bend and the L formula.
+``accuracy``: the paper's accuracy test under a real rig's errors, with an error budget.
+``cut-squares``: the paper's pipeline on oblique bends, cut squares set apart."""
 from __future__ import annotations
 
 import sys
@@ -23,70 +26,96 @@ DEFAULT_WORKERS = 2  # plates at once (study --workers)
 MAX_WORKERS = 64
 
 
-def add_parser(sub) -> None:
-    from platebench.bench.config.realism import REALISM_PRESETS, SOURCES  # noqa: PLC0415
-    from platebench.bench.config.sensing import DEFAULT_BENDS_DEG, REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: PLC0415
+FALSE_BOUNDARY_TEXT = ("the sensing loop (stages 1-3, verification views, cures) on cylinders convex and concave "
+                       "about the --axes at the --bend angles, folds, twists, a dome and a bowl, dents, a second "
+                       "aspect ratio and a second distance (61 plates by default). Reports each plate's outcome "
+                       "class, each detector's precision and recall against ground truth (per bend and per "
+                       "family), the targets, the smallest hiding bend and the L formula. Writes study.json and "
+                       "study.csv")
+ACCURACY_TEXT = ("the paper's accuracy test (V-D): passive stereo on the corners of a square of the hand/eye target "
+                 "block 0.40 m away, errors in the block's frame (paper: depth within 2 mm, x/y within 1 mm), as a "
+                 "Monte Carlo over --draws draws of every error source of --realism (the camera's lens distortion, "
+                 "non-square pixels, defocus, line jitter and noise; the robot's repeatability and accuracy; the "
+                 "hand/eye and intrinsics estimates), and the same on the reference plate's 16 square centres "
+                 "(world frame). Each trial's worst corner is what the paper reports; the median over draws and its "
+                 "spread are compared with it. The error budget runs no source, each source alone, all but one and "
+                 "all. Writes accuracy.json (every trial and the statistics), accuracy.csv (one row per trial: "
+                 "realism, draw seed, errors) and accuracy.png")
+CUT_SQUARES_TEXT = ("the paper's pipeline on oblique bends (--bend, --axes, --distances; default 40,60,90,120 deg "
+                    "about 20,30,45,60,75 deg at 0.40,0.45,0.50 m), the centres of cut squares set apart and kept, "
+                    "each scored against the paper's bound. Writes cut_study.json")
 
+
+def add_parser(sub) -> None:
+    """``study`` and one sub-command per study kind (``false-boundary``, ``accuracy``, ``cut-squares``),
+    each with only its own flags; ``args.which`` names the kind."""
+    from platebench.bench.config.sensing import DEFAULT_BENDS_DEG  # noqa: PLC0415
+
+    bends = ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG)
     p = sub.add_parser("study", help=HELP,
-                       description="false-boundary: the sensing loop (stages 1-3, verification views, cures) on "
-                                   "cylinders convex and concave about axes 0/30/60/90 degrees at the --bend angles, "
-                                   "folds, twists, a dome and a bowl, dents, a second aspect ratio and a second "
-                                   "distance (61 plates by default). Reports each plate's outcome class, each "
-                                   "detector's precision and recall against ground truth (per bend and per family), "
-                                   "the targets, the smallest hiding bend and the L formula. Writes study.json and "
-                                   "study.csv. "
-                                   "accuracy: the paper's accuracy test (V-D): passive stereo on the corners of a "
-                                   "square of the hand/eye target block 0.40 m away, errors in the block's frame "
-                                   "(paper: depth within 2 mm, x/y within 1 mm), as a Monte Carlo over --draws draws "
-                                   "of every error source of --realism (the camera's lens distortion, non-square "
-                                   "pixels, defocus, line jitter and noise; the robot's repeatability and accuracy; "
-                                   "the hand/eye and intrinsics estimates), and the same on the "
-                                   "reference plate's 16 square centres (world frame). Each trial's worst corner is "
-                                   "what the paper reports; the median over draws and its spread are compared with "
-                                   "it. The error budget runs no source, each source alone, all but one and all. "
-                                   "Writes accuracy.json (every trial and the statistics), accuracy.csv (one row "
-                                   "per trial: realism, draw seed, errors) and accuracy.png.",
-                       epilog="error sources: " + "; ".join(f"{k}: {v}" for k, v in SOURCES.items())
-                              + ". Sources and magnitudes, each with its citation: bench/config/hardware_camera.py, "
-                                "bench/config/hardware_robot.py. README: what each source costs in accuracy.")
-    p.add_argument("which", choices=["false-boundary", "accuracy", "cut-squares"],
-                   help="the study to run; cut-squares: the paper's pipeline on oblique bends (--bend, --axes, "
-                        "--distances; default 40,60,90,120 deg about 20,30,45,60,75 deg at 0.40,0.45,0.50 m), the "
-                        "centres of cut squares set apart and kept, each scored against the paper's bound")
+                       description="Three studies, each a sub-command with its own flags ('platebench study KIND "
+                                   "--help'). false-boundary: " + FALSE_BOUNDARY_TEXT + f" (--bend default {bends})."
+                                   " accuracy: " + ACCURACY_TEXT + ". cut-squares: " + CUT_SQUARES_TEXT + ".")
+    kinds = p.add_subparsers(dest="which", metavar="KIND", required=True, help="the study to run")
+    _add_false_boundary(kinds, bends)
+    _add_accuracy(kinds)
+    _add_cut_squares(kinds)
+    p.set_defaults(run=run)
+
+
+def _add_output_flags(p, files: str) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
-                   help="output directory (false-boundary: study.json, study.csv and one folder per plate; "
-                        "accuracy: accuracy.json, accuracy.csv, accuracy.png; cut-squares: cut_study.json); created, must not exist unless "
-                        "--overwrite or --resume")
+                   help=f"output directory ({files}); created, must not exist unless --overwrite"
+                        + (" or --resume" if "study.json" in files else ""))
     p.add_argument("--overwrite", action="store_true", help="replace a study 'platebench study' wrote (nothing else "
                    "is replaced)")
-    p.add_argument("--bend", help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default "
-                        + ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG) + "; allowed 0 to 350)")
+
+
+def _add_seed(p) -> None:
+    p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
+
+
+def _add_false_boundary(kinds, bends: str) -> None:
+    from platebench.bench.config.realism import REALISM_PRESETS  # noqa: PLC0415
+    from platebench.bench.config.sensing import REFERENCE_ASPECT, STUDY_AXES_DEG  # noqa: PLC0415
+
+    p = kinds.add_parser("false-boundary", help=f"the sensing loop on plates of every family (--bend default {bends})",
+                         description=FALSE_BOUNDARY_TEXT + ".",
+                         epilog="Columns of the printed table: the legend under it. Every flag that chooses plates "
+                                "(--bend, --axes, --families) restricts every set the study builds, the second "
+                                "aspect ratio's and the second distance's plates too.")
+    _add_output_flags(p, "study.json, study.csv and one folder per plate")
+    p.add_argument("--bend", help="cylinder bend angles in DEGREES, START:STOP:STEP or a,b,c (default " + bends
+                   + "; allowed 0 to 350)")
     p.add_argument("--families", default="all", help="comma list of deformation families to run (flat, cylinder, "
                    "fold, twist, dome, dent, ...: every key of plates.spec.FAMILIES; a family outside the default "
                    "set adds its own example plates) or 'all' (default: the 61 plates)")
     p.add_argument("--axes",
                    help="the cylinders' bend axes in DEGREES from the plate's width direction, a,b,c or "
                         "START:STOP:STEP (default " + ",".join(f"{a:g}" for a in STUDY_AXES_DEG)
-                        + "; allowed 0 to 179.9)")
+                        + "; allowed 0 to 179.9); the second aspect ratio's and the second distance's cylinders "
+                          "take the first and the last of them, unless --extra-axes")
+    p.add_argument("--extra-axes", metavar="FIRST,LAST",
+                   help="the bend axes in DEGREES of the second aspect ratio's and the second distance's cylinders "
+                        "(two values, allowed 0 to 179.9; default the first and the last of --axes)")
     p.add_argument("--aspect", type=float, default=REFERENCE_ASPECT,
                    help=f"length / width of the plates at the reference plate's area (default {REFERENCE_ASPECT:.3f}, "
                         "the paper's plate; allowed 0.25 to 8); the second aspect ratio's and the second "
                         "distance's few plates keep theirs")
-    p.add_argument("--distances", help="cut-squares: rig distances in METRES, a,b,c (default 0.40,0.45,0.50; "
-                   "allowed 0.2 to 2)")
     p.add_argument("--limit", type=int, help="run only the first N plates of the set")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the plates the flags select (one a line) and their count, and stop: nothing is "
+                        "rendered or written")
     p.add_argument("--grid", metavar="ROWSxCOLS@PX",
                    help="stage 3's projected square grid (default: the paper's 16 squares, as sense projects them; "
                         "4x4@40 spaces their rows twice as far)")
     add_verify_grid_flag(p)
     p.add_argument("--l-bends", default="", help="convex bends (deg) for the L-formula check (default none; "
                    "e.g. 120,150,165,172)")
-    p.add_argument("--width", type=int, help="false-boundary: image width in px (default 640, the height 3/4 of it; "
-                   "f scales with it; under --realism the camera's own size, its field of view and aspect kept at "
-                   "another width); accuracy: the realism's camera sets it")
-    p.add_argument("--spp", type=int, help="samples per pixel (default 2; accuracy 16: the corners are fitted to "
-                   "edges, and the renderer's Monte Carlo noise at the edge pixels would add to the camera's)")
-    p.add_argument("--seed", type=int, default=0, help="base render seed (default 0; allowed an integer 0 to 2^31-1)")
+    p.add_argument("--width", type=int, help="image width in px (default 640, the height 3/4 of it; f scales with "
+                   "it; under --realism the camera's own size, its field of view and aspect kept at another width)")
+    p.add_argument("--spp", type=int, help="samples per pixel (default 2)")
+    _add_seed(p)
     p.add_argument("--resume", action="store_true",
                    help="finish an interrupted study: the plates it finished (kept in OUT.journal.jsonl beside "
                         "OUT, one line each as they finish) are not run again; the other settings must be the same")
@@ -100,33 +129,74 @@ def add_parser(sub) -> None:
                         "whose axis would leave 0-180 degrees keeps it, as turning it would mirror the fold), working "
                         f"distances changed by DISTANCE_MM (allowed -{MAX_PERTURB_MM:g} to {MAX_PERTURB_MM:g}); "
                         "default 0,0 (e.g. --perturb 1,5; write --perturb=-1,-5 when the first is negative)")
-    a = p.add_argument_group("accuracy study")
-    a.add_argument("--realism", choices=tuple(REALISM_PRESETS), default=None,
-                   help="the error model (default 1995 for accuracy: the paper's PULNiX camera moved by a PUMA 560; "
-                        "modern: a rigid head on a current arm; ideal: none). false-boundary: default ideal; under a "
-                        "preset each plate's poses are taken by the robot with its errors (one draw per plate: --seed "
-                        "plus the CRC-32 of its name, recorded in each row) and the loop measures and merges through "
-                        "the commanded poses and the estimated hand/eye and calibration")
-    a.add_argument("--realism-scale", default=None, metavar="SOURCE=F[,SOURCE=F]",
-                   help="accuracy and false-boundary: scale error sources of --realism from their sourced "
-                        "magnitude (1 = as sourced; allowed 0 to the realism module's maximum), e.g. "
-                        "robot_accuracy=0.5 for an arm twice as accurate as the figure the preset cites; recorded in "
-                        "accuracy.json's and study.json's settings")
-    a.add_argument("--draws", type=int, default=30,
+    p.add_argument("--realism", choices=tuple(REALISM_PRESETS), default=None,
+                   help="the error model (default ideal: none; 1995: the paper's PULNiX camera moved by a PUMA 560; "
+                        "modern: a rigid head on a current arm); under a preset each plate's poses are taken by the "
+                        "robot with its errors (one draw per plate: --seed plus the CRC-32 of its name, recorded in "
+                        "each row) and the loop measures and merges through the commanded poses and the estimated "
+                        "hand/eye and calibration")
+    _add_realism_scale(p, "study.json's")
+
+
+def _add_realism_scale(p, where: str) -> None:
+    p.add_argument("--realism-scale", default=None, metavar="SOURCE=F[,SOURCE=F]",
+                   help="scale error sources of --realism from their sourced magnitude (1 = as sourced; allowed 0 to "
+                        "the realism module's maximum), e.g. robot_accuracy=0.5 for an arm twice as accurate as the "
+                        f"figure the preset cites; recorded in {where} settings")
+
+
+def _add_accuracy(kinds) -> None:
+    from platebench.bench.config.realism import REALISM_PRESETS, SOURCES  # noqa: PLC0415
+
+    p = kinds.add_parser("accuracy", help="the paper's accuracy test under a real rig's errors, with an error budget",
+                         description=ACCURACY_TEXT + ".",
+                         epilog="error sources: " + "; ".join(f"{k}: {v}" for k, v in SOURCES.items())
+                                + ". Sources and magnitudes, each with its citation: bench/config/hardware_camera.py, "
+                                  "bench/config/hardware_robot.py. README: what each source costs in accuracy.")
+    _add_output_flags(p, "accuracy.json, accuracy.csv, accuracy.png")
+    p.add_argument("--realism", choices=tuple(REALISM_PRESETS), default=None,
+                   help="the error model (default 1995: the paper's PULNiX camera moved by a PUMA 560; modern: a "
+                        "rigid head on a current arm; ideal: none); the realism's camera sets the image size")
+    _add_realism_scale(p, "accuracy.json's")
+    p.add_argument("--draws", type=int, default=30,
                    help="Monte Carlo draws per budget row (default 30; allowed 1 to 1000): each draws new robot "
                         "errors, a new hand/eye and intrinsics estimate, new line jitter and sensor noise; draw k "
                         "uses seed --seed + k in every row, so rows compare like with like")
-    a.add_argument("--targets", default="block",
+    p.add_argument("--targets", default="block",
                    help="block (the target block's square, the paper's test; default), plate (the reference "
                         "plate's 16 square centres, four renders a draw: about twice the time) or block,plate")
-    a.add_argument("--no-budget", action="store_true",
+    p.add_argument("--no-budget", action="store_true",
                    help="run only every source on (the budget runs 2N+2 rows for N sources)")
-    a.add_argument("--corners", choices=("edges", "pixels"), default="edges",
+    p.add_argument("--corners", choices=("edges", "pixels"), default="edges",
                    help="how the block's corners are located: edges (default), the intersections of lines "
                         "fitted to the square's edges, sub-pixel; pixels, the vertices of the polygon fitted to "
                         "its binary outline, on the pixel grid, as the paper's contour following and corner "
                         "detection found them (its [11], no sub-pixel step)")
-    p.set_defaults(run=run)
+    p.add_argument("--spp", type=int, help=f"samples per pixel (default {ACCURACY_SPP}: the corners are fitted to "
+                   "edges, and the renderer's Monte Carlo noise at the edge pixels would add to the camera's)")
+    _add_seed(p)
+
+
+def _add_cut_squares(kinds) -> None:
+    import argparse  # noqa: PLC0415
+
+    p = kinds.add_parser("cut-squares", help="the paper's pipeline on oblique bends, cut squares set apart",
+                         description=CUT_SQUARES_TEXT + ".")
+    _add_output_flags(p, "cut_study.json")
+    p.add_argument("--bend", help="bend angles in DEGREES, START:STOP:STEP or a,b,c (default 40,60,90,120; allowed "
+                   "0 to 350)")
+    p.add_argument("--axes", help="bend axes in DEGREES from the plate's width direction, a,b,c or START:STOP:STEP "
+                   "(default 20,30,45,60,75; allowed 0 to 179.9)")
+    p.add_argument("--distances", help="rig distances in METRES, a,b,c (default 0.40,0.45,0.50; allowed 0.2 to 2)")
+    p.add_argument("--grid", metavar="ROWSxCOLS@PX",
+                   help="the projected square grid (default: the paper's 16 squares)")
+    p.add_argument("--width", type=int, help=f"image width in px (default {DEFAULT_WIDTH}, the height 3/4 of it; "
+                   "f scales with it)")
+    p.add_argument("--spp", type=int, help="samples per pixel (default 2)")
+    _add_seed(p)
+    # refused with their reason (the study places its cameras itself and has no error source); not listed
+    p.add_argument("--realism", default=None, help=argparse.SUPPRESS)
+    p.add_argument("--realism-scale", default=None, help=argparse.SUPPRESS)
 
 
 def run(args) -> int:
@@ -180,10 +250,19 @@ def run(args) -> int:
     from platebench.bench.run.study import StudyRealism, perturbed_cases, study_cases, with_realism_seeds  # noqa: PLC0415
     from platebench.bench.run.study import write_study  # noqa: PLC0415
 
-    cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect)
+    extra = None
+    if args.extra_axes is not None:
+        extra = parse_range_text(args.extra_axes, "--extra-axes", 0.0, 179.9, max_count=2)
+        if len(extra) != 2:
+            raise UserValueError(f"--extra-axes = {args.extra_axes!r}: give two axes, FIRST,LAST (degrees)")
+    cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect, extra)
     if args.limit is not None:
         cases = cases[:args.limit]
     cases = perturbed_cases(cases, axis_deg, distance_mm)
+    if args.dry_run:
+        for line in plate_lines(cases):
+            print(line)
+        return 0
     base, options_extra = study_base(args, render)
     if not base.realism.is_ideal:
         cases = with_realism_seeds(cases, args.seed)
@@ -464,6 +543,17 @@ def parse_perturb(text: str) -> tuple[float, float]:
     return axis_deg, distance_mm
 
 
+def plate_lines(cases) -> list[str]:
+    """``study false-boundary --dry-run``: each plate (``bench.run.study.StudyCase``) on a line, then the count."""
+    def value(v, unit):
+        return "-" if v is None else f"{v:g}{unit}"
+    out = [f"{'plate':44s} {'family':9s} {'bend':>6s} {'dir':>4s} {'axis':>6s} {'aspect':>6s} {'distance':>8s}"]
+    out += [f"{c.name:44s} {c.family:9s} {value(c.bend_deg, ''):>6s} {c.direction or '-':>4s} "
+            f"{value(c.axis_deg, ''):>6s} {c.aspect:6.3f} {c.distance_m:7.3f}m" for c in cases]
+    out.append(f"{len(cases)} plates (bend and axis in degrees; nothing run or written: --dry-run)")
+    return out
+
+
 def _f(v, spec=".2f"):
     return "-" if v is None else format(v, spec)
 
@@ -476,6 +566,24 @@ def _yn(v):
     return "-" if v is None else ("Y" if v else ".")
 
 
+def legend_lines(short: dict, outcomes=()) -> list[str]:
+    """The per-plate table's columns in words (``table_lines``); ``short``: detector name -> its column;
+    ``outcomes``: the outcome classes the table shows, each explained (``OUTCOME_TEXT``)."""
+    from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
+
+    return ["columns: outcome: the plate's class (below); cur: cures the loop applied; vws: poses it measured "
+            "from (stage 2, verification views, cures);",
+            "  " + ", ".join(f"{col}: {name.replace('_', ' ')}" for name, col in short.items())
+            + ": each detector at the stage-2 pose (Y fired, . quiet, - not evaluated);",
+            "  GT vis 1st: the least share of the true boundary a camera sees from the stage-2 pose; final: from "
+            "the final poses together; reach: the reachable poses see all of it (Y/.); pairs: pairs of reachable "
+            "poses could confirm all of it (Y/.) (these four: ground truth, for scoring only; the loop's own verdict "
+            "is in the outcome);",
+            "  bnd mm: the merged boundary's mean distance to the true one; cover: share of the true surface the "
+            "merged surface covers; time s: the plate's run"] + [
+        f"  {c}: {OUTCOME_TEXT[c]}" for c in OUTCOME_TEXT if c in outcomes]
+
+
 def table_lines(study) -> list[str]:
     """The per-plate table, outcome counts, detector scores and targets of a ``bench.run.study.StudyResult``
     as text lines."""
@@ -485,7 +593,7 @@ def table_lines(study) -> list[str]:
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
              "occluding_contour": "occ", "end_tangents": "end"}
     out = [f"{'plate':38s} {'outcome':12s} {'cur':>3s} {'vws':>3s} " + " ".join(f"{short[d]:>3s}" for d in DETECTORS)
-           + f" {'GT vis 1st':>10s} {'final':>6s} {'reach':>5s} {'verif':>5s} {'bnd mm':>6s} {'cover':>5s} {'time s':>6s}"]
+           + f" {'GT vis 1st':>10s} {'final':>6s} {'reach':>5s} {'pairs':>5s} {'bnd mm':>6s} {'cover':>5s} {'time s':>6s}"]
     rows = list(study.rows)
     for r in rows:
         if r.outcome == "error":
@@ -497,6 +605,11 @@ def table_lines(study) -> list[str]:
                    f"{_yn(r.gt_reachable):>5s} {_yn(r.gt_verifiable):>5s} "
                    f"{_f(r.merged_boundary_mean_mm, '6.2f')} "
                    f"{_f(r.merged_coverage_frac, '5.2f')} {r.time_s:6.1f}")
+    out += legend_lines(short, {r.outcome for r in rows})
+    alarms = [r for r in rows if r.outcome == "false_alarm"]
+    if alarms:  # what the loop itself concluded where nothing was hidden (its verdict is no ground truth)
+        out.append("false alarms, the loop's verdict on each:")
+        out += [f"  {r.case}: {r.verdict_text()}" for r in alarms]
     out.append("outcomes: " + ", ".join(f"{k} {v}" for k, v in study.outcomes().items()))
     for fam, c in study.outcomes("family").items():
         out.append(f"  {fam:9s} " + ", ".join(f"{k} {v}" for k, v in c.items() if v))

@@ -7,17 +7,43 @@ Exit status (``bench/cli/main.py``): 0 when every sample of the dataset is done 
 sample failed (its failure is recorded in the dataset, the others are kept; a sample fails when one
 of its methods does) or when the dataset holds no sample that is ok, with one summary line on
 stderr; 2 for a spec or flag refused before any work.
+
+The example specs ship with the package (``platebench.examples``, the files ``examples/*.toml``):
+``--example NAME`` runs the one whose file is NAME.toml from anywhere, read with
+``importlib.resources``; exactly one of SPEC.toml and ``--example`` is given.
 """
 from __future__ import annotations
 
 import contextlib
 import math
 import sys
+from importlib import resources
 from pathlib import Path
 
 from platebench.errors import UserValueError
 
 HELP = "run a sweep spec: many samples rendered, reconstructed and scored into a dataset"
+
+
+EXAMPLES_PACKAGE = "platebench.examples"
+
+
+def example_names() -> list[str]:
+    """The example specs the package ships (the stems of its ``*.toml`` files), sorted."""
+    try:
+        root = resources.files(EXAMPLES_PACKAGE)
+    except ModuleNotFoundError:
+        return []
+    return sorted(e.name[: -len(".toml")] for e in root.iterdir() if e.name.endswith(".toml") and e.is_file())
+
+
+def example_spec(name: str, stack: contextlib.ExitStack) -> Path:
+    """The file of the example spec ``name`` (a real path while ``stack`` is open); UserValueError
+    (one line naming the allowed names) for any other name."""
+    names = example_names()
+    if name not in names:
+        raise UserValueError(f"--example {name!r} is not an example spec: allowed {', '.join(names) or 'none'}")
+    return stack.enter_context(resources.as_file(resources.files(EXAMPLES_PACKAGE) / f"{name}.toml"))
 
 
 def add_parser(sub) -> None:
@@ -30,8 +56,12 @@ def add_parser(sub) -> None:
                     "samples/<id>/. Runs on a local process pool (--workers) or a Dask cluster (--scheduler). "
                     "A failing sample is recorded (status failed) and the sweep goes on; --resume continues an "
                     "interrupted sweep without redoing finished samples.")
-    p.add_argument("spec", type=Path, metavar="SPEC.toml", help="sweep spec (TOML)")
-    p.add_argument("--out", type=Path, required=True, metavar="DATASET", help="dataset directory")
+    p.add_argument("spec", type=Path, nargs="?", metavar="SPEC.toml",
+                   help="sweep spec (TOML); or --example NAME instead")
+    p.add_argument("--example", metavar="NAME",
+                   help="run an example spec shipped with the package instead of SPEC.toml: "
+                        + (", ".join(example_names()) or "none installed"))
+    p.add_argument("--out", type=Path, metavar="DATASET", help="dataset directory (required, except with --dry-run)")
     p.add_argument("--workers", type=int, default=None,
                    help="local worker processes (default 1; 0 runs in this process); not with --scheduler")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
@@ -70,6 +100,16 @@ def _methods(text: str | None):
 
 
 def run(args) -> int:
+    with contextlib.ExitStack() as examples:
+        if (args.spec is None) == (args.example is None):
+            raise UserValueError("give exactly one of SPEC.toml and --example NAME (allowed: "
+                                 f"{', '.join(example_names())})")
+        if args.example is not None:
+            args.spec = example_spec(args.example, examples)
+        return _run(args)
+
+
+def _run(args) -> int:
     from platebench.bench.io.outputs import guard_output  # noqa: PLC0415
     from platebench.bench.sweep.spec import load_spec  # noqa: PLC0415
 
@@ -84,7 +124,7 @@ def run(args) -> int:
         check_time_limit(args.method_time_limit_s)
     spec = load_spec(args.spec, _methods(args.methods))  # every sample validated before anything is written
     if args.dry_run:
-        print(f"spec        {args.spec} ({spec.mode}, {len(spec.samples)} samples, methods {', '.join(spec.methods)})")
+        print(f"spec        {args.example or args.spec} ({spec.mode}, {len(spec.samples)} samples, methods {', '.join(spec.methods)})")
         for s in spec.samples:
             print(f"  {s.sample_id}  {s.params}")
         if spec.duplicates:
@@ -92,6 +132,8 @@ def run(args) -> int:
         for k, n in spec.ignored.items():
             print(f"note: axis {k} does not apply to {n} samples (ignored there)")
         return 0
+    if args.out is None:
+        raise UserValueError("--out DATASET is required (only --dry-run runs without it)")
     if not args.resume:  # the output rule (bench.io.outputs): a new or replaced dataset never holds its spec
         guard_output(args.out, inputs=[args.spec])
     for flag, v in (("--connect-timeout-s", args.connect_timeout_s), ("--worker-timeout-s", args.worker_timeout_s)):

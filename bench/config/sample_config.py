@@ -56,6 +56,7 @@ from platebench.plates.spec import MIN_BEND_DEG
 from platebench.scenes.camera import Camera, intrinsics
 from platebench.scenes.lens import BrownConrady
 from platebench.scenes.pattern import square_grid
+from platebench.scenes.render.passes import WAVEFRONT_LIMIT, fits_wavefront
 from platebench.scenes.scene_spec import (
     REFERENCE,
     Lighting,
@@ -70,10 +71,6 @@ __all__ = ["ConfigError", "SceneParams", "RigPose", "SampleConfig", "RenderSetti
            "with_overrides", "read_toml", "read_toml_text", "check_types", "check_value_type", "check_render_size",
            "WAVEFRONT_LIMIT", "TOML_MAX_DEPTH"]
 
-# Mitsuba's JIT variants trace at most 2^32 - 1 samples in one wavefront (SamplingIntegrator::render): a larger
-# image (width x height x spp) is split into passes of spp // ceil(samples / limit) samples per pixel, and spp
-# must be a multiple of that (else "sample_count should be a multiple of samples_per_wavefront").
-WAVEFRONT_LIMIT = 0xFFFFFFFF
 # tables and arrays nested deeper than this in a TOML file are refused (no configuration nests beyond 4)
 TOML_MAX_DEPTH = 64
 
@@ -82,33 +79,18 @@ class ConfigError(UserValueError):
     """A configuration key or value is not allowed."""
 
 
-def _spp_per_pass(width: int, height: int, spp: int) -> int:
-    """The samples per pixel of one of Mitsuba's passes for this image (``WAVEFRONT_LIMIT``)."""
-    samples = width * height * spp
-    if samples <= WAVEFRONT_LIMIT:
-        return spp
-    return spp // -(-samples // WAVEFRONT_LIMIT)
-
-
-def _renders(width: int, height: int, spp: int) -> bool:
-    per_pass = _spp_per_pass(width, height, spp)
-    return per_pass >= 1 and spp % per_pass == 0
-
-
 def check_render_size(width: int, height: int, spp: int, what: str = "render.spp") -> None:
-    """Refuse (ConfigError, one line) an image size and samples per pixel that Mitsuba's JIT variants
-    cannot render (``WAVEFRONT_LIMIT``), naming the nearest spp that can be rendered at this size."""
+    """Refuse (ConfigError, one line) a render that Mitsuba's JIT variants cannot trace: every render runs
+    by the pass plan of ``scenes.render.passes`` (``pass_plan``), whose passes stay within Mitsuba's
+    ``WAVEFRONT_LIMIT`` samples whenever one sample per pixel does; any spp renders at such a size."""
     width, height, spp = int(width), int(height), int(spp)
-    if _renders(width, height, spp):
+    if fits_wavefront(width, height):
         return
-    below = next((k for k in range(spp - 1, 0, -1) if _renders(width, height, k)), None)
-    above = next((k for k in range(spp + 1, 2 * spp + 2) if _renders(width, height, k)), None)
-    near = " or ".join(str(k) for k in (below, above) if k is not None)
-    raise ConfigError(f"{what} = {spp} cannot be rendered at {width} x {height} px: {width * height * spp} samples "
-                      f"exceed Mitsuba's {WAVEFRONT_LIMIT + 1:.3g} per pass, and spp must then be a multiple of "
-                      f"the passes' {_spp_per_pass(width, height, spp)} samples per pixel: allowed here e.g. {near}")
+    raise ConfigError(f"{what} = {spp} cannot be rendered at {width} x {height} px: one sample per pixel is "
+                      f"{width * height} samples, over Mitsuba's {WAVEFRONT_LIMIT + 1:.3g} per pass")
 
 
+IMAGE_SIZE_PX = (16, 8192)  # allowed image width and height (px), each
 _SCENE_KEYS = {"distance_m", "width", "height", "f_px", "baseline_m", "projector_kind", "ambient",
                "material", "pattern", "aperture_radius_m", "focus_distance_m", "fy_px", "distortion"}
 _DISTORTION_KEYS = {"k1", "k2", "p1", "p2", "k3"}
@@ -213,7 +195,7 @@ class SceneParams:
     distortion: dict = field(default_factory=dict)  # OpenCV k1, k2, p1, p2, k3 (absent: 0); {}: no distortion
 
     def __post_init__(self):
-        checks = (("distance_m", 0.05, 5.0), ("width", 16, 8192), ("height", 16, 8192),
+        checks = (("distance_m", 0.05, 5.0), ("width", *IMAGE_SIZE_PX), ("height", *IMAGE_SIZE_PX),
                   ("f_px", 10.0, 1e5), ("baseline_m", 1e-3, 2.0), ("ambient", 0.0, 1.0), ("fy_px", 10.0, 1e5))
         for name, lo, hi in checks:
             v = getattr(self, name)
@@ -348,12 +330,19 @@ class SampleConfig:
 
 
 
-def load_config(path: Path | None) -> SampleConfig:
-    """Read a TOML sample configuration (None: the reference experiment)."""
+def load_config(path: Path | None, width: int | None = None, height: int | None = None) -> SampleConfig:
+    """Read a TOML sample configuration (None: the reference experiment). ``width``, ``height``: the
+    image size asked for beside the file (``--width``, ``--height``); it replaces the file's before the
+    scene is checked, so that the lens distortion is checked, and named in its error, at the size
+    that will be rendered. A size out of range is left to ``with_overrides``, which refuses it."""
     if path is None:
         return SampleConfig()
     path = Path(path)
     d = read_toml(path, "configuration")
+    asked = {k: v for k, v in (("width", width), ("height", height))
+             if isinstance(v, int) and not isinstance(v, bool) and IMAGE_SIZE_PX[0] <= v <= IMAGE_SIZE_PX[1]}
+    if asked and isinstance(d, dict) and isinstance(d.get("scene", {}), dict):
+        d = {**d, "scene": {**d.get("scene", {}), **asked}}
     try:
         return SampleConfig.from_dict(d)
     except ConfigError as e:

@@ -226,7 +226,8 @@ class OutputLock:
     The lock file holds the holder's PID, host, start time and command. ``acquire`` refuses a
     lock held by a live process (``OutputLockedError`` naming PID and host); a lock file left by a
     process that is gone (the kernel released its flock) is taken over, and ``stale`` then holds
-    the previous holder's record (the caller says so). ``release`` removes the file."""
+    the previous holder's record (the caller says so). ``release`` removes the file. An OSError while
+    the record is written (a full disk) names the lock file's path and leaves no lock file."""
 
     def __init__(self, target: Path, what: str = "output"):
         self.target = Path(target).absolute()
@@ -303,10 +304,16 @@ class OutputLock:
                 self.stale = prev
             rec = {"pid": os.getpid(), "host": HOST, "since": _dt.datetime.now().isoformat(timespec="seconds"),
                    "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])[:300] if sys.argv else "python"}
-            os.lseek(fd, 0, os.SEEK_SET)
-            os.ftruncate(fd, 0)
-            os.write(fd, json.dumps(rec).encode())
-            os.fsync(fd)
+            try:
+                os.lseek(fd, 0, os.SEEK_SET)
+                os.ftruncate(fd, 0)
+                os.write(fd, json.dumps(rec).encode())
+                os.fsync(fd)
+            except OSError as e:  # a full disk, a quota: the error names the lock file, which is not left behind
+                with contextlib.suppress(OSError):
+                    os.unlink(self.path)
+                os.close(fd)
+                raise _naming(e, self.path) from None
             self._fd = fd
             return self
         raise OutputLockedError(f"{self.target}: could not take the lock {self.path} (it keeps changing)")

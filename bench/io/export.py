@@ -68,6 +68,13 @@ refused with one line naming how many of how many samples are there, unless ``al
 then the samples that are there are exported, ``ExportSummary.note`` says how many of how many
 (the command line prints it), and export.json records it under ``sweep``.
 
+Pairs that are no rectified pair (``unrectified``: taken by a robot, whose cameras really stand
+elsewhere than the told rig, or through a distorting lens; the realism presets make them): both
+formats assume a rectified, undistorted pair, and for these Z = f B / (d + doffs) with the told
+calibration misses the true depth (by up to a few per cent on the 1995 rig). They are left out,
+the note says how many and why, and export.json lists them (``left_out_unrectified``); with
+``include_unrectified`` they are exported and marked (``unrectified``: why).
+
 ``OUT/export.json`` lists every exported sample (``samples``: its id, its folder or files in the
 export, its source directory, shift, doffs, vmin/vmax and size). The output follows the output
 rule (``bench.io.outputs``: never the dataset itself nor inside it; an existing ``OUT`` is replaced
@@ -78,6 +85,7 @@ written or ``progress`` is told.
 """
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass
@@ -97,8 +105,8 @@ from platebench.bench.io.verify import dataset_manifest, sample_checksums, verif
 from platebench.tolerances import tol
 
 __all__ = ["FORMATS", "IMAGES", "MIDDLEBURY_TREE", "ExportSummary", "ExportedSample", "export_dataset", "KITTI_SCALE",
-           "KITTI_MAX_DISPARITY_PX", "nocc_mask_png", "KittiPair", "kitti_pair", "kitti_resample_factor", "scene_name",
-           "max_shift_px", "sweep_completeness"]
+           "KITTI_MAX_DISPARITY_PX", "nocc_mask_png", "KittiPair", "kitti_pair", "kitti_resample_factor", "unrectified",
+           "scene_name", "max_shift_px", "sweep_completeness"]
 
 FORMATS = ("middlebury", "kitti")
 IMAGES = "active"  # the images exported unless told: the projected grid (module doc)
@@ -132,11 +140,14 @@ class ExportedSample(Record):
     resampled: str | None = None
     f_px: float | None = None
     baseline_m: float | None = None
+    unrectified: str | None = None  # why the pair is no rectified pair (exported with include_unrectified)
 
     def to_dict(self) -> dict:
         d = super().to_dict()
-        order = ("id", "files", "source", "shift_px", "doffs_px", *_KITTI_ONLY, "vmin", "vmax", "width", "height")
-        return {k: d[k] for k in order if self.resample_factor is not None or k not in _KITTI_ONLY}
+        order = ("id", "files", "source", "shift_px", "doffs_px", *_KITTI_ONLY, "vmin", "vmax", "width", "height",
+                 "unrectified")
+        return {k: d[k] for k in order if (self.resample_factor is not None or k not in _KITTI_ONLY)
+                and (k != "unrectified" or self.unrectified is not None)}
 
 
 @dataclass(frozen=True)
@@ -324,16 +335,34 @@ def _write_kitti(root: Path, k: int, kp: KittiPair) -> None:
     write_text(t / "calib_cam_to_cam" / f"{k:06d}.txt", _kitti_calib(kp))
 
 
+def unrectified(sample_dir: Path) -> str | None:
+    """Why a sample's image pair is no rectified pair (None when it is one): a pair a robot took
+    (``gt/cameras.json``: the cameras really posed differ from the told rig) or a lens that distorts
+    (calib.json's cameras). Both formats assume a rectified, undistorted pair, so Z = f B / (d + doffs)
+    does not hold exactly for such a sample's true disparities."""
+    if (Path(sample_dir) / "gt" / "cameras.json").is_file():
+        return "taken by a robot: the cameras really posed are not the told rectified rig"
+    try:
+        cal = json.loads((Path(sample_dir) / "calib.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if any(isinstance(cal.get(c), dict) and cal[c].get("distortion_k1_k2_p1_p2_k3") for c in ("left", "right")):
+        return "its lens distorts the images"
+    return None
+
+
 def export_dataset(root: Path, out: Path, fmt: str, *, images: str = IMAGES, shift: int | str = 0,
                    min_disparity_px: float = MIN_DISPARITY_PX, allow_incomplete: bool = False,
-                   overwrite: bool = False, progress=None) -> ExportSummary:
+                   include_unrectified: bool = False, overwrite: bool = False, progress=None) -> ExportSummary:
     """Write every sample under ``root`` to ``out`` in ``fmt`` ("middlebury": ``OUT/trainingF/<scene>/``;
     "kitti": ``OUT/training/``), with ``OUT/export.json`` (module doc).
 
     ``images``: "active" (the projected grid, default) or "passive". ``shift``: Middlebury only, a
     whole number of px from 0 to ``max_shift_px`` or "auto"; ``min_disparity_px``: the smallest true
     disparity "auto" leaves. ``allow_incomplete``: export the samples an incomplete sweep dataset
-    holds (else it is refused). ``progress(message)`` is told of each sample as it is written.
+    holds (else it is refused). ``include_unrectified``: also export the samples whose pair is no
+    rectified pair (``unrectified``), marked in export.json; without it they are left out, and the
+    summary's note says how many and why. ``progress(message)`` is told of each sample as it is written.
     Raises ``DatasetError`` (one line) for a request or a dataset that cannot be exported."""
     if fmt not in FORMATS:
         raise DatasetError(f"format {fmt!r} is not known: choose {' or '.join(FORMATS)}")
@@ -366,9 +395,18 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = IMAGES, shi
         raise DatasetError(f"{ds.sample_dirs[a]} and {ds.sample_dirs[b]} both give the Middlebury scene name "
                            f"{names[a]!r}: rename one of the folders")
     say = progress or (lambda msg: None)
+    why = {k: unrectified(ds.sample_dirs[k]) for k in range(len(ds))}
+    left_out = [k for k in range(len(ds)) if why[k] and not include_unrectified]
+    if left_out:
+        reasons = sorted({why[k] for k in left_out})
+        note = ((note + "; ") if note else "") + (
+            f"{len(left_out)} of the {len(ds)} samples are left out: their pair is no rectified pair ("
+            + "; ".join(reasons) + "), which the format assumes; --include-unrectified exports them, marked")
     rows = []
     with output_dir(out, "export", overwrite=overwrite, inputs=[root]) as d:
         for k in range(len(ds)):
+            if k in left_out:
+                continue
             pair = ds[k]
             say(f"{pair.sample_id} ({k + 1}/{len(ds)})")
             if not np.isfinite(pair.disparity).any():
@@ -378,13 +416,15 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = IMAGES, shi
                 _write_middlebury(d / folder, pair)
                 rows.append(ExportedSample(id=pair.sample_id, files=folder, source=str(pair.sample_dir.resolve()),
                                            shift_px=pair.shift_px, doffs_px=pair.calib.doffs, vmin=pair.calib.vmin,
-                                           vmax=pair.calib.vmax, width=pair.calib.width, height=pair.calib.height))
+                                           vmax=pair.calib.vmax, width=pair.calib.width, height=pair.calib.height,
+                                           unrectified=why[k]))
             else:
                 kp = kitti_pair(pair)
-                _write_kitti(d, k, kp)
+                n = len(rows)  # KITTI numbers the exported pairs 000000, 000001, ... without gaps
+                _write_kitti(d, n, kp)
                 known = kp.disparity[np.isfinite(kp.disparity)]
                 rows.append(ExportedSample(
-                    id=pair.sample_id, files=f"training/*/{k:06d}_10.png", source=str(pair.sample_dir.resolve()),
+                    id=pair.sample_id, files=f"training/*/{n:06d}_10.png", source=str(pair.sample_dir.resolve()),
                     shift_px=0, doffs_px=0.0, resample_factor=kp.factor,
                     resampled=(f"images reduced {kp.factor}x (area average of {kp.factor}x{kp.factor} "
                                f"pixel blocks) so that the true disparities, "
@@ -393,12 +433,14 @@ def export_dataset(root: Path, out: Path, fmt: str, *, images: str = IMAGES, shi
                     f_px=float(kp.K[0, 0]), baseline_m=kp.baseline_m,
                     vmin=math.floor(known.min()) if known.size else 0,
                     vmax=math.ceil(known.max()) if known.size else 0,
-                    width=int(kp.left.shape[1]), height=int(kp.left.shape[0])))
+                    width=int(kp.left.shape[1]), height=int(kp.left.shape[0]), unrectified=why[k]))
         doc = {"format": fmt, "images": images, "shift": shift, "min_disparity_px": min_disparity_px}
         if fmt == "middlebury":
             doc.update(tree=f"{MIDDLEBURY_TREE}/<scene>", max_shift_px=max(allowed, 0))
         if sweep is not None:
             doc["sweep"] = sweep
+        if left_out:
+            doc["left_out_unrectified"] = [ds.sample_id(k) for k in left_out]
         doc.update(samples=[r.to_dict() for r in rows],
                    units="px; baseline in calib.txt in mm (Middlebury), in P_rect_03 in m (KITTI)",
                    depth=_DEPTH_RULE[fmt])

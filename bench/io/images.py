@@ -211,7 +211,8 @@ def write_pfm(path: Path, data: np.ndarray) -> None:
 
 def read_pfm(path: Path) -> np.ndarray:
     """A Middlebury PFM as (H, W) or (H, W, 3) float32, top row first; its size checked from the header
-    and against the file's length before the data is read."""
+    and against the file's length before the data is read: a file shorter than its header declares is
+    refused as truncated, a longer one as longer than declared (``DatasetError``, one line)."""
     path = Path(path)
     with open_regular(path, IMAGE_MAX_BYTES, "PFM image", DatasetError, missing="file is missing") as f:
         size = os.fstat(f.fileno()).st_size
@@ -229,8 +230,12 @@ def read_pfm(path: Path) -> np.ndarray:
         dtype = "<f4" if scale < 0 else ">f4"
         c = 3 if kind == b"PF" else 1
         _check_pixels(path, w, h, c, "PFM image")
-        if size - f.tell() != 4 * w * h * c:
-            raise DatasetError(f"{path}: truncated PFM ({size - f.tell()} of {4 * w * h * c} bytes of data)")
+        have, want = size - f.tell(), 4 * w * h * c
+        if have < want:
+            raise DatasetError(f"{path}: truncated PFM ({have} of {want} bytes of data)")
+        if have > want:
+            raise DatasetError(f"{path}: PFM longer than its header declares ({have} bytes of data, the header's "
+                               f"{w} x {h}{' x 3' if c == 3 else ''} float32 pixels are {want} bytes)")
         raw = f.read(4 * w * h * c)
     if len(raw) != 4 * w * h * c:
         raise DatasetError(f"{path}: truncated PFM ({len(raw)} of {4 * w * h * c} bytes of data)")

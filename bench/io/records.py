@@ -16,7 +16,7 @@ import math
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Mapping
 
-__all__ = ["Record", "file_form", "records_from", "Stage3Accuracy", "MergedFigures", "StudyRow", "StudyTargets", "record_from_dict", "final_figures",
+__all__ = ["Record", "file_form", "records_from", "Stage3Accuracy", "MergedFigures", "StudyRow", "StudyTargets", "loop_verdict_text", "record_from_dict", "final_figures",
            "study_rows", "LFormulaRow", "study_extras", "MethodFigures", "compare_methods", "score_record"]
 
 
@@ -125,6 +125,31 @@ def final_figures(final: Mapping[str, Any]) -> tuple[Stage3Accuracy | None, Merg
             MergedFigures.from_dict(final.get("merged") if isinstance(final.get("merged"), Mapping) else {}))
 
 
+def loop_verdict_text(outcome: str | None, verified: bool | None, cures: int | None = None,
+                      reason: str | None = None) -> str:
+    """The sensing loop's own verdict as one line that cannot read as a contradiction of its outcome
+    class. The verdict (``boundary_verified``) is the loop's claim, made without ground truth, that
+    its poses confirmed the whole boundary; the outcome class (``bench.run.sensing.OUTCOMES``) holds
+    the loop's cures and claim against ground truth. A "false_alarm" whose boundary the poses
+    confirmed is a plate where nothing was hidden and the loop applied cures before confirming it;
+    the line says so. ``reason``: the verdict's reason, appended."""
+    n = cures or 0
+    if verified is None:
+        text = "loop's verdict: none (the run gave no verdict)"
+    elif verified:
+        text = "loop's verdict (no ground truth): its poses confirmed the whole boundary"
+        if outcome == "false_alarm":
+            text += (f", after {n} cure{'s' if n != 1 else ''} that nothing hidden called for (the false alarm: "
+                     "ground truth hid nothing at the stage-2 pose)")
+        elif outcome == "silent":
+            text += " (ground truth: part of it is still hidden: the silent defect)"
+    else:
+        text = "loop's verdict (no ground truth): its poses did not confirm the whole boundary"
+        if outcome == "false_alarm":
+            text += " (the false alarm: ground truth hid nothing)"
+    return f"{text}: {reason}" if reason else text
+
+
 @dataclass(frozen=True)
 class StudyRow(Record):
     """One plate of the false-boundary study (``bench.run.study.study_row``): the plate (its case's
@@ -182,6 +207,12 @@ class StudyRow(Record):
     def fired(self, detector: str) -> bool | None:
         """Whether ``detector`` fired at the stage-2 pose (None: not evaluated, or no run)."""
         return self.detectors.get(detector)
+
+    def verdict_text(self, with_reason: bool = False) -> str:
+        """The loop's verdict on this plate in words consistent with its outcome (``loop_verdict_text``);
+        ``with_reason``: the verdict's reason appended."""
+        verified = None if self.outcome == "error" else self.boundary_verified
+        return loop_verdict_text(self.outcome, verified, self.cures, self.verdict if with_reason else None)
 
     def to_dict(self) -> dict:
         """The row's columns: the fields (detectors as ``det_<name>``; the traceback left out)."""

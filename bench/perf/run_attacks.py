@@ -136,14 +136,20 @@ FAILURES = {
     "misbehave:flat_points": "points of shape (5, 2)",
     "numpy:save": "raised TypeError",
 }
-IMPORT_EXITS = {"exits_on_import": "import sys\nsys.exit(3)\n", "dies_on_import": "import os\nos._exit(0)\n"}
+# module -> (its source, what the failure of its method "module:f" must say): each fails at import, in the plug-in's
+# process, within the method's time limit, on every sample
+IMPORT_FAILURES = {
+    "exits_on_import": ("import sys\nsys.exit(3)\n", "cannot import module 'exits_on_import' (sys.exit(3))"),
+    "dies_on_import": ("import os\nos._exit(0)\n", "exited with status 0"),
+    "loops_on_import": ("while True:\n    pass\n", "no answer within the time limit"),
+}
 
 
 def write_plugins(folder: Path) -> dict:
     """The misbehaving plug-ins as modules in ``folder``; returns an environment with it on PYTHONPATH."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / f"{PLUGIN_MODULE}.py").write_text(MISBEHAVING_PLUGINS)
-    for name, text in IMPORT_EXITS.items():
+    for name, (text, _) in IMPORT_FAILURES.items():
         (folder / f"{name}.py").write_text(text)
     env = dict(os.environ)
     env.pop("PLATEBENCH_DEBUG", None)
@@ -317,15 +323,16 @@ def _plugins_in_compare(folder: Path, env: dict):
     return _result(r.returncode, r.stderr, problems)
 
 
-def _plugin_exits_on_import(folder: Path, env: dict):
-    errs, problems = [], []
-    for module in IMPORT_EXITS:
-        r = _run(["compare", folder.parent.parent / "good", "--methods", f"{module}:f", "--out", folder / module],
-                 folder, env)
-        errs.append(r.stderr)
-        problems += [_expect_one_line(r, f"method '{module}:f'"),
-                     f"{folder / module} was written" if (folder / module).exists() else None]
-    return _result(r.returncode, "".join(errs), problems)
+def _plugin_fails_on_import(folder: Path, env: dict):
+    methods = [f"{module}:f" for module in IMPORT_FAILURES]
+    r = _run(["compare", folder.parent.parent / "good", "--methods", ",".join(methods), "--out", folder / "cmp",
+              "--method-time-limit-s", 3], folder, env)
+    problems = [] if r.returncode == 1 else [f"exit {r.returncode}, expected 1 (failures recorded)"]
+    if r.returncode == 1:
+        doc = json.loads((folder / "cmp" / "compare.json").read_text())["methods"]
+        problems += [f"{m}: {doc.get(m)}" for m, (_, said) in zip(methods, IMPORT_FAILURES.values())
+                     if doc.get(m, {}).get("status") != "failed" or said not in (doc[m].get("error") or "")]
+    return _result(r.returncode, r.stderr, problems)
 
 
 def _plugins_in_a_sweep(folder: Path, env: dict):
@@ -516,7 +523,7 @@ def _killed_sweep_report(folder: Path, env: dict):
 def attacks() -> list[Attack]:
     out = [Attack(f"signal during {c}", _signals(c)) for c in ("render", "reconstruct", "report", "sweep")]
     out += [Attack("plug-ins misbehave in compare", _plugins_in_compare),
-            Attack("plug-in exits at import (compare)", _plugin_exits_on_import),
+            Attack("plug-in fails at import (compare)", _plugin_fails_on_import),
             Attack("plug-ins misbehave in a sweep", _plugins_in_a_sweep),
             Attack("full disk during a sweep", _full_disk("sweep")),
             Attack("full disk during render", _full_disk("render")),

@@ -19,7 +19,7 @@ from platebench.bench.report import summary as S
 from platebench.bench.report.inputs import load_results, read_manifest, records, sample_folder
 from platebench.bench.report.page import Page
 from platebench.bench.report.values import fmt
-from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label
+from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label, metric_unit
 
 __all__ = ["dataset_section", "MAX_TABLE_ROWS", "MAX_ERROR_MAPS", "MAX_THUMB_SAMPLES", "MAX_AXIS_PLOTS"]
 
@@ -44,8 +44,12 @@ def dataset_section(page: Page, ds: Path, prefix: str) -> dict:
         sec["headline"] = _headline(name, sec, None)
         return sec
     summ = S.method_summary(frame)
-    sec.update(empty=False, metric_table=_metric_table(frame, summ), extra_table=_extra_table(frame, summ),
-               failure_table=_failure_table(frame), headline=_headline(name, sec, frame))
+    key = _key_table(frame, summ)
+    sec.update(empty=False, key_table=key, metric_table=_metric_table(frame, summ),
+               extra_table=_extra_table(frame, summ), failure_table=_failure_table(frame),
+               headline={**_headline(name, sec, frame),
+                         "table": {**key, "title": "", "caption": "Medians per method over its rows with status ok; "
+                                                                 "every metric in the dataset's section."}})
     sec["plots"] = [page.plot(f"{prefix}method_comparison", P.plot_method_comparison, _bar_table(summ),
                               title=f"{name}: median over samples per method",
                               caption="Median of each error metric over the sweep's rows with status ok, per "
@@ -98,20 +102,69 @@ def _overview(manifest: dict, frame: pd.DataFrame | None) -> dict:
 
 
 # ----------------------------------------------------------------------------- method tables
-def _stat_cells(s: dict | None) -> list:
+def _count(v) -> int | None:
+    """A count as an integer (a mean of counts rounded to the nearest whole one)."""
+    return None if v is None or v != v else int(round(v))
+
+
+def _stat_cells(s: dict | None, count: bool = False) -> list:
+    """Mean, median and n of one metric of one method; a count's mean and median as whole numbers."""
     if s is None:
         return [None, None, 0]
     if s["kind"] == "rate":
         return [f"{s['true']} yes", None, s["n"]]
+    if count:
+        return [_count(s["mean"]), _count(s["median"]), s["n"]]
     return [s["mean"], s["median"], s["n"]]
+
+
+def _row_label(metric: str) -> str:
+    """A metric's label with its unit; a count says so ("... (count)")."""
+    return metric_label(metric) + (" (count)" if metric_unit(metric) == "count" else "")
 
 
 def _grouped(metrics: list[str], methods: list[str], summ: dict, title: str, caption: str) -> dict:
     return {"title": title, "caption": caption, "cls": "",
             "groups": [{"label": "", "span": 1}] + [{"label": m, "span": 3} for m in methods],
             "columns": ["metric"] + ["mean", "median", "n"] * len(methods),
-            "rows": [[metric_label(k)] + sum((_stat_cells(summ[m]["metrics"].get(k)) for m in methods), [])
+            "rows": [[_row_label(k)] + sum((_stat_cells(summ[m]["metrics"].get(k), metric_unit(k) == "count")
+                                            for m in methods), [])
                      for k in metrics]}
+
+
+# the figures users compare across methods, per method, in the headline (median over the ok rows), in column
+# order: before the failure rate, then after it
+KEY_FIGURES = ("depth_rms_mm", "centres_depth_rms_mm", "coverage_frac")
+KEY_FIGURES_AFTER = ("boundary_mean_mm",)
+TIME_COLUMN = "time_recon_s"  # the method's own time per sample (s)
+
+
+def _key_table(frame: pd.DataFrame, summ: dict) -> dict:
+    """Per method: the median depth RMS over the plate's pixels and at the square centres (mm; two
+    columns, never one), coverage (0..1), the failure rate (rows crashed of rows), the median
+    boundary mean (mm) and the median time (s); a column no method fills is left out."""
+    def filled(names):
+        return [k for k in names if any(k in e["metrics"] for e in summ.values())]
+    before, after = filled(KEY_FIGURES), filled(KEY_FIGURES_AFTER)
+    ok = frame[S.ok_mask(frame)]
+    times = ok.groupby("method")[TIME_COLUMN].median() if TIME_COLUMN in ok.columns else pd.Series(dtype=float)
+    has_time = bool(times.notna().any())
+    rows = []
+    for m, e in summ.items():
+        share = f" ({100 * e['failed'] / e['rows']:.0f} %)" if e["rows"] else ""
+        line = [m] + [(e["metrics"].get(k) or {}).get("median") for k in before] \
+            + [f"{e['failed']} / {e['rows']}{share}"] + [(e["metrics"].get(k) or {}).get("median") for k in after]
+        if has_time:
+            t = times.get(m)
+            line.append(None if t is None or pd.isna(t) else float(t))
+        rows.append(line)
+    cols = ["method"] + [f"median {metric_label(k)}" for k in before] + ["failed / rows"] \
+        + [f"median {metric_label(k)}" for k in after] + (["median time (s)"] if has_time else [])
+    return {"title": "Key figures", "cls": "", "groups": [], "columns": cols, "rows": rows,
+            "caption": "Per method, over its rows with status ok: the median of each figure users compare (depth "
+                       "RMS over the plate's pixels and at the square centres are separate columns, never "
+                       "compared with each other), and the rows that failed (status failed) of all its rows. "
+                       "Every metric, with means and counts, is in the full table below."}
 
 
 def _metric_table(frame: pd.DataFrame, summ: dict) -> dict:

@@ -30,7 +30,8 @@ from platebench.bench.report.page import Page
 from platebench.bench.report.values import finite, fmt
 from platebench.evaluation.metrics_row import MetricsRow, metric_label, metric_unit
 
-__all__ = ["recon_section", "sample_section", "compare_section", "score_section", "is_reference", "score_figures"]
+__all__ = ["recon_section", "sample_section", "compare_section", "score_section", "is_reference", "score_figures",
+           "warned_figures"]
 
 _TITLES = {p.name: p.title for p in PARAMETERS}
 # key figures of the paper's score.json (read back as a ``Score``): its results columns
@@ -92,6 +93,17 @@ def score_figures(score: dict) -> list[dict]:
     flat = _flatten(score)
     flat.update({"score." + k[len("scores."):]: v for k, v in flat.items() if k.startswith("scores.")})  # a peer's
     return [_card(column, v) for key, column in _SCORE_FIGURES if (v := finite(flat.get(key))) is not None]
+
+
+def warned_figures(figures: list[dict], hints) -> list[dict]:
+    """``figures`` with the plausibility hints (``evaluation.plausibility``) as a warning beside each
+    figure they concern: a hint says the file's errors lie beyond the scene, so every length error
+    (mm) read from it; the warned figures come first, so that the headline shows them."""
+    text = " ".join(str(h) for h in hints if str(h).strip())
+    if not text:
+        return figures
+    out = [{**f, "warning": text, "status": "bad"} if f.get("unit") == "mm" else f for f in figures]
+    return [f for f in out if f.get("warning")] + [f for f in out if not f.get("warning")]
 
 
 def _verdicts(score: dict) -> list[dict]:
@@ -299,4 +311,5 @@ def score_section(path: Path, out_dir: Path) -> dict:
     return {"title": f"Score of {method} ({kind} output)",
             "summary": f"{method}'s {kind} output, scored by 'platebench evaluate' against the exact ground truth of "
                        f"sample {doc.get('sample')}" + (f" ({doc['input']})" if doc.get("input") else "") + ".",
-            "figures": score_figures(doc), "tables": tables, "plots": plots, "links": links, "notes": notes}
+            "figures": warned_figures(score_figures(doc), doc.get("hints") or []), "tables": tables,
+            "plots": plots, "links": links, "notes": notes}

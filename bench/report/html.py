@@ -6,7 +6,11 @@ documents of ``platebench evaluate`` on other programs' outputs, in
 ``input_dir`` itself or up to two levels below it (the demo's folder is one report). The page
 (``OUT/index.html``, default ``OUT = input_dir/report``) starts with a headline (the
 experiment's key figures and the paper's bound met or not, each dataset's and study's summary,
-a sensing run's outcome), then one section per input. It comes from the Jinja2 templates in
+a sensing run's outcome; a dataset's key figures per method in a table, a plausibility warning
+beside the figure it concerns), then one section per input. A method has one colour in every plot
+(``bench.report.colours``); a plot or panel with nothing to show is left out and said in one line.
+Paths are shown relative to the input folder or to the report's folder, by the names they have once
+in place (never a staging folder's). It comes from the Jinja2 templates in
 ``templates/`` (autoescaped; no scripts, no external assets). Every image is embedded as a data
 URI, so ``index.html`` alone is the report: the plots (kept as PNG files in ``OUT/plots/`` too)
 and thumbnails of the samples' images; links to sample and reconstruction folders are relative
@@ -35,9 +39,18 @@ import jinja2
 from platebench.bench.files import require_dir
 from platebench.bench.io.atomic import write_text
 from platebench.bench.io.outputs import output_dir
+from platebench.bench.report.colours import method_colours
 from platebench.bench.report.dataset import dataset_section
 from platebench.bench.report.experiment import compare_section, recon_section, sample_section, score_section
-from platebench.bench.report.inputs import GENERATOR, Inputs, ReportInputError, detect_inputs, recon_sample_dir
+from platebench.bench.report.inputs import (
+    GENERATOR,
+    Inputs,
+    ReportInputError,
+    detect_inputs,
+    load_compare,
+    load_results,
+    recon_sample_dir,
+)
 from platebench.bench.report.page import Page, normalise_section
 from platebench.bench.report.sensing import sensing_section, study_section
 from platebench.bench.report.values import fmt
@@ -68,7 +81,9 @@ def _numbered(paths: list, kind: str) -> list[tuple[Path, str]]:
 
 def _generic(page: Page, builder, path: Path, anchor: str, nav: str) -> dict:
     d = normalise_section(page, builder(path, page.section_dir(anchor)), page.section_dir(anchor), path)
-    head = {"label": f"{d['title']} ({page.rel(path)})", "figures": d["figures"][:6],
+    d = {**d, "summary": page.shown(d["summary"]), "notes": [page.shown(n) for n in d["notes"]]}
+    figures = d["figures"][:6] + [f for f in d["figures"][6:] if f.get("warning")]  # a warned figure always
+    head = {"label": f"{d['title']} ({page.rel(path)})", "figures": figures,
             "text": (f"Outcome: {d['outcome']}. " if d["outcome"] else "") + d["summary"], "met": None}
     return {**d, "kind": "generic", "rel": page.rel(path), "anchor": anchor, "nav": nav, "headline": head}
 
@@ -101,6 +116,18 @@ def _sections(page: Page, inp: Inputs) -> list[dict]:
     return out
 
 
+def _methods(inp: Inputs) -> set[str]:
+    """Every method the report's plots show: the datasets' and the comparisons' (one colour map)."""
+    out: set[str] = set()
+    for ds in inp.datasets:
+        frame, _ = load_results(ds)
+        if frame is not None and "method" in frame.columns:
+            out |= {str(m) for m in frame["method"].dropna()}
+    for path in inp.compares[:MAX_COMPARES]:
+        out |= {str(m) for m in (load_compare(path).get("methods") or {})}
+    return out
+
+
 def _found(inp: Inputs) -> str:
     kinds = (("datasets", "dataset(s)"), ("studies", "study(ies)"), ("sensing", "sensing run(s)"),
              ("recons", "reconstruction(s)"), ("samples", "sample(s)"), ("compares", "compare.json file(s)"),
@@ -130,11 +157,11 @@ def write_report(input_dir, out_dir=None, overwrite: bool = False, warn=None) ->
                                "score document of 'platebench evaluate' (F.score.json): nothing to report")
     out = Path(out_dir) if out_dir is not None else root / "report"
     with output_dir(out, "report", overwrite=overwrite, inputs=[root], slots=[root / "report"]) as stage:
-        page = Page(stage, out, root, warn=warn)
+        page = Page(stage, out, root, warn=warn, colours=method_colours(_methods(inp)))
         for link in inp.links:
             page.leave_out(f"{link} is a symbolic link (to {os.readlink(link)}): not followed, not reported")
         sections = _sections(page, inp)
-        text = render_page("report.html", generator=GENERATOR, name=root.resolve().name, input=str(root.resolve()),
+        text = render_page("report.html", generator=GENERATOR, name=page.root_name, input=page.from_report(root),
                            found=_found(inp), version=_version(), notes=page.notes, sections=sections,
                            headline=[s["headline"] for s in sections if s.get("headline")],
                            generated=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))

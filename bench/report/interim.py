@@ -103,41 +103,50 @@ def _study_tables(doc: dict, rows: list[dict]) -> list[dict]:
     return tables
 
 
+def _plot(fn, *args, caption: str, **kwargs) -> dict:
+    """A generic section's plot entry ({"file", "caption", "left_out"}): ``file`` None, and one line in
+    ``left_out`` saying why, when the figure has nothing to show (``plots.drawn``)."""
+    path, left = P.drawn(fn, *args, **kwargs)
+    what = Path(args[-1]).stem.replace("_", " ")  # the PNG's name: "detection vs bend"
+    lines = list(left.panels) if path is not None else [f"plot '{what}' left out: {left.figure}"]
+    return {"file": path.name if path is not None else None, "caption": caption, "left_out": lines}
+
+
 def _study_plots(doc: dict, rows: list[dict], out_dir: Path) -> list[dict]:
     out_dir = Path(out_dir)
     plots = []
     sh, lf = study_extras(doc)
     if rows:
-        plots.append({"file": P.plot_hidden_fraction_vs_bend(
-            rows, out_dir / "hidden_fraction_vs_bend.png", series=_series(rows), smallest_hiding=sh or None).name,
-            "caption": "Top: fraction (0..1) of the true boundary hidden from the worse camera at the default pose "
+        plots.append(_plot(P.plot_hidden_fraction_vs_bend, rows, out_dir / "hidden_fraction_vs_bend.png",
+                           series=_series(rows), smallest_hiding=sh or None,
+            caption="Top: fraction (0..1) of the true boundary hidden from the worse camera at the default pose "
                        "against the bend angle (degrees), per bend direction; small hollow triangles: left (<) and "
                        "right (>) camera; dotted verticals: smallest hiding bend. Bottom: per case, the ground truth "
                        "(circles) and the pipeline's verdict (squares): filled = yes, hollow = no, grey x = no "
-                       "verdict (reconstruction failed)."})
-        plots.append({"file": P.plot_detection_vs_bend(rows, out_dir / "detection_vs_bend.png").name,
-                      "caption": "Precision and recall (0..1) of the false-boundary verdict and of each of its two "
+                       "verdict (reconstruction failed)."))
+        plots.append(_plot(P.plot_detection_vs_bend, rows, out_dir / "detection_vs_bend.png",
+                      caption="Precision and recall (0..1) of the false-boundary verdict and of each of its two "
                                  "symptoms (fewer squares than expected; the arrays of the two images disagree) "
                                  "against ground truth, per bend-angle bin (degrees, n = cases); grey bars: fraction "
-                                 "of cases with a ground-truth false boundary. Gaps: undefined."})
+                                 "of cases with a ground-truth false boundary. Gaps: undefined."))
         if any(r.get("cure1_removed") is not None or r.get("cure2_removed") is not None for r in rows):
-            plots.append({"file": P.plot_cure_success_vs_bend(rows, out_dir / "cure_success_vs_bend.png").name,
-                          "caption": "Cases with a ground-truth false boundary. Left: fraction of cases (0..1) in "
+            plots.append(_plot(P.plot_cure_success_vs_bend, rows, out_dir / "cure_success_vs_bend.png",
+                          caption="Cases with a ground-truth false boundary. Left: fraction of cases (0..1) in "
                                      "which each cure leaves the whole true boundary visible, by bend angle "
                                      "(degrees). Right: hidden fraction of the true boundary (0..1) before (black "
-                                     "bars) and after each cure."})
+                                     "bars) and after each cure."))
         if any(finite(r.get(k)) is not None for r in rows for k in ("centres_depth_rms_mm", "boundary_mean_mm")):
-            plots.append({"file": P.plot_error_vs_bend(rows, out_dir / "error_vs_bend.png", series=_series(rows),
-                                                       title="Study: error against bend angle").name,
-                          "caption": "Depth RMS error of the square centres (mm) and mean boundary distance (mm) "
+            plots.append(_plot(P.plot_error_vs_bend, rows, out_dir / "error_vs_bend.png", series=_series(rows),
+                                title="Study: error against bend angle",
+                          caption="Depth RMS error of the square centres (mm) and mean boundary distance (mm) "
                                      "against the bend angle (degrees), solid/dashed per bend direction; red crosses "
-                                     "mark cases whose reconstruction failed."})
+                                     "mark cases whose reconstruction failed."))
     if lf:
-        plots.append({"file": P.plot_l_formula(lf, out_dir / "l_formula.png").name,
-                      "caption": "Left: the L formula's predicted rig distance (m) and the ground-truth distance of "
+        plots.append(_plot(P.plot_l_formula, lf, out_dir / "l_formula.png",
+                      caption="Left: the L formula's predicted rig distance (m) and the ground-truth distance of "
                                  "complete visibility (m) against the bend angle (degrees), for a baseline along the "
                                  "bend axis and along the bend. Right: ground truth against prediction (m); points "
-                                 "above the grey line mean the formula is too close."})
+                                 "above the grey line mean the formula is too close."))
     return plots
 
 

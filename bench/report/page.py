@@ -16,9 +16,12 @@ in ``bench.report.interim``) is::
     {"title": str,
      "summary": str,                                      optional, one paragraph
      "outcome": str,                                      optional: a sensing run's outcome class
-     "figures": [{"label", "value", "unit", "status"}],   key figures; or {label: value}
+     "figures": [{"label", "value", "unit", "status"[, "warning"]}],   key figures; or {label: value};
+                                                          "warning": a line shown beside the figure
      "tables":  [{"title", "caption", "rows": [dict, ...], "columns": [key or {"key", "label"}]}],
-     "plots":   [{"file", "caption"}],                    PNG names in the out_dir handed to the builder
+     "plots":   [{"file", "caption"[, "left_out"]}],      PNG names in the out_dir handed to the builder;
+                                                          "left_out": lines saying what a plot left out
+                                                          (file None: the whole plot, and why)
      "links":   [{"label", "path"}],                      optional: folders or files, relative to the
                                                           input folder handed to the builder
      "notes":   [str]}
@@ -35,9 +38,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from platebench.bench.config.axes import PARAMETER_NAMES, parameter_label
+from platebench.bench.io.atomic import target_of_temp
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.layout import SAMPLE, SAMPLES
 from platebench.bench.io.verify import dataset_manifest, find_links, sample_checksums, verify_sample
+from platebench.bench.report.plots import drawn
 from platebench.bench.report.thumbs import sample_thumbnails
 from platebench.bench.report.values import flag
 from platebench.evaluation.metrics_row import is_metric, metric_label
@@ -48,21 +53,38 @@ __all__ = ["Page", "normalise_section", "table_of", "column_label"]
 
 @dataclass
 class Page:
-    """The report being written: ``stage`` is the staged directory that becomes ``out``."""
+    """The report being written: ``stage`` is the staged directory that becomes ``out``; ``root`` the
+    input folder; ``colours`` the one {method: colour} map every plot of the report takes
+    (``bench.report.colours.method_colours``; empty: each plot colours its own methods in sorted
+    order). Paths are shown as the reader finds them: relative to ``root`` or to the report's folder,
+    staging names replaced by the outputs they become (``bench.io.atomic.target_of_temp``)."""
 
     stage: Path
     out: Path
     root: Path
     notes: list = field(default_factory=list)
     warn: object = None  # callable(message): told of each part left out (also a note)
+    colours: dict = field(default_factory=dict)
     _manifests: dict = field(default_factory=dict)
 
     def leave_out(self, message: str) -> None:
-        """Say that a part is not shown, and why: a note on the page and a warning."""
-        if message not in self.notes:
-            self.notes.append(message)
+        """Say that a part is not shown, and why: a note on the page (its paths as ``shown`` gives them)
+        and a warning (as given)."""
+        note = self.shown(message)
+        if note not in self.notes:
+            self.notes.append(note)
             if self.warn is not None:
                 self.warn(message)
+
+    def shown(self, text: str) -> str:
+        """``text`` with the input folder's absolute path written as its name (the reader's view)."""
+        root = str(self.root.resolve())
+        return str(text).replace(root + os.sep, self.root_name + "/").replace(root, self.root_name)
+
+    @property
+    def root_name(self) -> str:
+        """The input folder's name, as it is once its output is in place (never a staging name)."""
+        return target_of_temp(self.root.resolve()).name or str(self.root)
 
     def checksums(self, sample_dir: Path):
         """The recorded checksums of a sample's files (``bench.io.verify``), the dataset manifest read once."""
@@ -92,9 +114,19 @@ class Page:
                 "file": Path(path).resolve().relative_to(self.stage.resolve()).as_posix()}
 
     def plot(self, name: str, fn, *args, caption: str, **kwargs) -> dict:
-        """Draw ``fn(*args, plots/<name>.png, **kwargs)`` and return it as a template figure."""
-        path = fn(*args, self.plot_dir / f"{name}.png", **kwargs)
-        return self.figure(path, caption, alt=name)
+        """Draw ``fn(*args, plots/<name>.png, **kwargs)`` and return it as a template figure, the report's
+        ``colours`` handed to a plot that takes them. A figure with nothing to show is not kept: the
+        returned figure then has ``src`` None and ``left_out`` one line saying why (``plots.drawn``);
+        panels a plot left out are said in ``left_out`` too."""
+        import inspect  # noqa: PLC0415
+        if self.colours and "colours" in inspect.signature(fn).parameters:
+            kwargs.setdefault("colours", self.colours)
+        path, left = drawn(fn, *args, self.plot_dir / f"{name}.png", **kwargs)
+        if path is None:
+            what = kwargs.get("title") or name
+            return {"src": None, "caption": caption, "alt": name, "file": None,
+                    "left_out": [f"plot '{what}' left out: {left.figure}"]}
+        return {**self.figure(path, caption, alt=name), "left_out": list(left.panels)}
 
     def link(self, path: Path) -> str:
         """``path`` relative to the report's final folder (POSIX separators; a folder ends in /)."""
@@ -102,12 +134,18 @@ class Page:
         return rel + "/" if Path(path).is_dir() else rel
 
     def rel(self, path: Path) -> str:
-        """``path`` as the reader knows it: relative to the input directory where it lies inside."""
+        """``path`` as the reader knows it: relative to the input directory where it lies inside (the
+        input directory itself: its name), else relative to the report's folder."""
         try:
             r = Path(path).resolve().relative_to(self.root.resolve())
-            return str(r) if str(r) != "." else self.root.name or str(self.root)
+            return str(r) if str(r) != "." else self.root_name
         except ValueError:
-            return str(path)
+            return self.from_report(path)
+
+    def from_report(self, path: Path) -> str:
+        """``path`` relative to the report's final folder (POSIX separators), staging names replaced."""
+        out = target_of_temp(self.out.resolve())
+        return Path(os.path.relpath(target_of_temp(Path(path).resolve()), out)).as_posix()
 
     def sample_problem(self, folder: Path) -> str | None:
         """Why a dataset sample's files may not be read for the page (a link inside its folder, a file
@@ -184,7 +222,7 @@ def _figures(figs) -> list[dict]:
         if status is None and flag(f.get("value")) is not None:
             status = "good" if f["value"] else "bad"
         out.append({"label": str(f.get("label", "")), "value": f.get("value"), "unit": f.get("unit") or "",
-                    "status": status or ""})
+                    "status": status or "", "warning": str(f.get("warning") or "")})
     return out
 
 
@@ -207,9 +245,12 @@ def _plots(page: Page, plots, out_dir: Path) -> list[dict]:
     for p in plots or []:
         name, caption = (p if isinstance(p, (tuple, list)) else
                          (p.get("file") or p.get("name") or p.get("path"), p.get("caption", "")))
+        left = [str(n) for n in (p.get("left_out") or [])] if isinstance(p, dict) else []
         path = Path(out_dir) / Path(str(name)).name
-        if path.is_file():
-            out.append(page.figure(path, str(caption or "")))
+        if name is None and left:  # a plot with nothing to show: the line saying so
+            out.append({"src": None, "caption": str(caption or ""), "alt": "", "file": None, "left_out": left})
+        elif path.is_file():
+            out.append({**page.figure(path, str(caption or "")), "left_out": left})
         else:
             page.notes.append(f"plot {name} named by a section was not written")
     return out

@@ -9,6 +9,16 @@ from ``bench.config.axes.parameter_label``; a flag is a bool (``values.flag``).
 
 Units: errors in millimetres, bend angles in degrees, sensing distances in metres,
 fractions in 0..1 (as the table columns name them).
+
+Methods take their colours from one map (``bench.report.colours.method_colours``): a plot that
+shows methods takes ``colours`` ({method: colour}, the report's map) and, without one, colours the
+methods it shows in sorted order, so that a method has one colour in every figure.
+
+No empty panels: a plot that can lose a panel takes ``left_out`` (a ``LeftOut``) and draws only the
+panels with something to show, saying in ``left_out.panels`` which it dropped and why (one line
+each); when nothing at all is left to show, ``left_out.figure`` says why, and the report shows
+that line instead of the figure (``bench.report.page.Page.plot``). Called without ``left_out``, such
+a plot still writes a figure that says it has nothing to show.
 """
 from __future__ import annotations
 
@@ -20,6 +30,7 @@ import numpy as np
 
 from platebench.bench.config.axes import parameter_label
 from platebench.bench.io.atomic import write_bytes
+from platebench.bench.report.colours import colour_of
 from platebench.bench.report.summary import FAILURE_KINDS, axis_stats, precision_recall
 from platebench.bench.report.values import finite as _num
 from platebench.bench.report.values import flag as _flag
@@ -28,7 +39,7 @@ from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label, metri
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
            "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "bend_bins", "compare_error_figure", "plot_output_error_map",
-           "output_file", "plot_accuracy_study"]
+           "output_file", "plot_accuracy_study", "LeftOut", "drawn"]
 
 DPI = 100
 _DIRECTION_STYLE = {"up": "-", "down": "--"}
@@ -39,6 +50,40 @@ _FLAG_LABELS = {"detected": "detected (either symptom)", "counting_test": "count
 _BAR_METRICS = tuple(n for n, f in METRIC_FIELDS.items() if f.metadata["unit"] == "mm")
 _MIN_COLOUR_RANGE_MM = 1e-3  # a colour scale spans at least this (mm): an exact method's zero errors still get one
 _MAX_MAP_POINTS = 20_000  # a point cloud's or mesh's error map draws at most this many points (seeded sample)
+
+
+@dataclass
+class LeftOut:
+    """What a plot left out (module doc): ``panels``, one line per panel dropped for having nothing to
+    show; ``figure``, why the whole figure has nothing to show (None while it shows something)."""
+
+    panels: list = field(default_factory=list)
+    figure: str | None = None
+
+    def panel(self, line: str) -> None:
+        if line not in self.panels:
+            self.panels.append(line)
+
+
+def drawn(fn, *args, **kwargs) -> tuple[Path | None, LeftOut]:
+    """``fn(*args, **kwargs)`` (a plot function of this module, or one with the same contract), with a
+    fresh ``LeftOut`` where it takes one: (the PNG's path, what it left out); the path is None, and no
+    PNG is left behind, when the figure has nothing to show (``LeftOut.figure`` says why)."""
+    import inspect  # noqa: PLC0415
+    left = LeftOut()
+    if "left_out" in inspect.signature(fn).parameters:
+        kwargs = {**kwargs, "left_out": left}
+    path = Path(fn(*args, **kwargs))
+    if left.figure is not None:
+        path.unlink(missing_ok=True)
+        return None, left
+    return path, left
+
+
+def _nothing(left_out: LeftOut | None, why: str) -> None:
+    """Record that the whole figure has nothing to show (when the caller asked)."""
+    if left_out is not None:
+        left_out.figure = why
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -98,26 +143,38 @@ def _positive_span(values) -> bool:
 # ----------------------------------------------------------------------------- error vs bend
 def plot_error_vs_bend(rows, path, metrics=("centres_depth_rms_mm", "depth_rms_mm", "boundary_mean_mm"),
                        series=("method", "direction"),
-                       title: str | None = None) -> Path:
-    """One panel per metric: error (mm) against bend angle (deg), one series per method and direction.
+                       title: str | None = None, colours: dict | None = None, left_out: LeftOut | None = None) -> Path:
+    """One panel per metric with a value (others left out): error (mm) against bend angle (deg), one
+    series per method and direction; a method has its colour (``colours``, module doc) and the
+    direction its line style.
 
     Each sample is a dot; the line joins the medians at each bend. Rows whose status is
     not "ok" are drawn as red crosses on the bottom edge (a failure at that bend)."""
     rows = list(rows or [])
-    metrics = [m for m in metrics if any(_num(r.get(m)) is not None for r in rows)] or list(metrics[:1])
+    shown = [m for m in metrics if any(_num(r.get(m)) is not None for r in rows)]
+    if not shown:
+        _nothing(left_out, "no row has an error value")
+    metrics = shown or list(metrics[:1])
     fig = _figure(5.2 * len(metrics), 4.0)
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     present = [k for k in series if any(r.get(k) not in (None, "") for r in rows)]
     series = [k for k in present if len({str(r.get(k)) for r in rows}) > 1] or present[:1]
+    if "method" in present and "method" not in series:  # a method keeps its colour even when it is the only one
+        series = ["method", *series]
     groups = _groups(rows, series)
     d_at = series.index("direction") if "direction" in series else None
+    m_at = series.index("method") if "method" in series else None
 
     def colour_key(key):  # one colour per series apart from the direction (line style), if anything else varies
         rest = tuple(x for i, x in enumerate(key) if i != d_at)
         return rest if rest else key
 
     ckeys = sorted({colour_key(g) for g in groups}, key=lambda k: tuple(str(x) for x in k))
-    colors = dict(zip(ckeys, _colors(len(ckeys))))
+    if m_at is not None:  # colours by method, from the one map
+        methods = sorted({str(k[m_at]) for k in groups})
+        colors = {ck: colour_of(colours, g[m_at], methods) for g in groups for ck in [colour_key(g)]}
+    else:
+        colors = dict(zip(ckeys, _colors(len(ckeys))))
     for ax, metric in zip(axes, metrics):
         drawn, allv = False, []
         for key in sorted(groups, key=lambda k: tuple(str(x) for x in k)):
@@ -169,18 +226,19 @@ def bend_bins(bends, max_bins: int = 10) -> np.ndarray:
 
 
 def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arrays_disagree"),
-                           gt_key: str = "false_boundary_gt", max_bins: int = 10, title: str | None = None) -> Path:
+                           gt_key: str = "false_boundary_gt", max_bins: int = 10, title: str | None = None,
+                           left_out: LeftOut | None = None) -> Path:
     """Precision and recall of each detection flag against ground truth, per bend-angle bin.
 
     Grey bars (right axis): fraction of cases in the bin with a ground-truth false boundary.
     Precision is undefined (gap) in a bin with no positive verdict, recall in a bin with no
-    ground-truth positive."""
+    ground-truth positive. A panel undefined in every bin is left out (``left_out``, module doc)."""
     rows = [r for r in (rows or []) if _bend_key(r.get("bend_deg")) is not None and _flag(r.get(gt_key)) is not None]
     flags = [f for f in flags if any(_flag(r.get(f)) is not None for r in rows)]
-    fig = _figure(9.0, 4.4)
-    ax_p, ax_r = fig.subplots(1, 2, sharex=True)
     if not rows or not flags:
-        for ax in (ax_p, ax_r):
+        _nothing(left_out, "no case has both a ground-truth and a detection verdict")
+        fig = _figure(9.0, 4.4)
+        for ax in fig.subplots(1, 2, sharex=True):
             _empty(ax, "no cases with both a ground-truth and a detection verdict")
         fig.tight_layout()
         return _save(fig, path)
@@ -192,7 +250,21 @@ def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arra
     bins = [[r for r, i in zip(rows, idx) if i == k] for k in range(len(centres))]
     gt_frac = np.array([np.mean([bool(_flag(r.get(gt_key))) for r in b]) if b else np.nan for b in bins])
     n = np.array([len(b) for b in bins])
-    for ax, what in ((ax_p, "precision"), (ax_r, "recall")):
+    curves = {what: [np.array([np.nan if v is None else v for v in
+                               (precision_recall(b, f, gt_key)[what] for b in bins)], float) for f in flags]
+              for what in ("precision", "recall")}
+    why = {"precision": "no positive verdict in any bin", "recall": "no ground-truth false boundary in any bin"}
+    panels = [w for w in ("precision", "recall") if any(np.isfinite(y).any() for y in curves[w])]
+    for w in ("precision", "recall"):
+        if w not in panels and left_out is not None:
+            left_out.panel(f"{w} panel left out: {w} is undefined in every bin ({why[w]})")
+    if not panels:
+        _nothing(left_out, "precision and recall are undefined in every bin (no positive verdict and no "
+                           "ground-truth false boundary)")
+    on = panels or ["precision", "recall"]
+    fig = _figure(4.5 * len(on) + (0.5 if len(on) == 1 else 0.0), 4.4)
+    axs = fig.subplots(1, len(on), sharex=True, squeeze=False)[0]
+    for ax, what in zip(axs, on):
         tw = ax.twinx()
         tw.bar(centres, gt_frac, width=0.85 * width, color="0.85", zorder=0)
         tw.set_ylim(0, 1.05)
@@ -200,17 +272,11 @@ def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arra
         tw.tick_params(axis="y", colors="0.45", labelsize=7)
         ax.set_zorder(tw.get_zorder() + 1)
         ax.patch.set_visible(False)
-        defined = False
-        for j, f in enumerate(flags):
-            vals = [precision_recall(b, f, gt_key)[what] for b in bins]
-            y = np.array([np.nan if v is None else v for v in vals], float)
-            defined |= bool(np.isfinite(y).any())
+        for j, (f, y) in enumerate(zip(flags, curves[what])):
             dodge = (j - (len(flags) - 1) / 2) * 0.06 * width  # overlapping flags stay visible
             ax.plot(centres + dodge, y, marker="os^v"[j % 4], lw=1.5, ms=5, label=_FLAG_LABELS.get(f, f), color=f"C{j}")
-        if not defined:
-            why = ("no positive verdict in any bin" if what == "precision" else
-                   "no ground-truth false boundary in any bin")
-            ax.text(0.5, 0.5, f"{what} undefined everywhere:\n{why}", ha="center", va="center",
+        if what not in panels:
+            ax.text(0.5, 0.5, f"{what} undefined everywhere:\n{why[what]}", ha="center", va="center",
                     transform=ax.transAxes, fontsize=9, color="0.35")
         crowded = width.min() < 0.06 * (edges[-1] - edges[0])  # narrow bins: vertical labels
         for c, k in zip(centres, n):
@@ -222,7 +288,7 @@ def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arra
         ax.set_ylabel(what)
         ax.grid(True, alpha=0.3)
         ax.set_title(f"detection {what} per bend bin", fontsize=9, pad=22 if crowded else 14)
-    handles, labels = ax_r.get_legend_handles_labels()
+    handles, labels = axs[-1].get_legend_handles_labels()
     fig.suptitle(title or "False-boundary detection against ground truth", fontsize=10)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
@@ -332,7 +398,7 @@ def plot_hidden_fraction_vs_bend(rows, path, smallest_hiding: dict | None = None
 
 
 # ----------------------------------------------------------------------------- study: cures
-def plot_cure_success_vs_bend(rows, path, title: str | None = None) -> Path:
+def plot_cure_success_vs_bend(rows, path, title: str | None = None, left_out: LeftOut | None = None) -> Path:
     """Cases with a ground-truth false boundary: left, fraction of cases each cure removes it
     (the boundary fully visible at the new pose) per bend; right, hidden fraction (0..1) before
     and after each cure."""
@@ -342,6 +408,7 @@ def plot_cure_success_vs_bend(rows, path, title: str | None = None) -> Path:
     a1, a2 = fig.subplots(1, 2, sharex=True)
     tried = [r for r in rows if any(_flag(r.get(f"{c}_removed")) is not None for c, _ in cures)]
     if not tried:
+        _nothing(left_out, "no case with a ground-truth false boundary has a cure result")
         for ax in (a1, a2):
             _empty(ax, "no case with a ground-truth false boundary and a cure result")
         fig.tight_layout()
@@ -384,7 +451,7 @@ def plot_cure_success_vs_bend(rows, path, title: str | None = None) -> Path:
 
 
 # ----------------------------------------------------------------------------- study: L formula
-def plot_l_formula(rows, path, title: str | None = None) -> Path:
+def plot_l_formula(rows, path, title: str | None = None, left_out: LeftOut | None = None) -> Path:
     """Left: the L formula's predicted rig distance (m) and the ground-truth distance of complete
     visibility (m) against bend (deg), for both baselines. Right: ground truth against prediction
     (m) with the identity line. ``rows``: ``bench.io.records.LFormulaRow``s."""
@@ -396,6 +463,7 @@ def plot_l_formula(rows, path, title: str | None = None) -> Path:
     pred = [(_bend_key(r.bend_deg), _num(r.predicted_distance_m)) for r in rows]
     pred = sorted((b, p) for b, p in pred if p is not None)
     if not pred:
+        _nothing(left_out, "no L-formula row has a predicted distance")
         for ax in (a1, a2):
             _empty(ax, "no L-formula rows")
         fig.tight_layout()
@@ -432,6 +500,8 @@ def plot_l_formula(rows, path, title: str | None = None) -> Path:
         a2.legend(fontsize=7, loc="upper left")
     else:
         _empty(a2, "no finite ground-truth distance")
+        if left_out is not None:
+            left_out.panel("ground truth against prediction: no finite ground-truth distance to plot")
     a2.set_xlabel("predicted distance (m)")
     a2.set_ylabel("ground-truth distance (m)")
     a2.grid(True, alpha=0.3)
@@ -442,11 +512,13 @@ def plot_l_formula(rows, path, title: str | None = None) -> Path:
 
 
 # ----------------------------------------------------------------------------- method comparison
-def plot_method_comparison(table: dict, path, metrics=None, title: str | None = None) -> Path:
+def plot_method_comparison(table: dict, path, metrics=None, title: str | None = None, colours: dict | None = None,
+                           left_out: LeftOut | None = None) -> Path:
     """Grouped bars: one group per error metric (mm, log scale when values span decades), with a bar
     for each method that reports it (one column, one meaning: a group never mixes the paper's
     square centres with a dense map's pixels); a second panel for coverage (fraction of the plate,
-    0..1) when present.
+    0..1) when present. A method has its colour (``colours``, module doc); a panel with no value is
+    left out (``left_out``).
 
     ``table``: {method: {metric: value}} (e.g. the mean over a sweep's samples, or compare.json)."""
     table = {str(m): dict(v or {}) for m, v in (table or {}).items()}
@@ -459,16 +531,26 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
                    and any(_num(t.get(k)) is not None for t in table.values())]
     cov = "coverage_frac"  # the share of the plate's pixels with an estimate (``evaluation.pixel_coverage``)
     has_cov = any(_num(t.get(cov)) is not None for t in table.values())
-    fig = _figure(9.5 if has_cov else 7.5, 4.2)
-    if has_cov:
+    colors = [colour_of(colours, m, methods) for m in methods]
+    if not methods or not (err_metrics or has_cov):
+        _nothing(left_out, "no method reports an error in mm or a coverage")
+    elif not err_metrics and left_out is not None:
+        left_out.panel("error panel left out: no method reports an error in mm")
+    if has_cov and not err_metrics:
+        fig = _figure(4.0, 4.2)
+        ax, axc = None, fig.add_subplot(111)
+    elif has_cov:
+        fig = _figure(9.5, 4.2)
         gs = fig.add_gridspec(1, 2, width_ratios=[3, 1.2])
         ax, axc = fig.add_subplot(gs[0]), fig.add_subplot(gs[1])
     else:
+        fig = _figure(7.5, 4.2)
         ax, axc = fig.add_subplot(111), None
-    if not methods or not err_metrics:
+    if ax is None:
+        pass
+    elif not methods or not err_metrics:
         _empty(ax, "no method metrics to compare")
     else:
-        colors = _colors(len(methods))
         w = 0.8 / len(methods)
         x = np.arange(len(err_metrics))
         allv = []
@@ -492,7 +574,6 @@ def plot_method_comparison(table: dict, path, metrics=None, title: str | None = 
         ax.legend(fontsize=7, loc="best")
     if axc is not None:
         vals = [(m, _num(table[m].get(cov))) for m in methods]
-        colors = _colors(len(methods))
         for j, (m, v) in enumerate(vals):
             if v is not None:
                 axc.bar(j, v, color=colors[j])
@@ -631,7 +712,8 @@ def _draw_rate_panel(ax, st: dict, xa: _XAxis, style: dict, kind: str, denominat
 
 
 def plot_metric_vs_axis(frame, axis: str, path, metrics=("centres_depth_rms_mm",), title: str | None = None,
-                        pooled: dict | None = None, max_levels: int = 10) -> Path:
+                        pooled: dict | None = None, max_levels: int = 10, colours: dict | None = None,
+                        left_out: LeftOut | None = None) -> Path:
     """A results frame against one swept ``axis`` (a results column): per metric, the median over
     samples at each level, one line per method (``_draw_metric_panel``); then one panel per kind
     of failure (``summary.FAILURE_KINDS``: crashed, paper's bound violated, points mismatched),
@@ -640,32 +722,56 @@ def plot_metric_vs_axis(frame, axis: str, path, metrics=("centres_depth_rms_mm",
     Numeric axes are drawn on their values (log x when all are positive and span more than a
     factor 20), categorical ones (noise none < low < medium < high, ...) as ordered categories.
     ``pooled`` ({column: [labels]}) names the other axes that vary and are pooled into each
-    point; it goes under the title."""
+    point; it goes under the title. Methods have their colours (``colours``, module doc); a panel with
+    nothing to show (a metric no row gives, a kind of failure no row can say) is left out
+    (``left_out``)."""
     metrics = [m for m in metrics if m in frame.columns and frame[m].notna().any()] or list(metrics[:1])
     stats = [axis_stats(frame, axis, m, max_levels) for m in metrics]
-    n_panels = len(metrics) + len(FAILURE_KINDS)
+    if not stats[0]["levels"]:
+        _nothing(left_out, f"no row has a value of {parameter_label(axis)}")
+    else:  # the panels with something to show
+        keep = [st for st in stats if any(c["values"] for c in st["cells"].values())]
+        for st in stats:
+            if st not in keep and left_out is not None:
+                left_out.panel(f"{metric_label(st['metric'])} panel left out: no row gives a value")
+        kinds = [k for k in FAILURE_KINDS if any(c[k[1]] for c in stats[0]["cells"].values())]
+        for _, _, label in FAILURE_KINDS:
+            if label not in [k[2] for k in kinds] and left_out is not None:
+                left_out.panel(f"'{label}' panel left out: no row of any method can say")
+        if keep or kinds:
+            return _metric_vs_axis_panels(stats[0], keep, kinds, axis, path, title, pooled, colours)
+        _nothing(left_out, f"no row gives a value of {', '.join(metric_label(m) for m in metrics)}")
+    fig = _figure(11.0, 4.2)
+    fig.suptitle(_axis_title(axis, title, pooled), fontsize=10)
+    _empty(fig.add_subplot(111), f"no rows with a value of {parameter_label(axis)}")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _axis_title(axis: str, title: str | None, pooled: dict | None) -> str:
+    head = title or f"Error and failures against {parameter_label(axis)}"
+    if pooled:
+        head += "\n(pooled over " + "; ".join(f"{parameter_label(k)}: {', '.join(map(str, v))}"
+                                               for k, v in pooled.items()) + ")"
+    return head
+
+
+def _metric_vs_axis_panels(first: dict, stats: list, kinds: list, axis: str, path, title, pooled, colours) -> Path:
+    """``plot_metric_vs_axis``'s figure: a panel per metric of ``stats``, then per kind of failure of ``kinds``."""
+    n_panels = len(stats) + len(kinds)
     rows = -(-n_panels // 2)
     fig = _figure(11.0, 3.5 * rows + 0.7)
     axes = fig.subplots(rows, 2, squeeze=False).ravel()
     for ax in axes[n_panels:]:
         ax.set_axis_off()
     label_x = parameter_label(axis)
-    head = title or f"Error and failures against {label_x}"
-    if pooled:
-        head += "\n(pooled over " + "; ".join(f"{parameter_label(k)}: {', '.join(map(str, v))}"
-                                               for k, v in pooled.items()) + ")"
-    fig.suptitle(head, fontsize=10)
-    if not stats[0]["levels"]:
-        for ax in axes[:n_panels]:
-            _empty(ax, f"no rows with a value of {label_x}")
-        fig.tight_layout()
-        return _save(fig, path)
-    xa = _XAxis.of(stats[0])
-    style = {m: (c, mk) for m, c, mk in zip(xa.methods, _colors(len(xa.methods)), "osD^v<>p*h" * 3)}
+    fig.suptitle(_axis_title(axis, title, pooled), fontsize=10)
+    xa = _XAxis.of(first)
+    style = {m: (colour_of(colours, m, xa.methods), mk) for m, mk in zip(xa.methods, "osD^v<>p*h" * 3)}
     for ax, st in zip(axes, stats):
         _draw_metric_panel(ax, st, xa, style)
-    for ax, (kind, denominator, label) in zip(axes[len(metrics):], FAILURE_KINDS):
-        _draw_rate_panel(ax, stats[0], xa, style, kind, denominator, label)
+    for ax, (kind, denominator, label) in zip(axes[len(stats):], kinds):
+        _draw_rate_panel(ax, first, xa, style, kind, denominator, label)
     for ax in axes[:n_panels]:
         xa.format(ax, label_x)
     fig.tight_layout()

@@ -30,7 +30,8 @@ def finite(v) -> float | None:
 
 def fmt(v, digits: int = 4) -> str:
     """Plain text for a table cell (the template escapes it): "–" for no value, yes/no for flags,
-    integers as they are, floats to ``digits`` significant figures (scientific outside 1e-3..1e5),
+    integers as they are, floats to ``digits`` significant figures (the whole number where that
+    would take an exponent, scientific outside 1e-3..1e5),
     infinities as ∞."""
     if v is None:
         return DASH
@@ -48,5 +49,6 @@ def fmt(v, digits: int = 4) -> str:
             return "0"
         if abs(v) >= 1e5 or abs(v) < 1e-3:
             return f"{v:.{digits - 1}e}"
-        return f"{v:.{digits}g}"
+        text = f"{v:.{digits}g}"
+        return f"{v:.0f}" if "e" in text else text  # more whole digits than significant ones: never 1.113e+04
     return str(v)

@@ -10,8 +10,10 @@ Plug-ins (``bench.run.plugins``: one function from a sample's inputs to a dispar
 point or mesh output) are found by ``get_method`` on first use, in any process: an entry point
 of the group ``platebench.methods``, or a name written ``module:function``. They are then
 registered like the built-ins, so a sweep's spec validation, ``compare`` and every worker
-(local or Dask) resolve the same name the same way. Their code runs in a process of their own,
-with a time limit (``bench.run.plugin_host``): whatever it does is that method's failure.
+(local or Dask) resolve the same name the same way. Finding one imports nothing of it (its
+module is looked up, its description read from its source: ``plugins.resolve_plugin``); its
+code, its import included, runs only in a process of its own, with a time limit
+(``bench.run.plugin_host``): whatever it does is that method's failure on that sample.
 """
 from __future__ import annotations
 
@@ -83,7 +85,9 @@ def method_names() -> tuple[str, ...]:
 
 def get_method(name: str) -> Method:
     """The method called ``name``: a registered one, else an installed plug-in (entry point of
-    ``platebench.methods``) or ``module:function``, resolved now and registered (see module doc)."""
+    ``platebench.methods``) or ``module:function``, found now without importing it and registered (see
+    module doc). ``UserValueError`` for an unknown name, ``PluginError`` for a plug-in name that is not
+    ``module:function`` or whose module is not on the Python path."""
     if not isinstance(name, str) or not name:
         raise UserValueError(f"method name {name!r} is empty: allowed {', '.join(method_names())}")
     method = METHODS.get(name)

@@ -1,24 +1,37 @@
 """Plug-ins run in a process of their own: whatever a plug-in does (``sys.exit``, ``os._exit``, a
-crash, an exception, a loop that never returns, an output that is not one), it fails that method on
-that sample with one line, and the command that runs it goes on.
+crash, an exception, a loop that never returns, at import or when called, an output that is not one),
+it fails that method on that sample with one line, and the command that runs it goes on.
 
 ``PluginHost`` is that process (``python -m platebench.bench.run.plugin_process PARENT_PID``): one per
 calling process and thread (a sweep's worker, ``compare``, a Dask worker's task thread), started on
-first use and reused while its plug-ins succeed. It runs in a session of its own (a Ctrl-C at the
-terminal reaches the command, which stops it) and dies with its parent (PR_SET_PDEATHSIG, as the
-sweep's workers do). A request names the plug-in (an installed entry point or ``module:function``,
-found in the host; or a function pickled by reference) and a sample directory; the host loads the
-sample's inputs (``plugins.method_inputs``), calls the plug-in and answers with its output as plain
-arrays (``.npy`` format, no pickles) and numbers (JSON). The caller waits at most the time limit
-(``plugins.METHOD_TIME_LIMIT_S`` unless told): on a timeout, a crash, an exit, or any failure the host
-is killed with its whole process group and the next request starts a fresh one. The plug-in's own
-prints go to the command's stderr; its standard input is empty.
+first use and reused while its plug-ins succeed. A request names the plug-in (an installed entry point
+or ``module:function``, imported in the host on its first call; or a function pickled by reference)
+and a sample directory; the host imports the plug-in, loads the sample's inputs
+(``plugins.method_inputs``), calls the plug-in and answers with its output as plain arrays (``.npy``
+format, no pickles) and numbers (JSON). The caller waits at most the time limit, which covers all
+three (``plugins.METHOD_TIME_LIMIT_S`` unless told; the host's own start-up, before any plug-in code,
+has ``START_TIME_LIMIT_S``). The plug-in's own prints go to the command's stderr; its standard input
+is empty.
+
+Process groups: the host starts a session, and so a process group, of its own (a Ctrl-C at the
+terminal reaches the command, which stops it), and everything the plug-in starts (``subprocess``,
+``multiprocessing``) is in that group unless it leaves it with a session of its own. The group is
+killed, never the host alone (``PluginHost.stop``: SIGTERM to the group, SIGKILL to it after
+``STOP_GRACE_S`` or as soon as none of it is left):
+
+* on a timeout, a crash, an exit, an interrupt of the request, or an answer saying the plug-in failed
+  (the next request starts a fresh host);
+* when the calling process exits (``stop_all``, an ``atexit`` hook; ``compare`` and sweeps end so);
+* when the caller dies without running it (killed, or a pool worker terminated): the host dies with
+  its calling thread (PR_SET_PDEATHSIG, as the sweep's workers do), and a guard process of the group,
+  forked by the host before any plug-in code runs (``serve``), kills the group when the host dies.
 
 Frames on the two pipes: 8 bytes of length (big-endian), then the bytes. A request is a pickled dict
 (made by the bench itself); an answer is a JSON header, then one frame per array it lists.
 """
 from __future__ import annotations
 
+import atexit
 import contextlib
 import io
 import json
@@ -31,12 +44,18 @@ import subprocess
 import sys
 import threading
 import time
+import weakref
 
 import numpy as np
 
-__all__ = ["PluginHost", "HostFailure", "host", "serve", "START_TIME_LIMIT_S"]
+__all__ = ["PluginHost", "HostFailure", "host", "serve", "stop_all", "group_members", "START_TIME_LIMIT_S",
+           "STOP_GRACE_S"]
 
 START_TIME_LIMIT_S = 120.0  # for the host process to start (Python, numpy, platebench's plug-in module)
+STOP_GRACE_S = 1.0  # after SIGTERM to a host's process group, the longest it has before SIGKILL, seconds
+_STOP_POLL_S = 0.02  # how often a stopping group is looked at, seconds
+_REAP_TIME_LIMIT_S = 10.0  # the longest to wait for a killed host to be reaped, seconds
+_GUARD_SIGNAL = signal.SIGUSR1  # what the group's guard receives when the host dies (PR_SET_PDEATHSIG)
 _READY = b"platebench-plugin-host-ready"
 
 
@@ -84,6 +103,8 @@ class PluginHost:
 
     def __init__(self):
         self.proc: subprocess.Popen | None = None
+        with _ALL_LOCK:
+            _ALL.add(self)
 
     def _start(self) -> None:
         self.proc = subprocess.Popen([sys.executable, "-m", "platebench.bench.run.plugin_process", str(os.getpid())],
@@ -100,14 +121,11 @@ class PluginHost:
             raise HostFailure(f"the plug-in process did not start within {START_TIME_LIMIT_S:g} s")
 
     def stop(self) -> None:
-        """Kill the host and everything it started (its process group)."""
+        """Kill the host and everything it started: its process group (module doc)."""
         proc, self.proc = self.proc, None
         if proc is None:
             return
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        with contextlib.suppress(Exception):
-            proc.wait(timeout=10)
+        kill_group(proc)
         for f in (proc.stdin, proc.stdout):
             with contextlib.suppress(Exception):
                 f.close()
@@ -171,6 +189,8 @@ class PluginHost:
 
 
 _HOSTS = threading.local()
+_ALL: weakref.WeakSet = weakref.WeakSet()  # every host of this process, for stop_all
+_ALL_LOCK = threading.Lock()
 
 
 def host() -> PluginHost:
@@ -181,6 +201,54 @@ def host() -> PluginHost:
     return h
 
 
+def stop_all() -> None:
+    """Stop every plug-in host of this process with its process group (registered with ``atexit``)."""
+    with _ALL_LOCK:
+        hosts = list(_ALL)
+    for h in hosts:
+        with contextlib.suppress(Exception):
+            h.stop()
+
+
+atexit.register(stop_all)
+
+
+def group_members(pgid: int) -> list[int]:
+    """The live processes (not zombies) of process group ``pgid``, read from /proc; [] where there is none."""
+    out = []
+    try:
+        names = os.listdir("/proc")
+    except OSError:
+        return out
+    for name in names:
+        if not name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{name}/stat", "rb") as f:
+                fields = f.read().rpartition(b")")[2].split()
+        except OSError:
+            continue
+        if len(fields) > 2 and fields[0] not in (b"Z", b"X") and int(fields[2]) == pgid:
+            out.append(int(name))
+    return out
+
+
+def kill_group(proc: subprocess.Popen) -> None:
+    """Kill the process group ``proc`` leads (its session's): SIGTERM, then SIGKILL once none of it is left
+    alive or after ``STOP_GRACE_S``; then reap ``proc``. The leader stays unreaped until the SIGKILL, so
+    its group id names no other group meanwhile."""
+    pgid = proc.pid
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(pgid, signal.SIGTERM)
+    deadline = time.monotonic() + STOP_GRACE_S
+    while time.monotonic() < deadline and group_members(pgid):
+        time.sleep(_STOP_POLL_S)
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(pgid, signal.SIGKILL)
+    with contextlib.suppress(Exception):
+        proc.wait(timeout=_REAP_TIME_LIMIT_S)
+
+
 # ----------------------------------------------------------------------------- the host's side
 def serve(handle, parent_pid: int) -> None:
     """The host's loop (``bench.run.plugin_process``): answer each request with ``handle(request) ->
@@ -188,6 +256,7 @@ def serve(handle, parent_pid: int) -> None:
     from platebench.bench.run.workers import die_with_parent  # noqa: PLC0415
 
     die_with_parent(parent_pid)
+    _guard_group(os.getpid())
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the command decides; it kills this process to stop it
     proto_in, proto_out = os.dup(0), os.dup(1)
     os.dup2(os.open(os.devnull, os.O_RDONLY), 0)  # the plug-in reads nothing of the protocol
@@ -208,6 +277,35 @@ def serve(handle, parent_pid: int) -> None:
         _write_frame(proto_out, json.dumps(head).encode())
         for b in body:
             _write_frame(proto_out, b)
+
+
+def _guard_group(host_pid: int) -> None:
+    """Fork the guard of the host's process group (Linux): a process that holds no pipe of the protocol and
+    waits; when the host dies (its PR_SET_PDEATHSIG, ``_GUARD_SIGNAL``) it kills the whole group with
+    SIGKILL, itself included. SIGTERM to the group stops it as it stops the rest."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes  # noqa: PLC0415  (loaded before the fork: the guard only calls it)
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return
+    if os.fork():
+        return
+    try:
+        null = os.open(os.devnull, os.O_RDWR)
+        os.dup2(null, 0)
+        os.dup2(null, 1)
+        os.closerange(3, os.sysconf("SC_OPEN_MAX"))
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(_GUARD_SIGNAL, lambda *_: os.killpg(0, signal.SIGKILL))
+        prctl(1, int(_GUARD_SIGNAL), 0, 0, 0)  # PR_SET_PDEATHSIG
+        if os.getppid() != host_pid:  # the host died before the line above
+            os.killpg(0, signal.SIGKILL)
+        while True:
+            signal.pause()
+    finally:
+        os._exit(0)
 
 
 def _npy(a: np.ndarray) -> bytes:

@@ -28,19 +28,34 @@ an entry point ``name`` in the group ``platebench.methods`` of any installed dis
 or ``name`` written as ``module:function`` (importable from the Python path). Resolution is
 lazy: a Dask worker that receives only the name resolves it the same way.
 
+Finding a plug-in runs none of its code (``resolve_plugin``): the calling process (``compare``, a
+sweep's main process and its workers, a Dask worker) reads the entry points' metadata, checks the
+name's form and looks its module up without importing it (``find_module``: the top-level name
+through Python's import finders, each further part of a dotted name in its parent's folders, so
+that no package's ``__init__`` runs either). The description shown in tables and help
+(``Plugin.description``) is the function's docstring read from its source file with ``ast`` (never
+executed), else the entry point's distribution's summary, else the name. A name that is not
+``module:function`` or whose module is not on the Python path is refused (``PluginError``, one
+line); everything the import itself can do is left to the plug-in's process.
+
 Isolation
 ---------
-A plug-in's code runs only in a process of its own (``bench.run.plugin_host``): it is imported
-there (``resolve_plugin`` returns a ``Plugin``, its name and description) and called there on each
-sample, with a time limit (``METHOD_TIME_LIMIT_S`` unless the command sets another: ``compare`` and
-``sweep`` take ``--method-time-limit-s``, a sweep spec ``sweep.method_time_limit_s``). Whatever it
-does, its ``sys.exit`` (at import too), an exception, a crash, a loop that never returns, a wrong
-return type, an array of complex, bool, text or Python objects, an unusable mesh or a metric that
-is not a number, is that method's failure on that sample (``PluginError``, one line): a sweep records
-it in the method's row, ``compare`` in the method's entry, and both go on with the other methods.
+A plug-in's code runs only in a process of its own (``bench.run.plugin_host``): its module is
+imported there, within the time limit of the call that first needs it, and it is called there on
+each sample, with a time limit (``METHOD_TIME_LIMIT_S`` unless the command sets another:
+``compare`` and ``sweep`` take ``--method-time-limit-s``, a sweep spec
+``sweep.method_time_limit_s``); the limit covers the import, reading the sample's inputs and the
+call. Whatever it does, at import or when called: its ``sys.exit``, an exception, a crash, a loop
+that never returns, a wrong return type, an array of complex, bool, text or Python objects, an
+unusable mesh or a metric that is not a number, is that method's failure on that sample
+(``PluginError``, one line): a sweep records it in the method's row, ``compare`` in the method's
+entry, and both go on with the other methods. A module that fails at import fails again on every
+sample (each failure starts a fresh process, which imports it again). Processes the plug-in starts
+die with its process (``plugin_host``: its whole process group is killed).
 """
 from __future__ import annotations
 
+import ast
 import contextlib
 import importlib
 import inspect
@@ -81,12 +96,12 @@ if TYPE_CHECKING:
 
 __all__ = ["ENTRY_POINT_GROUP", "MethodInputs", "Disparity", "Depth", "Points", "Mesh", "OUTPUT_KINDS",
            "PluginError", "Plugin", "method_inputs", "resolve_plugin", "load_plugin", "plugin_names", "score_output",
-           "run_plugin", "call_plugin", "write_output", "jsonable", "METHOD_TIME_LIMIT_S", "RESOLVE_TIME_LIMIT_S",
-           "check_time_limit"]
+           "run_plugin", "call_plugin", "write_output", "jsonable", "METHOD_TIME_LIMIT_S", "check_time_limit",
+           "find_module"]
 
 ENTRY_POINT_GROUP = "platebench.methods"
-METHOD_TIME_LIMIT_S = 600.0  # default: the longest one plug-in may run on one sample, seconds
-RESOLVE_TIME_LIMIT_S = 120.0  # the longest a plug-in's module may take to import, seconds
+METHOD_TIME_LIMIT_S = 600.0  # default: the longest one plug-in may take on one sample (import included), seconds
+SOURCE_READ_LIMIT_BYTES = 4 << 20  # a plug-in's source larger than this is not parsed for its description
 TIME_LIMIT_RANGE_S = (1.0, 86400.0)
 
 
@@ -210,41 +225,125 @@ def load_plugin(name: str) -> Callable:
 
 
 def _split(name: str) -> tuple[str, str, str]:
+    """(module, ":", attribute) of ``module:function``, both dotted Python names, else ``PluginError``."""
     mod, _, attr = name.partition(":")
-    if not mod or not attr:
-        raise PluginError(f"method {name!r}: write a plug-in as module:function")
+    if not (_dotted(mod) and _dotted(attr)):
+        raise PluginError(f"method {name!r}: write a plug-in as module:function (dotted Python names)")
     return mod, _, attr
+
+
+def _dotted(text: str) -> bool:
+    return bool(text) and all(part.isidentifier() for part in text.split("."))
+
+
+def find_module(module: str):
+    """The import spec of ``module`` as this process's Python path holds it, found without running any
+    module's code; None when it is not there. The top-level name goes through ``importlib.util.find_spec``
+    (the import finders only: for a top-level name it imports nothing); each further part of a dotted name
+    is looked up in the folders of the package above it (``importlib.machinery.PathFinder``, the
+    package's own ``__path__`` when it is already imported here), never by importing that package, so no
+    ``__init__`` runs. A package that extends its ``__path__`` when imported is searched where it lies."""
+    from importlib.machinery import PathFinder  # noqa: PLC0415
+    from importlib.util import find_spec  # noqa: PLC0415
+
+    parts = module.split(".")
+    spec = None
+    locations = None
+    for i in range(len(parts)):
+        full = ".".join(parts[: i + 1])
+        loaded = sys.modules.get(full)
+        try:
+            if loaded is not None:
+                spec = getattr(loaded, "__spec__", None)
+                here = getattr(loaded, "__path__", None)
+            else:
+                spec = find_spec(full) if i == 0 else PathFinder.find_spec(full, list(locations))
+                here = None
+        except (ImportError, ValueError, AttributeError, TypeError):
+            return None
+        if spec is None:
+            return None
+        locations = here if here is not None else spec.submodule_search_locations
+        if i < len(parts) - 1 and not locations:
+            return None  # a module, not a package: it has no parts below it
+    return spec
+
+
+def _docstring(spec, attr: str) -> str | None:
+    """The first line of the docstring of ``attr`` (``function`` or ``Class.method``) as the source file of
+    ``spec`` defines it (its last top-level definition of that name), parsed with ``ast`` and never executed;
+    None when there is no such source, definition or docstring."""
+    origin = getattr(spec, "origin", None)
+    if not isinstance(origin, str) or not origin.endswith(".py"):
+        return None
+    try:
+        path = Path(origin)
+        if path.stat().st_size > SOURCE_READ_LIMIT_BYTES:
+            return None
+        tree = ast.parse(path.read_bytes(), filename=origin)
+    except (OSError, SyntaxError, ValueError, RecursionError, MemoryError):
+        return None
+    body, node = tree.body, None
+    for part in attr.split("."):
+        defs = [n for n in body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
+                and n.name == part]
+        if not defs:
+            return None
+        node = defs[-1]
+        body = node.body
+    doc = (ast.get_docstring(node) or "").strip()
+    return doc.splitlines()[0].strip()[:300] if doc else None
+
+
+def _summary(ep) -> str | None:
+    """The one-line summary of the distribution that declares entry point ``ep`` (its metadata, no import)."""
+    try:
+        text = (ep.dist.metadata["Summary"] or "").strip()
+    except Exception:  # noqa: BLE001  (no distribution, unreadable metadata)
+        return None
+    return text.splitlines()[0][:300] if text and text != "UNKNOWN" else None
 
 
 @dataclass(frozen=True)
 class Plugin:
     """A plug-in found by name (``resolve_plugin``): ``name`` as written (an entry point's name or
-    ``module:function``) and ``description`` (its docstring's first line, read in its own process)."""
+    ``module:function``) and ``description`` (module doc, "Discovery": read without importing it)."""
 
     name: str
     description: str
 
 
 def resolve_plugin(name: str) -> Plugin | None:
-    """The plug-in called ``name`` (an entry point, or ``module:function``), imported and checked in its
-    own process (module doc); None if ``name`` is neither. Raises ``PluginError`` when it names one that
-    cannot be loaded."""
-    if name not in _entry_points():
+    """The plug-in called ``name`` (an entry point, or ``module:function``), found without running any of its
+    code (module doc, "Discovery"); None if ``name`` is neither. Raises ``PluginError`` (one line) when the
+    name is not ``module:function`` or its module is not on the Python path. Its import happens on its first
+    call, in its own process, within that call's time limit: what the import does is the call's failure."""
+    ep = _entry_points().get(name)
+    if ep is not None:
+        try:
+            mod, attr, target = ep.module, ep.attr or "", ep.value
+        except AttributeError:  # a value that is not module:attribute
+            raise PluginError(f"method {name!r}: entry point value {ep.value!r} is not module:function") from None
+        if not _dotted(mod):
+            raise PluginError(f"method {name!r}: entry point value {ep.value!r} is not module:function")
+        where = f"entry point {ep.value!r}: "
+    else:
         if ":" not in name:
             return None
-        _split(name)
-    from platebench.bench.run.plugin_host import HostFailure, host  # noqa: PLC0415
-    try:
-        head, _ = host().request(_request("resolve", name), RESOLVE_TIME_LIMIT_S, f"method {name!r}")
-    except HostFailure as e:
-        raise PluginError(f"{e} (while importing it)") from None
-    if not head.get("ok"):
-        raise PluginError(head.get("error") or f"method {name!r} cannot be loaded")
-    return Plugin(name, str(head.get("description") or name))
+        mod, _, attr = _split(name)
+        target, where = name, ""
+    spec = find_module(mod)
+    if spec is None:
+        raise PluginError(f"method {name!r}: {where}cannot import module {mod!r} (not found on the Python path)")
+    doc = _docstring(spec, attr) if attr else None
+    if doc is None and ep is not None:
+        doc = _summary(ep)
+    return Plugin(name, doc or f"plug-in {target}")
 
 
 def describe(fn) -> str:
-    """First line of the plug-in's docstring (or its qualified name)."""
+    """A method's description: a ``Plugin``'s own (never imported for it), else the first line of the
+    function's docstring (or its qualified name)."""
     if isinstance(fn, Plugin):
         return fn.description
     doc = inspect.getdoc(fn) or ""
@@ -453,8 +552,6 @@ def serve_request(req: dict) -> tuple[dict, list]:
         with contextlib.suppress(OSError, TypeError):
             os.chdir(req["cwd"])
         sys.path[:] = req["sys_path"]
-        if req["op"] == "resolve":
-            return {"ok": True, "description": describe(load_plugin(name))}, []
         if "function" in req:
             try:
                 fn = pickle.loads(req["function"])

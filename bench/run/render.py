@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from platebench.bench import interrupts
 from platebench.bench.config import RigPose, SampleConfig
 from platebench.bench.io.realism_records import DrawReport
 from platebench.bench.run.realism import realise_sample
@@ -58,12 +59,24 @@ class RenderedSample:
         return self.told if self.told is not None else self.scene.rig
 
 
+def _between_passes(name: str, on_pass):
+    """The ``on_pass(done_spp, spp)`` of image ``name``'s render: a signal recorded but swallowed is raised
+    here (``bench.interrupts.check``), then ``on_pass(name, done_spp, spp)`` if given."""
+    def passed(done: int, spp: int) -> None:
+        interrupts.check()
+        if on_pass is not None:
+            on_pass(name, done, spp)
+    return passed
+
+
 def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, progress=None,
-                  scene=None) -> tuple[RenderedSample, PlateRenderer]:
+                  scene=None, on_pass=None) -> tuple[RenderedSample, PlateRenderer]:
     """Build the plate and scene, render the four images and cast all ground truth.
 
     Pass the ``renderer`` of a previous sample to reuse its compiled kernels (plate and
-    scene are swapped by parameter update). ``progress(step_name)`` is called per step.
+    scene are swapped by parameter update). ``progress(step_name)`` is called per step;
+    ``on_pass(image_name, done_spp, spp)`` after each pass of an image's render
+    (``scenes.render.passes``), where a pending interrupt is raised first.
     ``scene`` (a SceneSpec) replaces ``cfg.scene.build()``: a rig placed by the sensing loop.
     Without ``scene``, a realism preset that moves the camera or estimates the calibration acquires
     the commanded rig with its errors (see the module doc).
@@ -93,7 +106,7 @@ def render_sample(cfg: SampleConfig, renderer: PlateRenderer | None = None, prog
         step(f"render {name}")
         t = time.perf_counter()
         cam, light = name.split("_")
-        radiance[name] = renderer.render(cam, light, cfg.render)
+        radiance[name] = renderer.render(cam, light, cfg.render, on_pass=_between_passes(name, on_pass))
         digital[name] = cfg.sensor.digitize(radiance[name], seed=image_seed(cfg.render.seed, cam, light))
         timings[f"render_{name}_s"] = time.perf_counter() - t
     step("ground truth")
@@ -137,7 +150,7 @@ def render_images(cfg: SampleConfig, renderer: PlateRenderer | None, scene: Scen
     radiance, digital = {}, {}
     for name in names:
         cam, light = name.split("_")
-        radiance[name] = renderer.render(cam, light, cfg.render)
+        radiance[name] = renderer.render(cam, light, cfg.render, on_pass=_between_passes(name, None))
         digital[name] = cfg.sensor.digitize(radiance[name], seed=image_seed(cfg.render.seed, cam, light))
     caster = GroundTruthCaster(renderer)
     vis = {c: caster.boundary_visibility(c) for c in ("left", "right")}

@@ -143,6 +143,7 @@ def l_formula_table(cfg: SampleConfig, bends_deg, probe: VisibilityProbe | None 
 FAMILY_ORDER = tuple(FAMILIES)  # the families in the order tables show them (plates.spec)
 FOLD_BENDS_DEG = (60.0, 120.0, 170.0)
 OTHER_ASPECT = 3.0
+OTHER_FOLD_DEG = 120.0  # the second aspect ratio's fold (one of FOLD_BENDS_DEG)
 OTHER_DISTANCE_M = 0.5
 
 
@@ -210,14 +211,19 @@ def family_cases(families=None, aspect: float = REFERENCE_ASPECT) -> list[StudyC
 
 
 def study_cases(bends_deg=DEFAULT_BENDS_DEG, families=None, axes_deg=STUDY_AXES_DEG,
-                aspect: float = REFERENCE_ASPECT) -> list[StudyCase]:
+                aspect: float = REFERENCE_ASPECT, extra_axes_deg=None) -> list[StudyCase]:
     """The study's plates: cylinders at ``bends_deg`` convex and concave about ``axes_deg`` (default
     0/30/60/90 degrees; bend 0 once: the flat plate), folds of 60/120/170 degrees (those not above
     the largest bend) both ways, the other families' examples (``family_cases``: two twists, a dome
     and a bowl, two dents), all at ``aspect`` (length / width, default the paper's plate's), and a
-    second aspect ratio (3:1) and a second working distance (0.5 m) on a few plates. Default: 61
-    plates. ``families``: the family keys to keep (None: the default study's); a family outside
-    the default study adds its examples."""
+    second aspect ratio (3:1) and a second working distance (0.5 m) on a few plates: at the largest
+    bend up to 180 degrees a convex cylinder about the first of ``axes_deg`` and a concave one about
+    the last, at the smallest bend above 180 a convex one about the first, and a fold (aspect) or a
+    twist (distance); the fold only where the set's folds reach it. ``extra_axes_deg``: (first, last)
+    axes of those cylinders instead of the first and last of ``axes_deg``. Default: 61 plates.
+    ``families``: the family keys to keep (None: the default study's); a family outside the default
+    study adds its examples. ``bends_deg``, ``axes_deg`` (unless ``extra_axes_deg``) and ``families``
+    restrict every plate of the set, the second aspect's and distance's too."""
     bends = sorted({float(b) for b in bends_deg})
     kw = {} if aspect == REFERENCE_ASPECT else {"aspect": float(aspect)}
     cases: list[StudyCase] = []
@@ -231,13 +237,16 @@ def study_cases(bends_deg=DEFAULT_BENDS_DEG, families=None, axes_deg=STUDY_AXES_
     cases += family_cases(None, aspect)
     mid = [b for b in bends if 0 < b <= 180]
     far = [b for b in bends if b > 180]
+    axes = sorted({float(a) for a in axes_deg}) if extra_axes_deg is None else [float(a) for a in extra_axes_deg]
     for kw in ({"aspect": OTHER_ASPECT}, {"distance_m": OTHER_DISTANCE_M}):
-        if mid:
-            cases += [_cyl(mid[-1], "down", 0.0, **kw), _cyl(mid[-1], "up", 90.0, **kw)]
-        if far:
-            cases.append(_cyl(far[0], "down", 0.0, **kw))
-        cases.append(_fold(120.0, "up", **kw) if "aspect" in kw else
-                     StudyCase("twist 45 distance_m 0.5", "twist", Twist(math.radians(45.0)), 45.0, **kw))
+        if mid and axes:
+            cases += [_cyl(mid[-1], "down", axes[0], **kw), _cyl(mid[-1], "up", axes[-1], **kw)]
+        if far and axes:
+            cases.append(_cyl(far[0], "down", axes[0], **kw))
+        if "distance_m" in kw:
+            cases.append(StudyCase("twist 45 distance_m 0.5", "twist", Twist(math.radians(45.0)), 45.0, **kw))
+        elif OTHER_FOLD_DEG <= max(top, FOLD_BENDS_DEG[0]):  # the folds of the set above, as there
+            cases.append(_fold(OTHER_FOLD_DEG, "up", **kw))
     if families is None:
         return cases
     unknown = [f for f in families if f not in FAMILIES]

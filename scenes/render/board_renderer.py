@@ -28,6 +28,7 @@ from platebench.scenes.naming import CAMERAS
 from platebench.scenes.render import runtime
 from platebench.scenes.render.film import grey_to_host
 from platebench.scenes.render.lens_sensor import PLUGIN, configure_sensor, sensor_dict, sensor_kind
+from platebench.scenes.render.passes import PASS_SAMPLES, render_in_passes
 from platebench.scenes.rig import StereoRig
 from platebench.scenes.scene_spec import RenderSettings
 from platebench.scenes.sensor_model import SensorModel
@@ -202,6 +203,7 @@ class BoardRenderer:
         blur), focused at ``focus_distance_m`` (default: the left camera's depth of the origin)."""
         self.mi = mi = runtime.mitsuba(variant)
         self.variant = mi.variant()
+        self.pass_samples = PASS_SAMPLES  # the most samples of one mi.render call (scenes.render.passes)
         self.spec = spec
         self.sensor_model = sensor
         self.rig = rig
@@ -262,14 +264,14 @@ class BoardRenderer:
         self.pose = pose
 
     def render(self, camera: str, settings: RenderSettings = RenderSettings(), pose_index: int = 0) -> np.ndarray:
-        """Linear radiance (H,W) float32 of the board in its current pose."""
+        """Linear radiance (H,W) float32 of the board in its current pose, in passes of at most
+        ``pass_samples`` samples (``scenes.render.passes``)."""
         if camera not in CAMERAS:
             raise ValueError(f"camera = {camera!r} is not allowed: choose one of {CAMERAS}")
         if self.pose is None:
             raise ValueError("BoardRenderer.render: call set_pose first")
-        img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
-                             seed=board_seed(settings.seed, pose_index, camera))
-        return grey_to_host(self.mi, img)
+        return render_in_passes(self.mi, self.scene, CAMERAS.index(camera), settings.spp,
+                                board_seed(settings.seed, pose_index, camera), grey_to_host, self.pass_samples)
 
     def render_poses(self, poses, settings: RenderSettings = RenderSettings(), progress=None) -> list[dict]:
         """Camera images (the sensor model's digital numbers: uint8 by default) per pose per

@@ -19,7 +19,9 @@ its cores for ``llvm_*``) instead of numpy on one core:
    Mitsuba shadow-ray test) and the pattern feature there.
 4. The per-hit values are copied to the host once each (compact: only the pixels that see the
    plate) and placed into full frames there. (Scattering into full frames on the device gives
-   the same bytes but was slower with llvm_ad_rgb on 2 CPU cores.)
+   the same bytes but was slower with llvm_ad_rgb on 2 CPU cores.) Steps 1-3 run in bands of
+   whole rows of the window (``BAND_PIXELS``), so that a signal is served between bands; every
+   value is a function of its own pixel alone, so the maps are the same bytes for any band size.
 
 Every camera, projector and plate parameter enters the kernels as an opaque value
 (``dr.opaque``), and the mesh as data buffers: another sample's pose, lens, plate or bend
@@ -38,6 +40,9 @@ from platebench.tolerances import tol
 
 __all__ = ["DrjitOps", "DeviceGroundTruth"]
 
+# Pixels cast in one band of a camera's maps: each band is one set of kernel launches, and a signal
+# (raised only between launches) waits at most one band; a whole 1280 x 960 window is one band.
+BAND_PIXELS = 2 ** 22
 _NEWTON_STEPS = 12  # float64 Newton on the lens inverse: quadratic, converged to rounding in 4-6 at the bench's lenses
 
 
@@ -188,12 +193,26 @@ class DeviceGroundTruth:
     # -- the maps ----------------------------------------------------------------------------
     def camera(self, camera_name: str, occlusion_slack_m: float):
         """(depth64 (H, W) float64, points (H, W, 3) float32, normals (H, W, 3) float32, mask (H, W)
-        bool, proj_uv (H, W, 2) float32, feature (H, W) int32) of one camera (module doc)."""
+        bool, proj_uv (H, W, 2) float32, feature (H, W) int32) of one camera (module doc), cast in bands
+        of whole window rows, at most ``BAND_PIXELS`` pixels each (at least one row)."""
+        cam = self.r.spec.rig.cameras[camera_name]
+        W, H = cam.width, cam.height
+        u0, v0, w, h = plate_window(cam, self.r.plate.mesh.vertices)
+        rows = max(1, BAND_PIXELS // w)
+        bands = [self._band(camera_name, cam, u0, v0 + top, w, min(rows, h - top), occlusion_slack_m)
+                 for top in range(0, h, rows)]
+        bands = [b for b in bands if b is not None]
+        if not bands:  # the plate is in no pixel of this camera
+            return _empty_frames(W, H)
+        values = bands[0] if len(bands) == 1 else tuple(np.concatenate(v) for v in zip(*bands))
+        return self._frames(W, H, values)
+
+    def _band(self, camera_name: str, cam, u0: int, v0: int, w: int, h: int, occlusion_slack_m: float):
+        """The per-hit host arrays (``_frames``' ``values``) of the w x h pixels at (u0, v0), or None
+        when none of them sees the plate."""
         dr, mi, F, r = self.dr, self.mi, self.F, self.r
         spec, plate = r.spec, r.plate
-        cam = spec.rig.cameras[camera_name]
         W, H = cam.width, cam.height
-        u0, v0, w, h = plate_window(cam, plate.mesh.vertices)
         local = dr.arange(mi.UInt32, w * h)
         wo = dr.opaque(mi.UInt32, w)
         px, py = local % wo + dr.opaque(mi.UInt32, u0), local // wo + dr.opaque(mi.UInt32, v0)
@@ -203,8 +222,8 @@ class DeviceGroundTruth:
         valid, prim_all, pix = si.is_valid(), si.prim_index, py * W + px
         dr.eval(valid, prim_all, pix)
         on = dr.compress(valid)
-        if dr.width(on) == 0:  # the plate is in no pixel of this camera
-            return _empty_frames(W, H)
+        if dr.width(on) == 0:
+            return None
         hit = dr.gather(mi.UInt32, pix, on)  # pixel index (row-major) of each pixel that sees the plate
         prim = dr.gather(mi.UInt32, prim_all, on)
         # the float64 ray of the OpenCV model through each hit pixel's centre
@@ -240,7 +259,9 @@ class DeviceGroundTruth:
         fn = self._gather3(self.buf["face_normals"], prim)
         normal = tuple(dr.select(top, ni / nlen, fi) for ni, fi in zip(nn, fn))
         puv, feature = self._projector(spec.projector, p, occlusion_slack_m)
-        return self._frames(W, H, hit, depth, p, normal, puv, feature)
+        values = (hit, depth, *(mi.Float(c) for c in p), *(mi.Float(c) for c in normal), *puv, feature)
+        dr.eval(*values)
+        return tuple(np.asarray(v) for v in values)
 
     def _projector(self, proj, p, slack: float):
         """Projector (u, v) (float32, NaN where its light cannot reach) and the feature lighting each point."""
@@ -281,13 +302,12 @@ class DeviceGroundTruth:
             cache[key] = (pattern, to_device(self.mi.Int32, pattern.feature_map, np.int32))
         return cache[key][1]
 
-    def _frames(self, W, H, hit, depth, p, normal, puv, feature):
-        """The per-hit values evaluated in one launch and copied to the host once each, then placed into
-        full frames there (one pass over each frame)."""
-        dr, mi = self.dr, self.mi
-        values = (hit, depth, *(mi.Float(c) for c in p), *(mi.Float(c) for c in normal), *puv, feature)
-        dr.eval(*values)
-        hit, depth, *rest = (np.asarray(v) for v in values)
+    @staticmethod
+    def _frames(W, H, values):
+        """Full frames from the per-hit host arrays ``values`` (pixel index, depth, point x y z, normal
+        x y z, projector u v, feature; each band's values evaluated in one launch and copied to the host
+        once each), one pass over each frame."""
+        hit, depth, *rest = values
         n = W * H
         depth64 = np.full(n, np.inf)
         depth64[hit] = depth

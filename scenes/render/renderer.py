@@ -11,7 +11,10 @@ rebuilds the scene.
 
 Images are linear radiance, float32, (H, W), the mean of Mitsuba's RGB channels, taken on the
 render's device and copied to the host once (``scenes.render.film``). The ``box`` reconstruction filter keeps
-renders bit-identical for a given seed across processes.
+renders bit-identical for a given seed across processes. A render of more than ``pass_samples``
+samples (width x height x spp) runs in passes (``scenes.render.passes``: its module doc says which
+renders keep the bytes of one Mitsuba call and what a split one equals), so that a signal or a
+progress bar is served between them.
 Units: metres; frames as in ``scenes.camera``; conversions in ``scenes.render.mitsuba_convert``.
 """
 from __future__ import annotations
@@ -29,6 +32,7 @@ from platebench.scenes.render.mitsuba_convert import (
     spot_cutoff_deg,
     spot_to_world,
 )
+from platebench.scenes.render.passes import PASS_SAMPLES, render_in_passes
 from platebench.scenes.scene_spec import RenderSettings, SceneSpec
 
 
@@ -77,8 +81,9 @@ def _sensor_kind(spec: SceneSpec) -> str:
 class PlateRenderer:
     """Renders a plate in a scene; update plate/scene freely, kernels are reused."""
 
-    def __init__(self, spec: SceneSpec, plate, variant: str | None = None):
+    def __init__(self, spec: SceneSpec, plate, variant: str | None = None, pass_samples: int = PASS_SAMPLES):
         self.mi = runtime.mitsuba(variant)
+        self.pass_samples = int(pass_samples)  # the most samples of one mi.render call (scenes.render.passes)
         self.variant = self.mi.variant()
         self._spec = None
         self._plate = None
@@ -258,7 +263,8 @@ class PlateRenderer:
         patterns; 1 for a conductor, whose channels reflect differently."""
         return 3 if self._spec.material.kind == "diffuse" else 1
 
-    def render_patterns(self, camera: str, patterns: np.ndarray, settings: RenderSettings = RenderSettings()) -> np.ndarray:
+    def render_patterns(self, camera: str, patterns: np.ndarray, settings: RenderSettings = RenderSettings(),
+                        on_pass=None) -> np.ndarray:
         """(k, H, W) float32 active images of ``camera`` under each of ``k <= patterns_per_launch``
         projector patterns ((k, Hp, Wp) values in [0, 1]) in one launch, along the same camera paths.
 
@@ -268,7 +274,7 @@ class PlateRenderer:
         importance-sampled by its texture), so image c is, to the last bit, channel c of a render
         of pattern c alone with the same seed; its channel mean, ``render``'s image, agrees to
         float32 rounding. With a conductor, one pattern per launch and its channel mean. The scene's
-        own pattern is back in place at the next ``set_lighting``."""
+        own pattern is back in place at the next ``set_lighting``. Rendered in passes as ``render``."""
         pats = np.asarray(patterns, np.float32)
         k = len(pats)
         if pats.ndim != 3 or not 1 <= k <= self.patterns_per_launch:
@@ -283,23 +289,27 @@ class PlateRenderer:
         else:
             image = pats[0][..., None]
         self._set_projector_image(image)
-        img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
-                             seed=image_seed(settings.seed, camera, "active"))
+        seed = image_seed(settings.seed, camera, "active")
         if self.patterns_per_launch == 3:
-            return np.ascontiguousarray(np.moveaxis(channels_to_host(self.mi, img)[..., :k], -1, 0))
-        return grey_to_host(self.mi, img)[None]
+            img = self._render(camera, settings.spp, seed, channels_to_host, on_pass)
+            return np.ascontiguousarray(np.moveaxis(img[..., :k], -1, 0))
+        return self._render(camera, settings.spp, seed, grey_to_host, on_pass)[None]
+
+    def _render(self, camera: str, spp: int, seed: int, to_host, on_pass) -> np.ndarray:
+        return render_in_passes(self.mi, self.scene, CAMERAS.index(camera), spp, seed, to_host, self.pass_samples,
+                                on_pass)
 
     # -- rendering ------------------------------------------------------------
-    def render(self, camera: str, lighting: str, settings: RenderSettings = RenderSettings()) -> np.ndarray:
-        """Linear radiance image (H, W) float32 of one camera under one lighting."""
+    def render(self, camera: str, lighting: str, settings: RenderSettings = RenderSettings(),
+               on_pass=None) -> np.ndarray:
+        """Linear radiance image (H, W) float32 of one camera under one lighting, in passes of at most
+        ``pass_samples`` samples (``scenes.render.passes``); ``on_pass(done_spp, spp)`` after each."""
         if camera not in CAMERAS:
             raise ValueError(f"camera = {camera!r} is not allowed: choose one of {CAMERAS}")
         if lighting not in LIGHTINGS:
             raise ValueError(f"lighting = {lighting!r} is not allowed: choose one of {LIGHTINGS}")
         self.set_lighting(lighting)
-        img = self.mi.render(self.scene, sensor=CAMERAS.index(camera), spp=settings.spp,
-                             seed=image_seed(settings.seed, camera, lighting))
-        return grey_to_host(self.mi, img)
+        return self._render(camera, settings.spp, image_seed(settings.seed, camera, lighting), grey_to_host, on_pass)
 
     def render_all(self, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
         """The four images of a sample, keyed ``left_passive`` ... ``right_active``."""
