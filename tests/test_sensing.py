@@ -345,7 +345,8 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     doc = json.loads((tmp_path / "sensing.json").read_text())
     from platebench.bench.report.sensing import sensing_section
     from tests.test_records import sensing_figures_not_shown
-    assert doc["final"]["merged"]["coverage_frac"] is not None and doc["final"]["accuracy"]["centres_depth_rms_mm"]
+    assert doc["final"]["merged"]["surface_coverage_frac"] is not None
+    assert doc["final"]["accuracy"]["centres_depth_rms_mm"]
     assert not sensing_figures_not_shown(sensing_section(tmp_path, tmp_path / "plots"), doc)  # the report shows them
     fin = doc["final"]
     assert fin["boundary_verified"] is True and fin["unverified_parts"] == [] and fin["outcome"] == "clean"

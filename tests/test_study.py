@@ -292,7 +292,7 @@ def _fa_row(**kw) -> StudyRow:
     base = dict(case="cylinder 60 down axis 0", family="cylinder", bend_deg=60.0, outcome="false_alarm",
                 boundary_verified=True, cures=1, views=5, detectors=dict.fromkeys(DETECTORS, False),
                 gt_visible_first_frac=1.0, gt_visible_final_frac=1.0, gt_hidden_first=False, gt_hidden_final=False,
-                gt_reachable=True, gt_verifiable=True, merged_boundary_mean_mm=0.3, merged_coverage_frac=0.9,
+                gt_reachable=True, gt_verifiable=True, merged_boundary_mean_mm=0.3, merged_surface_coverage_frac=0.9,
                 time_s=2.0, verdict="the confirmed pieces close into one loop")
     return StudyRow(**{**base, **kw})
 

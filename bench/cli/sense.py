@@ -127,7 +127,7 @@ def summary_lines(s: SensingResult) -> list[str]:
     m = f.merged
     merged = ", ".join(f"{k} {v:.3f}" for k, v in (
         ("boundary_mean_mm", m.boundary_mean_mm), ("boundary_covered_frac", m.boundary_covered_frac),
-        ("points_rms_mm", m.points_rms_mm), ("surface_rms_mm", m.surface_rms_mm), ("coverage_frac", m.coverage_frac))
+        ("points_rms_mm", m.points_rms_mm), ("surface_rms_mm", m.surface_rms_mm), ("surface_coverage_frac", m.surface_coverage_frac))
         if v is not None)
     merged += f", {m.points} square centres"
     lines.append(f"poses: {len(f.poses)} (stage 2, {len(s.verification_views)} verification views, {s.cures} cures); "

@@ -604,7 +604,7 @@ def table_lines(study) -> list[str]:
                    + f" {_f(r.gt_visible_first_frac, '10.3f')} {_f(r.gt_visible_final_frac, '6.3f')} "
                    f"{_yn(r.gt_reachable):>5s} {_yn(r.gt_verifiable):>5s} "
                    f"{_f(r.merged_boundary_mean_mm, '6.2f')} "
-                   f"{_f(r.merged_coverage_frac, '5.2f')} {r.time_s:6.1f}")
+                   f"{_f(r.merged_surface_coverage_frac, '5.2f')} {r.time_s:6.1f}")
     out += legend_lines(short, {r.outcome for r in rows})
     alarms = [r for r in rows if r.outcome == "false_alarm"]
     if alarms:  # what the loop itself concluded where nothing was hidden (its verdict is no ground truth)

@@ -341,9 +341,14 @@ def load_config(path: Path | None, width: int | None = None, height: int | None 
     d = read_toml(path, "configuration")
     asked = {k: v for k, v in (("width", width), ("height", height))
              if isinstance(v, int) and not isinstance(v, bool) and IMAGE_SIZE_PX[0] <= v <= IMAGE_SIZE_PX[1]}
-    if asked and isinstance(d, dict) and isinstance(d.get("scene", {}), dict):
-        d = {**d, "scene": {**d.get("scene", {}), **asked}}
     try:
+        if asked and isinstance(d, dict) and isinstance(d.get("scene", {}), dict):
+            scene = d.get("scene", {})
+            file_size = {k: scene[k] for k in asked if k in scene}
+            if file_size:  # the file's own values are checked too, though the flags replace them
+                SampleConfig.from_dict({**d, "scene": {**scene, **dict.fromkeys(asked, IMAGE_SIZE_PX[0]),
+                                                       **file_size, "distortion": {}}})
+            d = {**d, "scene": {**d.get("scene", {}), **asked}}
         return SampleConfig.from_dict(d)
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None

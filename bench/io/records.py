@@ -86,11 +86,9 @@ class Stage3Accuracy(Record):
     points_scored: int = 0
     boundary_mean_mm: float | None = None
     surface_rms_mm: float | None = None
-    coverage_frac: float | None = None
+    coverage_frac: float | None = None  # share of the left view's plate pixels its surface covers
     paper_bound_met: bool | None = None
     goals_met: bool | None = None
-
-    RENAMED = {"surface_coverage": "coverage_frac"}  # sensing.json before one spelling of coverage
 
 
 @dataclass(frozen=True)
@@ -99,8 +97,9 @@ class MergedFigures(Record):
     ground truth (``bench.run.sensing.scoring.merged_accuracy``): its boundary (points, mean
     symmetric and one-way distance to the true boundary, the share of the true boundary's length
     within 2 mm), its square centres (count, RMS and maximum distance to the true surface) and its
-    surface (samples, RMS distance to the true surface, coverage of the true surface within 2 mm).
-    None where the merged result has no such part."""
+    surface (samples, RMS distance to the true surface, ``surface_coverage_frac``: the share of the true
+    surface's area within 2 mm of it: the merged surface has no single left view, so no
+    ``coverage_frac``). None where the merged result has no such part."""
 
     poses: int = 0
     boundary_points: int = 0
@@ -111,10 +110,11 @@ class MergedFigures(Record):
     points_rms_mm: float | None = None
     points_max_mm: float | None = None
     surface_rms_mm: float | None = None
-    coverage_frac: float | None = None
+    surface_coverage_frac: float | None = None
     surface_points: int = 0
 
-    RENAMED = {"surface_coverage": "coverage_frac"}
+    # sensing.json files of older spellings: both keys held the surface-area coverage
+    RENAMED = {"surface_coverage": "surface_coverage_frac", "coverage_frac": "surface_coverage_frac"}
 
 
 def final_figures(final: Mapping[str, Any]) -> tuple[Stage3Accuracy | None, MergedFigures]:
@@ -188,7 +188,7 @@ class StudyRow(Record):
     merged_boundary_mean_mm: float | None = None
     merged_boundary_covered_frac: float | None = None
     merged_surface_rms_mm: float | None = None
-    merged_coverage_frac: float | None = None
+    merged_surface_coverage_frac: float | None = None
     merged_points: int | None = None
     merged_points_rms_mm: float | None = None
     merged_points_max_mm: float | None = None
@@ -202,7 +202,8 @@ class StudyRow(Record):
     RENAMED = {"gt_visible_first": "gt_visible_first_frac", "gt_visible_final": "gt_visible_final_frac",
                "gt_verifiable_fraction": "gt_verifiable_frac", "front_oriented": "front_oriented_frac",
                "merged_boundary_covered": "merged_boundary_covered_frac",
-               "merged_surface_coverage": "merged_coverage_frac"}
+               "merged_surface_coverage": "merged_surface_coverage_frac",
+               "merged_coverage_frac": "merged_surface_coverage_frac"}
 
     def fired(self, detector: str) -> bool | None:
         """Whether ``detector`` fired at the stage-2 pose (None: not evaluated, or no run)."""

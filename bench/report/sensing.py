@@ -151,7 +151,8 @@ def _step_row(st: dict) -> dict:
 MERGED_CARDS = (("boundary_mean_mm", "merged boundary mean distance", "mm"),
                 ("points", "merged square centres (all poses)", ""),
                 ("points_rms_mm", "merged square centres' RMS distance to the plate", "mm"),
-                ("coverage_frac", "merged surface coverage", "fraction"),
+                ("surface_coverage_frac", "merged surface coverage (share of the true surface within 2 mm)",
+                 "fraction"),
                 ("surface_rms_mm", "merged surface RMS", "mm"))
 STAGE3_CARDS = (("centres_depth_rms_mm", "stage-3 depth RMS at the square centres", "mm"),)
 
@@ -217,7 +218,7 @@ _ROW_COLUMNS = ("case", "family", "bend_deg", "direction", "axis_deg", "aspect",
                 "boundary_verified", "cures", "views", "det_counting_test", "det_arrays_disagree",
                 "det_viewpoint_consistency", "det_occluding_contour", "det_end_tangents", "gt_visible_first_frac",
                 "gt_visible_final_frac", "gt_reachable", "gt_verifiable", "merged_boundary_mean_mm",
-                "merged_coverage_frac", "time_s", "error")
+                "merged_surface_coverage_frac", "time_s", "error")
 
 
 def _cell(row: StudyRow, column: str):

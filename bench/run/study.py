@@ -330,7 +330,7 @@ def study_row(case: StudyCase, base: SampleConfig, options: SensingOptions = Sen
         false_boundary_gt=f.hidden_first, front_oriented_frac=f.front_oriented,
         detectors={d.name: d.fired for d in r.detectors},
         merged_boundary_mean_mm=m.boundary_mean_mm, merged_boundary_covered_frac=m.boundary_covered_frac,
-        merged_surface_rms_mm=m.surface_rms_mm, merged_coverage_frac=m.coverage_frac, merged_points=m.points,
+        merged_surface_rms_mm=m.surface_rms_mm, merged_surface_coverage_frac=m.surface_coverage_frac, merged_points=m.points,
         merged_points_rms_mm=m.points_rms_mm, merged_points_max_mm=m.points_max_mm,
         centres_depth_rms_mm=None if f.accuracy is None else f.accuracy.centres_depth_rms_mm,
         unverified_parts=len(f.unverified_parts), verdict=f.verdict_reason, time_s=time.perf_counter() - t0)

@@ -8,9 +8,9 @@ between passes.
 
 The plan (``pass_plan``):
 
-* N <= ``PASS_SAMPLES``: one pass, ``mi.render(spp=spp, seed=seed)``, exactly the call a render
-  makes without this module, so these renders (every test's, the benchmark's: 640 x 480 at spp 4 is
-  1.2 M samples; the reference 1280 x 960 at spp 16 is 19.7 M) keep their bytes.
+* N <= ``PASS_SAMPLES``: one pass, the single call ``mi.render(spp=spp, seed=seed)``, whose bytes
+  these renders are (every test's; the benchmark's, 640 x 480 at spp 4, 1.2 M samples; the reference
+  experiment's, 1280 x 960 at spp 16, 19.7 M).
 * N > ``PASS_SAMPLES``: passes of P samples per pixel, P the largest power of two with
   W H P <= ``PASS_SAMPLES`` (1 when a single sample per pixel exceeds it: then a pass is W H
   samples), ``spp // P`` of them, then the rest ``spp % P`` as its binary digits, largest first

@@ -64,7 +64,7 @@ def merged_accuracy(plate, merged: MergedReconstruction, poses: int = 0) -> Merg
     if len(S):
         s = score_surface(S, plate.mesh, sample_spacing_m=SURFACE_SAMPLE_M, coverage_radius_m=2e-3,
                           max_distance_m=1e-3)
-        out.update(surface_rms_mm=float(s.dist.rms * 1e3), coverage_frac=float(s.surface_coverage_frac),
+        out.update(surface_rms_mm=float(s.dist.rms * 1e3), surface_coverage_frac=float(s.surface_coverage_frac),
                    surface_points=int(len(S)))
     return MergedFigures(**out)
 
