@@ -797,7 +797,8 @@ def _leaderboard_files(table: ResultsTable, stage: Path, final: Path) -> tuple[M
     rows = breakdowns(table)
     colours = method_colours(table.methods)
     page = Page(stage=stage, out=final, root=final)
-    sources = [page.link(s) for s in table.sources]
+    # the results folders the leaderboard reads, but not the folder it is written into (a results folder's own)
+    sources = [page.link(s) for s in table.sources if canonical(s) != final and canonical(s) != canonical(stage)]
     rank_cells = _record_cells(MethodRank, ranks, "rank")
     write_bytes(stage / LEADERBOARD_CSV, _csv_bytes(MethodRank, rank_cells))
     write_bytes(stage / LEADERBOARD_PARQUET, _parquet_bytes(MethodRank, rank_cells))
