@@ -38,7 +38,7 @@ import numpy as np
 
 __all__ = ["DenseFigures", "ProtocolTruth", "PRIMARY_BAD_MM", "SECONDARY_BAD_MM", "OUTPUT_KINDS", "dense_figures",
            "no_estimate",
-           "depth_from_disparity", "mesh_hits", "depth_from_mesh", "depth_from_points", "left_depth"]
+           "depth_from_disparity", "first_hits", "mesh_hits", "depth_from_mesh", "depth_from_points", "left_depth"]
 
 PRIMARY_BAD_MM = 2.0  # the paper's depth bound (Chen & Zheng 1995, V-D: "within 2 mm" in depth)
 SECONDARY_BAD_MM = 0.5  # a tighter threshold, a quarter of the paper's bound
@@ -142,16 +142,22 @@ def mesh_hits(mesh, eye_m, points_left_m: np.ndarray, mask: np.ndarray) -> tuple
     ok = np.isfinite(n) & (n > 0)
     if not ok.any():
         return empty
-    v, u, dirs = v[ok], u[ok], d[ok] / n[ok, None]
+    v, u = v[ok], u[ok]
+    hit, points = first_hits(mesh, eye, d[ok] / n[ok, None])
+    return v[hit], u[hit], points
+
+
+def first_hits(mesh, eye_m, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(hit (N,) bool, first hits (K, 3)) of N rays from ``eye_m`` (3,) along unit ``dirs`` (N, 3)
+    against a world-frame mesh: the nearest intersection along each ray that meets it."""
+    eye = np.asarray(eye_m, np.float64).reshape(3)
     locs, ray_idx, _ = mesh.ray.intersects_location(np.broadcast_to(eye, dirs.shape).copy(), dirs,
                                                    multiple_hits=False)
-    if not len(ray_idx):
-        return empty
-    dist = np.einsum("ij,ij->i", locs - eye, dirs[ray_idx])
     first = np.full(len(dirs), np.inf)
-    np.minimum.at(first, ray_idx, dist)
+    if len(ray_idx):
+        np.minimum.at(first, ray_idx, np.einsum("ij,ij->i", locs - eye, dirs[ray_idx]))
     hit = np.isfinite(first)
-    return v[hit], u[hit], eye + dirs[hit] * first[hit, None]
+    return hit, eye + dirs[hit] * first[hit, None]
 
 
 def depth_from_mesh(mesh, eye_m, points_left_m: np.ndarray, mask: np.ndarray, camera) -> np.ndarray:

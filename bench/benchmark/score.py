@@ -173,13 +173,13 @@ def _sparse(job: _Job, method: str, points: np.ndarray, truth, mesh) -> SparseRo
     if not len(p):
         return SparseRow(job.split, job.sample_id, method, "square_centres", 0, None, None, None)
     dist = point_to_surface_distance(p, mesh)
+    from platebench.evaluation.protocol import first_hits  # noqa: PLC0415
     cam = truth.camera
-    c = cam.center
-    dirs = p - c
+    dirs = p - cam.center
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
-    locs, idx, _ = mesh.ray.intersects_location(np.broadcast_to(c, dirs.shape).copy(), dirs, multiple_hits=False)
+    hit, locs = first_hits(mesh, cam.center, dirs)
     zt = np.full(len(p), np.nan)
-    zt[idx] = cam.depth(locs)
+    zt[hit] = cam.depth(locs)
     e = cam.depth(p) - zt
     e = e[np.isfinite(e)]
     mm = 1e3
@@ -224,7 +224,9 @@ def score_sample(job: _Job) -> tuple[list[BenchmarkRow], list[SparseRow]]:
         recon = job.scratch / job.sample_id / method_folder(name)
         t0 = time.perf_counter()
         try:
-            get_method(name).run(MethodContext(job.sample_dir, recon, None, None, job.time_limit_s))
+            method = get_method(name)
+            renderer = _renderer(job.sample_dir) if method.rerenders_from_config else None
+            method.run(MethodContext(job.sample_dir, recon, renderer, None, job.time_limit_s))
         except Exception as e:  # noqa: BLE001  (a method's failure is its row's, never the run's)
             rows.append(_row(job, name, "failed", _one_line(e), "", no_estimate(int(truth.mask.sum())),
                              time.perf_counter() - t0))
@@ -234,6 +236,24 @@ def score_sample(job: _Job) -> tuple[list[BenchmarkRow], list[SparseRow]]:
     for f in job.folders:
         rows.append(_score_folder(job, f.name, f.path / job.sample_id, truth, mesh, None, sparse))
     return rows, sparse
+
+
+_WORKER: dict = {"renderer": None}  # this worker process's renderer (``_renderer``)
+
+
+def _renderer(sample_dir: Path):
+    """This worker's renderer, made once (from the first sample that needs one) for the methods that
+    render their own pattern sequences: they re-aim it at each sample by parameter update
+    (``bench.run.compare``), so no scene is built and no kernel compiled again per sample."""
+    from platebench.bench.config import SampleConfig  # noqa: PLC0415
+    from platebench.bench.io.sample_files import read_json  # noqa: PLC0415
+    cfg = SampleConfig.from_dict(read_json(Path(sample_dir) / "sample.json")["config"])
+    r = _WORKER["renderer"]
+    if r is None or (cfg.variant and r.variant != cfg.variant):
+        from platebench.plates import build_plate  # noqa: PLC0415
+        from platebench.scenes.render.renderer import PlateRenderer  # noqa: PLC0415
+        r = _WORKER["renderer"] = PlateRenderer(cfg.scene.build(), build_plate(cfg.plate), cfg.variant)
+    return r
 
 
 def _descriptors(split: Split, sample_id: str, sample_dir: Path) -> dict:

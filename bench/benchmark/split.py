@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import math
 import re
 from dataclasses import dataclass, replace
 from importlib import resources
@@ -136,7 +137,6 @@ def _descriptors(plan: SamplePlan, part: str) -> SplitSample:
     d = plan.config_dict
     material = (d["scene"].get("material") or {}).get("kind") or "diffuse"
     realism = (d.get("realism") or {}).get("preset") or "ideal"
-    import math  # noqa: PLC0415
     return SplitSample(plan.sample_id, part, type(dfm).family, None if angle is None else math.degrees(angle),
                        direction or "", None if axis is None else math.degrees(axis),
                        float(d["scene"]["distance_m"]), str(material), str(realism))

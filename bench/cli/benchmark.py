@@ -46,9 +46,7 @@ def add_parser(sub) -> None:
     b.add_argument("--record-checksums", type=Path, metavar="FILE",
                    help="also write the built copy's checksums to FILE (the document shipped as "
                         "splits/<version>.sha256.json beside the split's definition)")
-    b.add_argument("--progress", dest="progress", action="store_true", default=None,
-                   help="show the progress bar even when stderr is not a terminal")
-    b.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    _progress_flags(b)
     b.set_defaults(run=run_build)
 
     v = steps.add_parser("verify", help="is a built copy the split? ground truth byte for byte, images by variant",
@@ -80,9 +78,7 @@ def add_parser(sub) -> None:
     s.add_argument("--method-time-limit-s", type=float, default=None, metavar="S",
                    help="the longest a plug-in method may run on one sample, seconds (1 to 86400; default 600)")
     s.add_argument("--overwrite", action="store_true", help="replace a RESULTS folder 'benchmark score' wrote")
-    s.add_argument("--progress", dest="progress", action="store_true", default=None,
-                   help="show the progress bar even when stderr is not a terminal")
-    s.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    _progress_flags(s)
     s.set_defaults(run=run_score)
 
     lb = steps.add_parser("leaderboard", help="merge results folders (from any machines) into one leaderboard",
@@ -93,6 +89,12 @@ def add_parser(sub) -> None:
     lb.add_argument("--out", type=Path, required=True, metavar="DIR", help="the leaderboard folder to write")
     lb.add_argument("--overwrite", action="store_true", help="replace a folder 'benchmark leaderboard' wrote")
     lb.set_defaults(run=run_leaderboard)
+
+
+def _progress_flags(p) -> None:
+    p.add_argument("--progress", dest="progress", action="store_true", default=None,
+                   help="show the progress bar even when stderr is not a terminal")
+    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
 
 
 def _split_of(dataset: Path, given: str | None):
