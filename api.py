@@ -107,15 +107,14 @@ def sweep(spec, out, *, workers: int = 1, scheduler: str | None = None, resume: 
     executor = DaskExecutor(scheduler) if scheduler else LocalExecutor(workers)
     summary = run_sweep(loaded, Path(out), executor, resume=resume, overwrite=overwrite)
     if check and summary.failed:
-        failed = sorted((r for r in summary.results.values() if r.get("status") == "failed"),
-                        key=lambda r: r.get("index", 0))
+        failed = sorted((r for r in summary.results.values() if r.status == "failed"), key=lambda r: r.index or 0)
         first = failed[0]
         hint = ""
-        if all(str(r.get("error") or "").startswith("WorkerLost") for r in failed) and \
+        if all(str(r.error or "").startswith("WorkerLost") for r in failed) and \
                 getattr(sys.modules.get("__main__"), "__file__", None) and not scheduler:
             hint = f"; if this runs as a script whose code is not under a main guard: {GUARD_HINT}"
         raise SamplesFailedError(f"sweep {Path(out)}: {summary.failed} of {summary.total} samples failed (first: "
-                                 f"{first.get('sample_id')}: {first.get('error')}); the dataset keeps them with "
+                                 f"{first.sample_id}: {first.error}); the dataset keeps them with "
                                  f"status failed; pass check=False to get the summary instead{hint}", summary)
     return summary
 

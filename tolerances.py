@@ -46,7 +46,7 @@ class Tolerances:
     inside_outline: float = 1e-6    # a grid node this close to the outline (fraction of the grid step) is inside
     sup_refine: float = 1e-4        # a boundary distance's supremum is refined to this fraction of the spacing
     tiny: float = 1e-30             # floor of a denominator that may be zero (a degenerate triangle, no noise)
-    occlusion_slack_m: float = 1e-5  # a boundary point is occluded only by surface > 10 um before it
+    occlusion_slack_m: float = 1e-5  # a boundary point is occluded only by surface > 10 um in front of it
     flat_height_m: float = 1e-5     # a fitted height field this flat (over the plate) has no bend
     lens_inverse_residual: float = 1e-12  # the ground truth's inverse distortion (normalised units): a larger
                                           # residual after its Newton steps is an error, never a silent map

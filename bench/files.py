@@ -14,13 +14,14 @@ are checked from the files' headers (``bench.io.images``, ``bench.io.method_outp
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import stat
 from pathlib import Path
 
 from platebench.errors import UserValueError
 
-__all__ = ["CONFIG_MAX_BYTES", "JSON_MAX_BYTES", "TABLE_MAX_BYTES", "IMAGE_MAX_BYTES", "InputFileError",
+__all__ = ["CONFIG_MAX_BYTES", "file_sha256", "JSON_MAX_BYTES", "TABLE_MAX_BYTES", "IMAGE_MAX_BYTES", "InputFileError",
            "file_kind", "open_regular", "read_capped", "regular_size", "is_regular", "require_dir"]
 
 MIB = 1 << 20
@@ -108,7 +109,7 @@ def read_capped(path: Path, max_bytes: int, what: str = "file", error: type = In
     """The bytes of the regular file ``path`` (see ``open_regular``); a file that grows past
     ``max_bytes`` while read is refused too."""
     with open_regular(path, max_bytes, what, error, missing) as f:
-        data = f.read()  # one buffer of the size fstat gave (checked against the cap before)
+        data = f.read()  # one buffer of the size fstat gave (already checked against the cap by open_regular)
     if len(data) > max_bytes:
         raise error(f"{path}: more than {max_bytes} bytes: too large for a {what}")
     return data
@@ -126,3 +127,12 @@ def require_dir(path: Path, what: str = "directory", error: type = InputFileErro
     if not stat.S_ISDIR(st.st_mode):
         raise error(f"{path}: is {file_kind(st.st_mode)}, not a {what}")
     return path
+
+
+def file_sha256(path: Path) -> str:
+    """The sha256 of a file's bytes (hex), read in 1 MiB pieces."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()

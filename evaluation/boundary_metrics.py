@@ -1,7 +1,7 @@
 """Distances between boundary polylines (3D in metres, or 2D image contours in pixels).
 
 Polyline convention: an (N, D) array of vertices, D = 2 or 3; closed polylines do
-NOT repeat the first vertex at the end (the closing segment N-1 -> 0 is implied).
+NOT repeat the first vertex at the end (the closing segment from vertex N-1 to vertex 0 is implied).
 A list of such arrays stands for several polylines (e.g. outer boundary + holes).
 
 Directed distance from polyline A to polyline B
@@ -24,8 +24,7 @@ then refined between them wherever a larger value is possible (see
     hausdorff   = max(max(est->gt), max(gt->est))
 
 The nearest-segment search is exact (KD-tree over segment midpoints with a
-pruning bound, see ``point_metrics.pruned_min_distance``); 5000 x 5000 vertex
-polylines take about 0.1-0.3 s.
+pruning bound, see ``point_metrics.pruned_min_distance``).
 
 Image contours (``contour_pixels_distance``): pixel centres at integer
 coordinates (OpenCV), points given as (u, v) = (column, row). The true contour of

@@ -53,7 +53,7 @@ from platebench.evaluation.disparity_metrics import (
     eth3d_metrics,
     middlebury_metrics,
 )
-from platebench.evaluation.metrics_row import METRIC_NAMES, MetricsRow
+from platebench.evaluation.metrics_row import METRIC_NAMES, MetricsRow, registered_figures
 from platebench.evaluation.pixel_coverage import (
     PixelCoverage,
     coverage_of_map,
@@ -207,10 +207,13 @@ class AbsErrors:
         return out
 
 
-def _row(shared: dict, flat: dict) -> MetricsRow:
-    """A MetricsRow: ``shared`` columns, and every other number of ``flat`` in ``extra``."""
+def _row(shared: dict, flat: dict, score=None) -> MetricsRow:
+    """A MetricsRow: ``shared`` columns, every other number of ``flat`` in ``extra``, and the
+    registered metrics' figures of ``score`` (``metrics_row.registered_figures``)."""
     extra = {k: v for k, v in flat.items() if k not in METRIC_NAMES and k not in shared
              and isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)}
+    if score is not None:
+        extra.update(registered_figures(score))
     return MetricsRow(**shared, extra=extra)
 
 
@@ -244,7 +247,7 @@ class DepthScore:
     def metrics_row(self) -> MetricsRow:
         e = self.errors
         return _row({"depth_rms_mm": e.rms_m * MM, "depth_max_mm": e.max_m * MM, "depth_median_mm": e.median_m * MM,
-                     "coverage_frac": self.coverage_frac}, self.to_dict())
+                     "coverage_frac": self.coverage_frac}, self.to_dict(), self)
 
 
 def _map(values, truth: FieldTruth, what: str) -> np.ndarray:
@@ -305,7 +308,7 @@ class DisparityScore:
         flat.update(self.middlebury.to_dict())
         flat.update(self.eth3d.to_dict())
         return _row({"depth_rms_mm": e.rms_m * MM, "depth_max_mm": e.max_m * MM, "depth_median_mm": e.median_m * MM,
-                     "coverage_frac": self.depth.coverage_frac}, flat)
+                     "coverage_frac": self.depth.coverage_frac}, flat, self)
 
 
 def score_disparity(disparity_px, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM,
@@ -353,7 +356,7 @@ class PointCloudScore:
 
     def metrics_row(self) -> MetricsRow:
         return _row({"surface_rms_mm": self.distance.rms_m * MM, "coverage_frac": self.coverage.coverage_frac},
-                    self.to_dict())
+                    self.to_dict(), self)
 
 
 def _points(points_m, what: str) -> tuple[np.ndarray, int]:
@@ -417,7 +420,7 @@ class MeshScore:
 
     def metrics_row(self) -> MetricsRow:
         return _row({"surface_rms_mm": self.accuracy.rms_m * MM, "coverage_frac": self.coverage_frac},
-                    self.to_dict())
+                    self.to_dict(), self)
 
 
 def score_mesh(mesh: trimesh.Trimesh, truth: FieldTruth, *, thresholds_m=MESH_THRESHOLDS_M,

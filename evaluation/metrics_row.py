@@ -20,15 +20,22 @@ a lateral radius of an estimate is another figure, ``surface_coverage_frac`` (an
 
 ``from_score`` flattens the paper pipeline's typed ``Score``; the other kinds' scores
 (``evaluation.field_scores``) build theirs with ``metrics_row()``.
+
+Registered metrics. A further figure of every scored sample is one ``Metric`` given to
+``register_metric``: its column name, label, unit, kind and how it is computed from a score. Every
+row built from a score (``MetricsRow.from_score``, ``field_scores``' ``metrics_row()``) then holds
+its value among the extra columns (``registered_figures``), so it appears in a sweep's results table
+after the shared columns, and ``metric_label``/``metric_unit``/``is_metric`` know it.
 """
 from __future__ import annotations
 
 import math
 import re
 from dataclasses import dataclass, field, fields
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
-__all__ = ["MetricsRow", "METRIC_FIELDS", "EXTRA_FAMILIES", "metric_unit", "metric_label", "is_metric"]
+__all__ = ["MetricsRow", "METRIC_FIELDS", "EXTRA_FAMILIES", "metric_unit", "metric_label", "is_metric",
+           "Metric", "METRICS", "register_metric", "registered_figures"]
 
 
 def _m(unit: str, label: str, kind: str = "float"):
@@ -67,7 +74,8 @@ class MetricsRow:
             if k in METRIC_NAMES or not isinstance(k, str) or not k:
                 raise ValueError(f"extra metric name {k!r} is not allowed: a new, non-empty name (not one of "
                                  f"the shared columns)")
-            clean[k] = _clean(v, "bool" if isinstance(v, bool) else "float")
+            kind = METRICS[k].kind if k in METRICS else "bool" if isinstance(v, bool) else "float"
+            clean[k] = _clean(v, kind)
         object.__setattr__(self, "extra", clean)
 
     def columns(self) -> dict:
@@ -84,7 +92,7 @@ class MetricsRow:
         mm = 1e3
         cov = getattr(score, "coverage", None)
         extra = {**({"surface_coverage_frac": s.surface_coverage_frac} if s else {}),
-                 **dict(overrides.pop("extra", None) or {})}
+                 **registered_figures(score), **dict(overrides.pop("extra", None) or {})}
         return cls(
             centres_depth_rms_mm=p.stats.depth.rms * mm if p else None,
             centres_depth_max_mm=p.stats.depth.max * mm if p else None,
@@ -121,6 +129,56 @@ def _clean(v, kind: str):
 
 METRIC_FIELDS = {f.name: f for f in fields(MetricsRow) if f.name != "extra"}
 METRIC_NAMES = tuple(METRIC_FIELDS)
+METRIC_KINDS = ("float", "int", "bool")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A registered metric: one column of every row scored from then on.
+
+    ``name``: the column's name, its unit in the suffix (``_mm``, ``_px``, ``_pct``, ``_frac``,
+    ``_count``; a flag has none). ``label``: the figure in words, without the unit. ``unit``: as
+    ``metric_unit`` gives it ("mm", "px", "%", "fraction", "count", "" for a flag). ``compute``:
+    score -> value, given the method's score (``evaluation.score.Score`` for the paper's pipeline,
+    ``evaluation.field_scores``' scores for depth maps, disparity maps, clouds and meshes); None where
+    the metric does not apply to that score (the row then has no such column), its errors propagate.
+    ``kind``: "float", "int" or "bool", the type the value is stored as."""
+
+    name: str
+    label: str
+    unit: str
+    compute: Callable[[Any], Any]
+    kind: str = "float"
+
+
+# every registered metric by name, in registration order (``register_metric``)
+METRICS: dict[str, Metric] = {}
+
+
+def register_metric(metric: Metric) -> Metric:
+    """Add ``metric`` to ``METRICS``; returns it. TypeError when it is not a ``Metric`` with a
+    callable ``compute`` and a kind of ``METRIC_KINDS``; ValueError when its name is empty, a shared
+    column, of a family of ``EXTRA_FAMILIES`` (a figure the scores already give) or registered already."""
+    if not isinstance(metric, Metric) or not callable(metric.compute) or metric.kind not in METRIC_KINDS:
+        raise TypeError(f"{metric!r} is not a Metric with a callable compute and a kind of {', '.join(METRIC_KINDS)}")
+    name = metric.name
+    if not isinstance(name, str) or not name or name in METRIC_FIELDS or name == "extra" \
+            or _family(name) is not None or name in METRICS:
+        raise ValueError(f"metric name {name!r} is not allowed: a new, non-empty name (not a shared column, "
+                         "an extra column's family or a registered metric)")
+    METRICS[name] = metric
+    return metric
+
+
+def registered_figures(score) -> dict[str, Any]:
+    """Name -> value of every registered metric that applies to ``score`` (``Metric.compute`` not
+    None), in registration order."""
+    out = {}
+    for m in METRICS.values():
+        value = m.compute(score)
+        if value is not None:
+            out[m.name] = value
+    return out
 
 
 # The extra columns' families: (pattern of the name, label, unit). Names are built by
@@ -189,14 +247,16 @@ def _family(name: str):
 
 
 def is_metric(name: str) -> bool:
-    """Whether ``name`` is a metric column: a shared field or one of ``EXTRA_FAMILIES``."""
-    return name in METRIC_FIELDS or _family(name) is not None
+    """Whether ``name`` is a metric column: a shared field, a registered metric or one of ``EXTRA_FAMILIES``."""
+    return name in METRIC_FIELDS or name in METRICS or _family(name) is not None
 
 
 def metric_unit(name: str) -> str:
     """Unit of a metric column ('' for flags, counts say 'count'): from its field, its family, or its name."""
     if name in METRIC_FIELDS:
         return METRIC_FIELDS[name].metadata["unit"]
+    if name in METRICS:
+        return METRICS[name].unit
     fam = _family(name)
     if fam is not None:
         return fam[1]
@@ -208,9 +268,12 @@ def metric_unit(name: str) -> str:
 
 def metric_label(name: str) -> str:
     """Human label with unit, e.g. 'depth RMS over the plate's pixels (mm)': from the field's metadata,
-    else from the column's family (``EXTRA_FAMILIES``), else the name as it is."""
+    else from the registered metric (``METRICS``), else from the column's family (``EXTRA_FAMILIES``),
+    else the name as it is."""
     if name in METRIC_FIELDS:
         label, unit = METRIC_FIELDS[name].metadata["label"], METRIC_FIELDS[name].metadata["unit"]
+    elif name in METRICS:
+        label, unit = METRICS[name].label, METRICS[name].unit
     elif (fam := _family(name)) is not None:
         label, unit = fam
     else:  # a column of no known family: its own name, verbatim

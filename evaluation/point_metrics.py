@@ -390,11 +390,8 @@ def closest_point_on_mesh(points, mesh, by_radius: bool = True) -> tuple[np.ndar
     KD-tree over triangle centroids and a rigorous pruning bound
     (:func:`pruned_min_distance`). Not ``trimesh.proximity.closest_point``: its
     per-triangle test uses absolute tolerances (trimesh's ``tol.zero``, 1e-12 on squared
-    lengths) that misclassify millimetre-sized triangles in metres, and measured
-    here it returned distances up to 0.08 mm too large on a plate mesh with 1 mm
-    cells (correct after scaling the same case to millimetres); it is also
-    about 5x slower. Measured on the mesh of a 200-degree curl (16 000 triangles, 2 cores): about
-    20 us per point within 1 mm of the surface, 0.1 ms per point 1 to 2 cm off it.
+    lengths) that misclassify millimetre-sized triangles in metres, so that it returns
+    distances too large on a plate mesh in metres (docs/findings/design-record.md).
     """
     P = check_array(points, "points", shape=(None, 3))
     tri = _mesh_arrays(mesh)

@@ -17,13 +17,16 @@ carries its unit. Sections:
   left view's plate pixels whose true ray hits the interpolated surface mesh.
 * ``false_boundary``: ground truth (a true-boundary point hidden from a camera) vs
   the counting test's verdict.
+* ``per_point``: what an error map draws (``PerPointErrors``): each square centre's error (the 3D
+  error against its true centre where its identity is known, else its distance to the true
+  surface) and each surface vertex's exact distance to the true surface.
 * ``paper_bound`` (depth <= 2 mm, x/y <= 1 mm, paper V-D) and ``goals`` (depth RMS <=
   0.03 mm, x/y RMS <= 0.05 mm, boundary mean <= 0.2 mm).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -52,7 +55,8 @@ from platebench.scenes.rig import StereoRig
 if TYPE_CHECKING:
     import trimesh  # annotations only: importing trimesh takes a second
 
-__all__ = ["ScoreError", "SampleTruth", "ReconstructionData", "PointErrors", "Matching", "FalseBoundaryVerdict",
+__all__ = ["ScoreError", "SampleTruth", "ReconstructionData", "PointErrors", "PerPointErrors", "Matching",
+           "FalseBoundaryVerdict",
            "PaperBound", "Goals", "Score", "score_reconstruction", "format_table",
            "PAPER_DEPTH_MM", "PAPER_XY_MM", "GOAL_DEPTH_RMS_MM", "GOAL_XY_RMS_MM", "GOAL_BOUNDARY_MEAN_MM"]
 
@@ -139,6 +143,34 @@ class PointErrors:
     @classmethod
     def from_dict(cls, d: dict) -> "PointErrors":
         return cls(PointScore.from_dict(d), _m(d.get("to_surface_rms_mm")), _m(d.get("to_surface_max_mm")))
+
+
+@dataclass(frozen=True, eq=False)
+class PerPointErrors:
+    """Each reconstructed square centre's and surface vertex's error against the truth (metres; what an
+    error map draws). ``centre_error_m`` (N,): per centre (``ReconstructionData.points``' order) the 3D
+    error against the true centre where ``centre_known`` (N,) (its identity read in the ground-truth
+    feature map at its left pixel), else its exact distance to the true surface;
+    ``surface_distance_m`` (V,): each surface vertex's exact distance to the true surface (None: no
+    surface)."""
+
+    centre_error_m: np.ndarray
+    centre_known: np.ndarray
+    surface_distance_m: np.ndarray | None = None
+
+    def to_dict(self) -> dict:
+        out = {"centre_error_mm": [float(v) for v in np.asarray(self.centre_error_m) * 1e3],
+               "centre_identity_known": [bool(k) for k in self.centre_known]}
+        if self.surface_distance_m is not None:
+            out["surface_vertex_distance_mm"] = [float(v) for v in np.asarray(self.surface_distance_m) * 1e3]
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PerPointErrors":
+        surf = d.get("surface_vertex_distance_mm")
+        return cls(np.asarray(d.get("centre_error_mm") or [], float) / 1e3,
+                   np.asarray(d.get("centre_identity_known") or [], bool),
+                   None if surf is None else np.asarray(surf, float) / 1e3)
 
 
 @dataclass(frozen=True)
@@ -276,6 +308,8 @@ class Score:
     cut_count: int = 0
     # ``coverage_frac``: left plate pixels whose true ray hits the surface mesh (None: no mesh or no true rays)
     coverage: PixelCoverage | None = None
+    # each centre's and surface vertex's error (None: not measured)
+    per_point: PerPointErrors | None = field(default=None, compare=False)
 
     def to_dict(self) -> dict:
         out: dict = {"points": self.points.to_dict() if self.points else {"count": 0},
@@ -293,6 +327,8 @@ class Score:
             out["goals"] = self.goals.to_dict()
         if self.cut_count:
             out["cut_points"] = {"count": self.cut_count, **(self.cut_points.to_dict() if self.cut_points else {})}
+        if self.per_point is not None:
+            out["per_point"] = self.per_point.to_dict()
         return out
 
     @classmethod
@@ -311,7 +347,7 @@ class Score:
                    FalseBoundaryVerdict.from_dict(d.get("false_boundary") or {}),
                    part("paper_bound", PaperBound.from_dict), part("goals", Goals.from_dict),
                    PointErrors.from_dict(cut) if "depth_rms_mm" in cut else None, int(cut.get("count") or 0),
-                   part("coverage", PixelCoverage.from_dict))
+                   part("coverage", PixelCoverage.from_dict), part("per_point", PerPointErrors.from_dict))
 
 
 def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
@@ -326,18 +362,25 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
     gid_r = feature_at_pixels(truth.feature_maps["right"], rec.uv_right)
     correct = (gid_l == gid_r) & (gid_l >= 0)
 
-    def point_errors(P, uv_left):
-        """The points' errors against the true centre of the feature lighting their left pixel."""
+    def point_errors(P, uv_left) -> tuple[PointErrors | None, PerPointErrors | None]:
+        """The points' errors against the true centre of the feature lighting their left pixel, and
+        each point's error (None: no points)."""
+        if not len(P):
+            return None, None
         gid = feature_at_pixels(truth.feature_maps["left"], uv_left)
         known = np.array([g in id_index and np.all(np.isfinite(true_pts[id_index[g]])) for g in gid], bool)
-        if not known.any():
-            return None
-        stats = score_points(P[known], true_pts[[id_index[g] for g in gid[known]]], truth.rig.left.R)
         d_surf = point_to_surface_distance(P, truth.mesh)  # exact; trimesh's is off in metres
-        return PointErrors(stats, float(np.sqrt(np.mean(d_surf ** 2))), float(d_surf.max()))
-    points = point_errors(rec.points, rec.uv_left)
+        true_known = true_pts[[id_index[g] for g in gid[known]]]
+        each = d_surf.copy()
+        each[known] = [np.linalg.norm(e) for e in P[known] - true_known]
+        per_point = PerPointErrors(each, known)
+        if not known.any():
+            return None, per_point
+        stats = score_points(P[known], true_known, truth.rig.left.R)
+        return PointErrors(stats, float(np.sqrt(np.mean(d_surf ** 2))), float(d_surf.max())), per_point
+    points, per_point = point_errors(rec.points, rec.uv_left)
     n_cut = 0 if rec.cut_points is None else len(rec.cut_points)
-    cut_points = point_errors(rec.cut_points, rec.cut_uv_left) if n_cut else None
+    cut_points = point_errors(rec.cut_points, rec.cut_uv_left)[0] if n_cut else None
     fb = rec.false_boundary
     matching = Matching(
         matched_count=int(len(rec.points)), correct_match_count=int(correct.sum()),
@@ -351,8 +394,10 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
         boundary_3d = polyline_distance(rec.boundary, truth.boundary)
         boundary_image = contour_pixels_distance(truth.masks["left"], truth.rig.left.project(rec.boundary))
     surface = coverage = None
+    surface_distance = None
     if rec.surface_vertices is not None and len(rec.surface_vertices):
         surface = score_surface(rec.surface_vertices, truth.mesh, sample_spacing_m=SURFACE_SAMPLE_SPACING_M)
+        surface_distance = point_to_surface_distance(np.asarray(rec.surface_vertices, float), truth.mesh)
     if truth.points_left is not None:
         coverage = coverage_of_mesh(_surface_mesh(rec), truth.rig.left.center, truth.points_left,
                                     truth.masks["left"])
@@ -364,8 +409,11 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
                                  points.count == matching.expected_count_gt)
         goals = Goals(_mm(points.stats.depth.rms), _mm(points.xy_per_axis_rms_m),
                       _mm(boundary_3d.mean_sym) if boundary_3d is not None else float("nan"))
+    if per_point is not None or surface_distance is not None:
+        per_point = PerPointErrors(np.zeros(0), np.zeros(0, bool)) if per_point is None else per_point
+        per_point = replace(per_point, surface_distance_m=surface_distance)
     return Score(points, matching, boundary_3d, boundary_image, surface, verdict, paper_bound, goals, cut_points, n_cut,
-                 coverage)
+                 coverage, per_point)
 
 
 def _surface_mesh(rec: ReconstructionData):

@@ -98,13 +98,13 @@ class SurfaceScore:
         def value(key, scale=M_TO_MM):
             v = d.get(key)
             return math.nan if v is None else float(v) / scale
-        limit = d.get("coverage_max_distance_mm")
-        if "surface_coverage_frac" not in d and "coverage_frac" in d:
-            d = {**d, "surface_coverage_frac": d["coverage_frac"]}
-        return cls(ErrorStats.from_dict(d, "dist", "mm", M_TO_MM), value("surface_coverage_frac", 1.0),
+        coverage = "coverage_frac" if "surface_coverage_frac" not in d and "coverage_frac" in d \
+            else "surface_coverage_frac"
+        return cls(ErrorStats.from_dict(d, "dist", "mm", M_TO_MM), value(coverage, 1.0),
                    value("covered_area_mm2", 1e6), value("plate_area_mm2", 1e6), int(d.get("gt_sample_count") or 0),
                    int(d.get("coverage_point_count") or 0), value("sample_spacing_mm"), value("coverage_radius_mm"),
-                   None if limit is None else float(limit) / M_TO_MM)
+                   None if d.get("coverage_max_distance_mm") is None
+                   else float(d["coverage_max_distance_mm"]) / M_TO_MM)
 
 
 def _face_mask(mesh, faces) -> np.ndarray | None:

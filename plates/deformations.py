@@ -5,7 +5,8 @@ Units: metres and radians. Input uv: (N, 2) or (2,) material coordinates in metr
 metres. All derivatives are analytic (no finite differences). The unit normal is
 (r_u x r_v) / |r_u x r_v|: the TOP surface normal, +Z for a flat plate.
 
-The formulas (conventions in plates/spec.py):
+Each family computes its own surface (``DeformationFamily.surface``, plates/spec.py, from the
+building blocks of plates/surfaces.py); the formulas (conventions in plates/spec.py):
 - CylindricalBend: with bending coordinate s, ruling coordinate t = -u sin a + v cos a,
   signed curvature k = +-angle/S, phi = k s:
   r = (sin(phi)/k) e + t g + ((1 - cos phi)/k) Z, e = (cos a, sin a, 0), g = (-sin a, cos a, 0).
@@ -20,21 +21,9 @@ The formulas (conventions in plates/spec.py):
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from .spec import (
-    CylindricalBend,
-    Dent,
-    Dome,
-    Flat,
-    Fold,
-    PlateSpec,
-    SCurve,
-    Twist,
-    bending_extent_m,
-)
+from .spec import PlateSpec
 
 __all__ = ["surface_point", "surface_derivatives", "surface_normal", "surface_frame", "NumpyOps", "NUMPY_OPS"]
 
@@ -66,115 +55,12 @@ class NumpyOps:
 NUMPY_OPS = NumpyOps()
 
 
-def _arc(x, k, xp):
-    """(sin(k x)/k, (1 - cos(k x))/k), accurate for small or zero k."""
-    phi = k * x
-    return x * xp.sinc(phi / np.pi), x * xp.sin(0.5 * phi) * xp.sinc(phi / (2.0 * np.pi))
-
-
-def _bend_profile(spec: PlateSpec, s, xp):
-    """In-plane coordinate p(s), height z(s), and tangent angle phi(s) of the bent section."""
-    d = spec.deformation
-    sign = 1.0 if d.direction == "up" else -1.0
-    if isinstance(d, CylindricalBend):
-        k = xp.const(sign * d.angle_rad / bending_extent_m(spec.length_m, spec.width_m, d.axis_rad))
-        p, z = _arc(s, k, xp)
-        return p, z, k * s
-    if isinstance(d, SCurve):
-        k = xp.const(sign * 2.0 * d.angle_rad / bending_extent_m(spec.length_m, spec.width_m, d.axis_rad))
-        a, odd = xp.abs(s), xp.sign(s)
-        p, z = _arc(a, k, xp)
-        return odd * p, odd * z, k * a
-    k = xp.const(sign * d.angle_rad / d.band_m)
-    s0 = xp.const(d.position_m - 0.5 * d.band_m)
-    dist = s - s0
-    inside = xp.clip(dist, 0.0, xp.const(d.band_m))
-    phi = k * inside
-    p_arc, z_arc = _arc(inside, k, xp)
-    rest = dist - inside
-    return s0 + p_arc + rest * xp.cos(phi), z_arc + rest * xp.sin(phi), phi
-
-
-def _along(a, b, c, ea, eb, ec):
-    """Components of a e_a + b e_b + c e_c for 3-vectors e_a, e_b, e_c (tuples), summed in that order."""
-    return tuple(a * x + b * y + c * z for x, y, z in zip(ea, eb, ec))
-
-
-def _bend(spec: PlateSpec, u, v, xp):
-    a = spec.deformation.axis_rad
-    ca, sa = xp.const(math.cos(a)), xp.const(math.sin(a))
-    e, g, zhat = (ca, sa, 0.0), (-sa, ca, 0.0), (0.0, 0.0, 1.0)
-    s = u * ca + v * sa
-    t = -u * sa + v * ca
-    p, z, phi = _bend_profile(spec, s, xp)
-    r = _along(p, t, z, e, g, zhat)
-    c, sn = xp.cos(phi), xp.sin(phi)
-    r_s = tuple(c * x + sn * y for x, y in zip(e, zhat))
-    r_u = tuple(ca * x - sa * y for x, y in zip(r_s, g))
-    r_v = tuple(sa * x + ca * y for x, y in zip(r_s, g))
-    return r, r_u, r_v
-
-
-def _twist(spec: PlateSpec, u, v, xp):
-    k = xp.const(spec.deformation.angle_rad / spec.length_m)
-    c, s = xp.cos(k * u), xp.sin(k * u)
-    return (u, v * c, v * s), (xp.ones_like(u), -k * v * s, k * v * c), (xp.zeros_like(u), c, s)
-
-
-def _height_field(u, v, z, z_u, z_v, xp):
-    ones, zeros = xp.ones_like(u), xp.zeros_like(u)
-    return (u, v, z), (ones, zeros, z_u), (zeros, ones, z_v)
-
-
-def dome_curvature_per_m(spec: PlateSpec) -> float:
-    """Signed sphere curvature c (1/m) of a Dome: positive for a dome, negative for a bowl."""
-    sag = spec.deformation.sag_m
-    half_diag_sq = 0.25 * (spec.length_m**2 + spec.width_m**2)
-    return 2.0 * sag / (half_diag_sq + sag**2)
-
-
-def _dome(spec: PlateSpec, u, v, xp):
-    c = xp.const(dome_curvature_per_m(spec))
-    rho_sq = u * u + v * v
-    w = xp.sqrt(1.0 - c * c * rho_sq)
-    z = -c * rho_sq / (1.0 + w)
-    return _height_field(u, v, z, -c * u / w, -c * v / w, xp)
-
-
-def _dent(spec: PlateSpec, u, v, xp):
-    d = spec.deformation
-    du = u - xp.const(d.centre_u_m)
-    dv = v - xp.const(d.centre_v_m)
-    r2 = xp.const(d.radius_m**2)
-    one_minus_q = xp.maximum(1.0 - (du * du + dv * dv) / r2, 0.0)
-    depth = xp.const(d.depth_m)
-    z = -depth * one_minus_q**3
-    slope = 6.0 * depth * one_minus_q**2 / r2
-    return _height_field(u, v, z, slope * du, slope * dv, xp)
-
-
-def _flat(spec: PlateSpec, u, v, xp):
-    return _height_field(u, v, xp.zeros_like(u), xp.zeros_like(u), xp.zeros_like(u), xp)
-
-
-_FAMILY_MAPS = {Flat: _flat, CylindricalBend: _bend, Fold: _bend, Twist: _twist,
-                Dome: _dome, Dent: _dent, SCurve: _bend}
-
-
-def _surface_map(spec: PlateSpec):
-    """The exact map of the spec's family (ValueError for a family without one: never a guess)."""
-    try:
-        return _FAMILY_MAPS[type(spec.deformation)]
-    except KeyError:
-        raise ValueError(f"deformation family {type(spec.deformation).__name__} has no exact surface: "
-                         "allowed " + ", ".join(c.__name__ for c in _FAMILY_MAPS)) from None
-
-
 def surface_frame(spec: PlateSpec, u, v, xp=NUMPY_OPS):
     """Top-surface point r and partial derivatives r_u, r_v at material coords (u, v) (arrays of
     one shape, metres), each a tuple of 3 world-frame components, computed with the array
-    operations ``xp`` (``NumpyOps``: numpy; another array type: an object of the same methods)."""
-    return _surface_map(spec)(spec, u, v, xp)
+    operations ``xp`` (``NumpyOps``: numpy; another array type: an object of the same methods): the
+    family's own ``DeformationFamily.surface``."""
+    return spec.deformation.surface(spec.length_m, spec.width_m, u, v, xp)
 
 
 def _stacked(spec: PlateSpec, uv: np.ndarray):

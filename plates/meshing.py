@@ -48,9 +48,17 @@ def _nodes(breaks: list[float], spacing) -> np.ndarray:
 
 
 def _arc_spacing(radius_m: float, offset_m: float, tol_m: float) -> float:
-    """Largest arc length on a radius-R circle whose chord sagitta at radius R + offset is <= tol."""
+    """Largest arc length (metres) on a radius-R circle whose chord sagitta at radius R + offset is
+    <= tol, at most an arc of pi/16.
+
+    The half angle is acos(1 - x), x = tol_m / (radius_m + offset_m), which keeps 4 digits or more
+    from x = 1e-12 up (1 - x is rounded to 1.1e-16). Where 1 - x rounds to 1 (x below about 1.1e-16:
+    a much smaller facet error than ``plate.MAX_FACET_ERROR_M`` on a large, nearly flat plate) it is
+    the equal 2 asin(sqrt(x / 2)), which keeps its digits there, so the spacing is never 0."""
     r_eff = radius_m + offset_m
     half_angle = math.acos(max(1.0 - tol_m / r_eff, -1.0)) if tol_m < r_eff else math.pi
+    if half_angle == 0.0:  # 1 - x rounded to 1: the half-angle form of the same angle
+        half_angle = 2.0 * math.asin(math.sqrt(tol_m / (2.0 * r_eff)))
     return radius_m * min(2.0 * half_angle, math.pi / 16)
 
 

@@ -79,7 +79,7 @@ class Plate:
     def facet_error_m(self) -> float:
         """Max distance (metres) between the mesh and the analytic surface.
 
-        Measured on top and bottom faces at triangle centroids and edge midpoints,
+        Taken over top and bottom faces at triangle centroids and edge midpoints,
         each against the analytic surface (offset for the bottom) at the same uv.
         Side walls are exact across the thickness and share the outline's edges.
         """

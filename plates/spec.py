@@ -23,17 +23,20 @@ camera side); "down" is the mirror image.
 from __future__ import annotations
 
 import abc
+import inspect
 import math
 import numbers
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass
 from typing import Any, ClassVar, Mapping
 
 from platebench.errors import UserValueError
 
+from .surfaces import arc, height_field, ruled_frame
+
 __all__ = [
     "PlateSpecError", "Flat", "CylindricalBend", "Fold", "Twist", "Dome", "Dent", "SCurve",
     "Deformation", "DeformationFamily", "PlateSpec", "reference_spec", "FAMILIES", "SweepKey", "Ruling",
-    "family_class", "family_sweep_keys",
+    "family_class", "family_sweep_keys", "register_family",
 ]
 
 MAX_BEND_RAD = math.radians(350.0)
@@ -139,8 +142,8 @@ class Ruling:
 
 
 class DeformationFamily(abc.ABC):
-    """What the bench asks of a deformation family; every family's dataclass derives from it and
-    ``FAMILIES`` lists them, in the order tables show them.
+    """What the bench asks of a deformation family; every family's frozen dataclass derives from it
+    and ``register_family`` adds it to ``FAMILIES``, in the order tables show them.
 
     Class attributes: ``family`` (its key in configs, specs, tables), ``label`` (its name in
     words), ``layout`` ("strips": ruled along a bend axis, meshed by ``ruling``; "grid": meshed on
@@ -148,7 +151,8 @@ class DeformationFamily(abc.ABC):
     this order after the shared bend_deg / direction / axis_deg), ``by_bend`` (tables per bend
     angle: the family's plates differ by ``angle_rad``), ``in_default_study`` (the false-boundary
     study's default plates include ``study_examples``). A family missing one of them, or one of
-    the abstract methods, cannot be defined or made (never a silent default)."""
+    the abstract methods (its exact ``surface`` among them), cannot be defined, registered or made
+    (never a silent default); a "strips" family must also give its ``ruling``."""
 
     family: ClassVar[str]
     label: ClassVar[str]
@@ -175,6 +179,14 @@ class DeformationFamily(abc.ABC):
     @abc.abstractmethod
     def defaults(cls, length_m: float, width_m: float) -> "DeformationFamily":
         """The family with default parameters for an L x W plate (a sweep switching to it)."""
+
+    @abc.abstractmethod
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        """The exact top surface of an L x W plate (metres) at material coords (u, v) (arrays of one
+        shape, metres): (r, r_u, r_v), the point and its partial derivatives along u and v, each a
+        tuple of 3 world-frame components, computed with the array operations ``xp``
+        (``plates.deformations.NumpyOps`` or an object of the same methods; building blocks in
+        ``plates.surfaces``). The mesh, the ground truth and the renderer's device all use it."""
 
     def check_fit(self, length_m: float, width_m: float) -> None:
         """Raise PlateSpecError when the deformation does not fit an L x W plate."""
@@ -208,6 +220,38 @@ class DeformationFamily(abc.ABC):
         return {"family": self.family, **{f.name: getattr(self, f.name) for f in fields(self)}}
 
 
+# every registered family by its key, in the order tables show them (``register_family``)
+FAMILIES: dict[str, type[DeformationFamily]] = {}
+
+
+def register_family(cls: type[DeformationFamily]) -> type[DeformationFamily]:
+    """Class decorator: add the family ``cls`` to ``FAMILIES`` under ``cls.family`` (after those
+    registered before it), so that plate specs, sweep specs, the study and the tables know it.
+
+    Raises TypeError when ``cls`` is not a frozen dataclass deriving from ``DeformationFamily``,
+    leaves an abstract method (``surface``, ...) undefined, or has layout "strips" without its
+    own ``ruling``; ValueError when its key is registered already."""
+    if not (isinstance(cls, type) and issubclass(cls, DeformationFamily)):
+        raise TypeError(f"{cls!r} is not a DeformationFamily subclass")
+    if not is_dataclass(cls) or not cls.__dataclass_params__.frozen:
+        raise TypeError(f"deformation family {cls.__name__} is not a frozen dataclass")
+    if inspect.isabstract(cls):
+        raise TypeError(f"deformation family {cls.__name__} does not define "
+                        + ", ".join(sorted(cls.__abstractmethods__)))
+    if cls.layout == "strips" and cls.ruling is DeformationFamily.ruling:
+        raise TypeError(f"deformation family {cls.__name__} has layout 'strips' but no ruling")
+    if cls.family in FAMILIES:
+        raise ValueError(f"deformation family {cls.family!r} is registered already "
+                         f"(by {FAMILIES[cls.family].__name__})")
+    FAMILIES[cls.family] = cls
+    return cls
+
+
+def _up_sign(d) -> float:
+    """+1 for a bend "up", -1 for "down"."""
+    return 1.0 if d.direction == "up" else -1.0
+
+
 def _arcs_ruling(d, length_m: float, width_m: float, arcs: int) -> Ruling:
     """The ruling of a bend of ``arcs`` equal circular arcs over the whole plate, each turning by
     ``d.angle_rad`` (a cylinder: 1; an S-curve: 2, meeting at s = 0): radius S / (arcs angle)."""
@@ -218,6 +262,7 @@ def _arcs_ruling(d, length_m: float, width_m: float, arcs: int) -> Ruling:
     return Ruling(d.axis_rad, (-S / 2, S / 2), breaks, S / (arcs * d.angle_rad))
 
 
+@register_family
 @dataclass(frozen=True)
 class Flat(DeformationFamily):
     """No deformation: the plate stays in z = 0."""
@@ -237,10 +282,14 @@ class Flat(DeformationFamily):
     def ruling(self, length_m: float, width_m: float) -> Ruling:
         return Ruling(0.0)
 
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        return height_field(u, v, xp.zeros_like(u), xp.zeros_like(u), xp.zeros_like(u), xp)
+
     def bend_deg(self) -> float | None:
         return 0.0
 
 
+@register_family
 @dataclass(frozen=True)
 class CylindricalBend(DeformationFamily):
     """Uniform cylindrical bend, arc length preserved.
@@ -275,10 +324,21 @@ class CylindricalBend(DeformationFamily):
     def ruling(self, length_m: float, width_m: float) -> Ruling:
         return _arcs_ruling(self, length_m, width_m, 1)
 
+    def bend_profile(self, length_m: float, width_m: float, s, xp):
+        """(p, z, phi) of the bent section at bending coordinate s (``surfaces.ruled_frame``): one
+        circular arc of curvature +-angle_rad / S through the plate centre."""
+        k = xp.const(_up_sign(self) * self.angle_rad / bending_extent_m(length_m, width_m, self.axis_rad))
+        p, z = arc(s, k, xp)
+        return p, z, k * s
+
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        return ruled_frame(self.axis_rad, lambda s: self.bend_profile(length_m, width_m, s, xp), u, v, xp)
+
     def study_label(self) -> str:
         return "flat" if self.angle_rad == 0 else self.family
 
 
+@register_family
 @dataclass(frozen=True)
 class Fold(DeformationFamily):
     """Off-centre fold: a circular arc of total angle angle_rad inside a band.
@@ -337,7 +397,24 @@ class Fold(DeformationFamily):
         band = (self.position_m - self.band_m / 2, self.position_m + self.band_m / 2)
         return Ruling(self.axis_rad, band, band, self.band_m / self.angle_rad)
 
+    def bend_profile(self, length_m: float, width_m: float, s, xp):
+        """(p, z, phi) of the bent section at bending coordinate s (``surfaces.ruled_frame``): the
+        identity before the band, an arc of curvature +-angle_rad / band_m inside it, a straight
+        continuation beyond."""
+        k = xp.const(_up_sign(self) * self.angle_rad / self.band_m)
+        s0 = xp.const(self.position_m - 0.5 * self.band_m)
+        dist = s - s0
+        inside = xp.clip(dist, 0.0, xp.const(self.band_m))
+        phi = k * inside
+        p_arc, z_arc = arc(inside, k, xp)
+        rest = dist - inside
+        return s0 + p_arc + rest * xp.cos(phi), z_arc + rest * xp.sin(phi), phi
 
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        return ruled_frame(self.axis_rad, lambda s: self.bend_profile(length_m, width_m, s, xp), u, v, xp)
+
+
+@register_family
 @dataclass(frozen=True)
 class Twist(DeformationFamily):
     """Helicoidal twist about the X axis: (u, v cos(k u), v sin(k u)), k = angle_rad / L.
@@ -358,6 +435,11 @@ class Twist(DeformationFamily):
     def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
         return abs(self.angle_rad) / length_m
 
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        k = xp.const(self.angle_rad / length_m)
+        c, s = xp.cos(k * u), xp.sin(k * u)
+        return (u, v * c, v * s), (xp.ones_like(u), -k * v * s, k * v * c), (xp.zeros_like(u), c, s)
+
     @classmethod
     def defaults(cls, length_m: float, width_m: float) -> "Twist":
         return cls(DEFAULT_ANGLE_RAD)
@@ -367,6 +449,7 @@ class Twist(DeformationFamily):
         return (("twist 45", cls(math.radians(45.0))), ("twist -80", cls(math.radians(-80.0))))
 
 
+@register_family
 @dataclass(frozen=True)
 class Dome(DeformationFamily):
     """Spherical cap as a height field over the flat plate: z = z(u, v), (x, y) = (u, v).
@@ -391,6 +474,19 @@ class Dome(DeformationFamily):
         half_diag = 0.5 * math.hypot(length_m, width_m)
         return 2.0 * abs(self.sag_m) / (half_diag**2 + self.sag_m**2)
 
+    def sphere_curvature_per_m(self, length_m: float, width_m: float) -> float:
+        """Signed sphere curvature c (1/m) on an L x W plate: positive for a dome, negative for a bowl."""
+        sag = self.sag_m
+        half_diag_sq = 0.25 * (length_m**2 + width_m**2)
+        return 2.0 * sag / (half_diag_sq + sag**2)
+
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        c = xp.const(self.sphere_curvature_per_m(length_m, width_m))
+        rho_sq = u * u + v * v
+        w = xp.sqrt(1.0 - c * c * rho_sq)
+        z = -c * rho_sq / (1.0 + w)
+        return height_field(u, v, z, -c * u / w, -c * v / w, xp)
+
     @classmethod
     def defaults(cls, length_m: float, width_m: float) -> "Dome":
         return cls(0.02 * math.hypot(length_m, width_m))
@@ -407,6 +503,7 @@ class Dome(DeformationFamily):
         return (("dome 12 mm", cls(0.012)), ("bowl 12 mm", cls(-0.012)))
 
 
+@register_family
 @dataclass(frozen=True)
 class Dent(DeformationFamily):
     """Local smooth dent in -Z as a height field: z = -depth_m (1 - r^2/R^2)^3 for r < R.
@@ -437,6 +534,16 @@ class Dent(DeformationFamily):
     def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
         return 6.0 * self.depth_m / self.radius_m**2
 
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        du = u - xp.const(self.centre_u_m)
+        dv = v - xp.const(self.centre_v_m)
+        r2 = xp.const(self.radius_m**2)
+        one_minus_q = xp.maximum(1.0 - (du * du + dv * dv) / r2, 0.0)
+        depth = xp.const(self.depth_m)
+        z = -depth * one_minus_q**3
+        slope = 6.0 * depth * one_minus_q**2 / r2
+        return height_field(u, v, z, slope * du, slope * dv, xp)
+
     @classmethod
     def defaults(cls, length_m: float, width_m: float) -> "Dent":
         s = min(length_m, width_m)
@@ -466,6 +573,7 @@ class Dent(DeformationFamily):
         return (("dent 3 mm centre", cls(0.003, 0.02)), ("dent 3 mm off-centre", cls(0.003, 0.015, 0.03, 0.015)))
 
 
+@register_family
 @dataclass(frozen=True)
 class SCurve(DeformationFamily):
     """S-curve: two circular arcs of opposite curvature meeting at the plate's middle, arc length
@@ -503,6 +611,17 @@ class SCurve(DeformationFamily):
     def ruling(self, length_m: float, width_m: float) -> Ruling:
         return _arcs_ruling(self, length_m, width_m, 2)
 
+    def bend_profile(self, length_m: float, width_m: float, s, xp):
+        """(p, z, phi) of the bent section at bending coordinate s (``surfaces.ruled_frame``): the
+        arc of curvature +-2 angle_rad / S on |s|, odd in s."""
+        k = xp.const(_up_sign(self) * 2.0 * self.angle_rad / bending_extent_m(length_m, width_m, self.axis_rad))
+        a, odd = xp.abs(s), xp.sign(s)
+        p, z = arc(a, k, xp)
+        return odd * p, odd * z, k * a
+
+    def surface(self, length_m: float, width_m: float, u, v, xp):
+        return ruled_frame(self.axis_rad, lambda s: self.bend_profile(length_m, width_m, s, xp), u, v, xp)
+
     @classmethod
     def study_examples(cls):
         return (("s-curve 60 up axis 0", cls(math.radians(60.0), "up", 0.0)),
@@ -510,10 +629,7 @@ class SCurve(DeformationFamily):
                 ("s-curve 170 up axis 30", cls(math.radians(170.0), "up", math.radians(30.0))))
 
 
-Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent | SCurve
-# every family, in the order tables show them (a family is known by being listed here)
-FAMILIES: dict[str, type[DeformationFamily]] = {c.family: c for c in (Flat, CylindricalBend, Fold, Twist, Dome, Dent,
-                                                                      SCurve)}
+Deformation = Flat | CylindricalBend | Fold | Twist | Dome | Dent | SCurve  # the built-in families
 
 
 def family_class(family: str) -> type[DeformationFamily]:
@@ -557,8 +673,8 @@ class PlateSpec:
     length_m and width_m from ``MIN_SIDE_M`` to ``MAX_SIDE_M`` (1 mm to 10 m).
     thickness_m from 0 to a tenth of the smaller side and, for a curved plate, to half
     the smallest radius of curvature (so the bottom offset surface stays smooth).
-    deformation: one of the families of ``FAMILIES`` (Flat, CylindricalBend, Fold, Twist, Dome,
-    Dent, SCurve).
+    deformation: one of the registered families of ``FAMILIES`` (Flat, CylindricalBend, Fold, Twist,
+    Dome, Dent, SCurve and any added by ``register_family``).
     """
 
     length_m: float

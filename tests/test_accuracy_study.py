@@ -166,7 +166,7 @@ def test_realism_scale_scales_a_source_and_refuses_what_is_not_one(tmp_path):
     """``--realism-scale robot_accuracy=4``: the arm's kinematic spread is four times the sourced one
     (the robot model, not a label); a source the preset does not have, a value that is no number or out
     of range: one-line errors, exit 2, nothing written."""
-    from platebench.bench.cli.study import with_scales
+    from platebench.bench.config.study import with_scales
     from platebench.bench.config import SampleConfig
     from platebench.bench.config.presets import with_realism
     from platebench.bench.run.realism import RealismSetup
@@ -193,3 +193,38 @@ def test_realism_scale_scales_a_source_and_refuses_what_is_not_one(tmp_path):
         p = run_cli("study", "accuracy", "--out", tmp_path / "a", "--realism-scale", bad)
         assert p.returncode == 2 and words in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
         assert not (tmp_path / "a").exists()
+
+
+def test_a_measured_point_is_identified_in_the_image_and_one_stands_for_each_true_point():
+    """``evaluation.accuracy.identify_in_image``: the nearest true point within the fraction of the true points'
+    spacing; of two on one true point the nearer stands for it; one too far is no one."""
+    from platebench.evaluation.accuracy import identify_in_image, nearest_order
+
+    true_uv = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    m = identify_in_image([[0.5, 0.0], [1.0, 0.2], [10.0, 2.9], [5.0, 5.0]], true_uv, 0.3)
+    assert m.spacing_px == 10.0
+    assert m.ok.tolist() == [True, False, True, False] and m.index[m.ok].tolist() == [0, 1]
+    assert nearest_order(true_uv, true_uv[[2, 0, 1]] + 0.1) == [2, 0, 1]
+
+
+def test_a_trials_figures_and_a_budget_rows_statistics_follow_their_definitions():
+    """``evaluation.accuracy``: a trial's worst and RMS per measure; over trials the median worst value and its
+    quantiles, the pooled RMS, 95th percentile and maximum, and the share within the paper's bound."""
+    from platebench.evaluation.accuracy import PAPER_DEPTH_MM, score_trial, summarise_trials
+
+    e = np.array([[0.1, -0.3, 1.5], [0.2, 0.05, -2.5], [-0.4, 0.1, 0.5]]) * 1e-3
+    t = score_trial(e)
+    assert t.points == 3 and t.worst_depth_m == pytest.approx(2.5e-3) and t.worst_xy_m == pytest.approx(0.4e-3)
+    assert t.rms_depth_m == pytest.approx(np.sqrt(np.mean(e[:, 2] ** 2)))
+    assert t.rms_xy_m == pytest.approx(np.sqrt(np.mean(e[:, :2] ** 2)))
+    assert t.mean_depth_m == pytest.approx(np.mean(e[:, 2]))
+    trials = [e * 1e3, e * 0.5e3]
+    s = summarise_trials([2.5, 1.25], [0.4, 0.2], trials)
+    pooled = np.abs(np.concatenate(trials))
+    assert s.depth.worst_median == pytest.approx(1.875) and s.depth.within_bound_frac == 0.5
+    assert s.depth.worst_quantiles["q95"] == pytest.approx(np.quantile([2.5, 1.25], 0.95))
+    assert s.depth.rms == pytest.approx(np.sqrt(np.mean(pooled[:, 2] ** 2))) and s.depth.max == 2.5
+    assert s.depth.p95 == pytest.approx(np.quantile(pooled[:, 2], 0.95))
+    assert s.xy.max == 0.4 and s.xy.mean_signed is None and s.xy.within_bound_frac == 1.0
+    assert s.depth.mean_signed == pytest.approx(np.mean(np.concatenate(trials)[:, 2]))
+    assert PAPER_DEPTH_MM == 2.0

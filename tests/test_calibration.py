@@ -23,10 +23,8 @@ from platebench.reconstruction.calibration import (
     CalibrationError,
     StereoCalibration,
     detect_charuco,
-    fit_line,
-    label_squares,
-    nearest_point_to_lines,
 )
+from platebench.reconstruction.paper.structured_light import fit_line, label_squares, nearest_point_to_lines
 from platebench.scenes.camera import triangulate_rectified
 from platebench.scenes.scene_spec import reference_scene
 from tests.conftest import run_cli
@@ -221,8 +219,8 @@ def test_pipeline_with_estimated_calibration_finds_the_16_squares(small_cfg, cal
         assert row.surface_rms_mm is not None and 0 < row.surface_rms_mm < 1.0, (name, row)
     # estimated calibration costs little depth accuracy here (measured 0.047 vs 0.046 mm RMS)
     assert rows["estimated"].centres_depth_rms_mm < rows["true"].centres_depth_rms_mm + 0.1
-    from platebench.bench.cli.calibrate import format_table
-    text = format_table(result.report, cmp)
+    from platebench.bench.report.text import format_calibration_table
+    text = format_calibration_table(result.report, cmp)
     assert "estimated" in text and "baseline error" in text and "at the square centres" in text
     json.dumps({name: {"metrics": rows[name].columns(), "score": s.to_dict()} for name, s in cmp.items()})
 

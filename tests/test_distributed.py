@@ -102,9 +102,9 @@ def test_worker_killed_mid_sweep_loses_no_sample(cluster, tmp_path):
     killed_pid = pids[victim]
     for sid in [f"{i:04d}" for i in range(6)]:
         res = validate_result(out, sid)
-        assert res is not None and res["status"] == "ok"
+        assert res is not None and res.status == "ok"
         if sid in in_flight:  # lost with the worker, then retried elsewhere
-            assert res["worker"]["pid"] != killed_pid
+            assert res.worker["pid"] != killed_pid
     assert [r["status"] for r in read_results(out).to_pylist()] == ["ok"] * 6
     assert read_manifest(out)["counts"]["ok"] == 6
     assert not stale_files(out)
@@ -149,7 +149,7 @@ def test_pipeline_renders_on_the_render_worker_and_finishes_on_cpu_workers(tmp_p
         assert r["depth_rms_mm"] == e["depth_rms_mm"] and r.get("matched_count") == e.get("matched_count")
     for sid in ("0000", "0001", "0002", "0003"):
         res = validate_result(out, sid)  # committed: its files match the checksums it lists
-        assert res is not None and res["render_worker"]["pid"] in gpu and res["worker"]["pid"] in cpu
+        assert res is not None and res.render_worker["pid"] in gpu and res.worker["pid"] in cpu
     assert not stale_files(out)
 
 

@@ -79,7 +79,10 @@ def test_reconstruction_with_nan_is_refused(reference, tmp_path):
     lines[3] = ",".join(cells)
     (bad / "points.csv").write_text("\n".join(lines) + "\n")
     p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
-    assert p.returncode == 2 and "points.csv: line 4 holds NaN" in p.stderr
+    assert p.returncode == 2 and "points.csv: differs from" in p.stderr and "refusing to score it" in p.stderr
+    (bad / ".platebench-output.json").unlink()  # a folder without PlateBench's record: its parser refuses it
+    p = run_cli("evaluate", sample, bad, "--overwrite")
+    assert p.returncode == 2 and "points.csv: line 4 holds NaN" in p.stderr, p.stderr
 
 
 def test_reconstruction_with_malformed_boundary_is_refused(reference, tmp_path):
@@ -88,7 +91,10 @@ def test_reconstruction_with_malformed_boundary_is_refused(reference, tmp_path):
     shutil.copytree(recon, bad)
     np.save(bad / "boundary.npy", np.zeros((3, 2)))
     p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
-    assert p.returncode == 2 and "boundary.npy: must be a finite (N,3) array" in p.stderr
+    assert p.returncode == 2 and "boundary.npy: differs from" in p.stderr and "refusing to score it" in p.stderr
+    (bad / ".platebench-output.json").unlink()  # a folder without PlateBench's record: its parser refuses it
+    p = run_cli("evaluate", sample, bad, "--overwrite")
+    assert p.returncode == 2 and "boundary.npy: must be a finite (N,3) array" in p.stderr, p.stderr
 
 
 @pytest.mark.parametrize("missing", ["recon.json", "boundary.npy", "points.csv"])
@@ -98,7 +104,8 @@ def test_missing_reconstruction_file_is_a_clear_error(reference, tmp_path, missi
     shutil.copytree(recon, bad)
     (bad / missing).unlink()
     p = run_cli("evaluate", sample, bad, "--overwrite")  # a score.json copied along is ours to replace
-    assert p.returncode == 2 and f"{missing}: file is missing" in p.stderr
+    assert p.returncode == 2 and (f"{missing}: file is missing" in p.stderr
+                                  or f"{missing}: is missing" in p.stderr and "refusing to score it" in p.stderr), p.stderr
 
 
 def test_realism_ideal_renders_the_reference_experiment_byte_for_byte(reference, tmp_path):

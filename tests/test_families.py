@@ -74,7 +74,7 @@ def test_sweep_study_and_report_ask_the_families():
     report's category order come from ``FAMILIES``: a family appears in each without being named
     there."""
     from platebench.bench.report.summary import CATEGORY_ORDER
-    from platebench.bench.run.study import FAMILY_ORDER, study_cases
+    from platebench.bench.run.sensing.study import FAMILY_ORDER, study_cases
     from platebench.bench.sweep.spec import AXES, family_defaults, parse_spec
     assert FAMILY_ORDER == tuple(FAMILIES) == CATEGORY_ORDER["family"]
     for name, cls in FAMILIES.items():

@@ -26,7 +26,7 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from platebench.bench.perf.run_attacks import STATUS, cli_cmd, half_written, leftovers, signal_run
+from tools.faults.run_attacks import STATUS, cli_cmd, half_written, leftovers, signal_run
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2}}

@@ -6,6 +6,22 @@ Layers (docs/architecture.md, "Layers"): plates < scenes < reconstruction, evalu
 plain-numpy scene description knows no renderer (``scenes.render`` is the only Mitsuba user);
 inside bench, cli > run/sweep/report/perf > io/config. Reconstruction never sees ground truth:
 it imports neither ``scenes.render`` (renderer, ground-truth caster) nor ``evaluation``.
+
+Each rule is a function of an import graph (``{module: {modules it imports}}``) that returns its
+violations; every rule is run on the code's graph, which must have none, and on a copy with one
+planted edge, which it must report:
+
+* ``layer_violations``: no module imports a higher layer;
+* ``module_cycles``: no import cycle between modules;
+* ``cli_violations``: the command line is argparse and printing: a ``bench.cli`` module imports only
+  ``CLI_MAY_IMPORT`` (the bench's own packages, ``errors``, ``tolerances``, ``version``), a command
+  module imports no other command module (shared argument groups are private helpers, such as
+  ``bench.cli._args``, which import no command), and only ``bench.cli.main`` names the commands;
+* ``science_violations``: ``plates``, ``scenes``, ``reconstruction`` and ``evaluation`` know nothing
+  of the bench (files, the command line, runs): they import nothing from ``bench`` nor the facade;
+* ``sibling_cycles``: no cycle between sibling packages: under each package, its subpackages and its
+  own modules are siblings (the own modules of one layer count as one), each subpackage standing for
+  every module inside it.
 """
 from __future__ import annotations
 
@@ -89,6 +105,170 @@ def layer(name: str) -> tuple[int, int]:
     return rank, inner
 
 
+# ----------------------------------------------------------------------------- the rules, as functions of a graph
+SCIENCE = ("plates", "scenes", "reconstruction", "evaluation")
+CLI = "platebench.bench.cli"
+CLI_MAIN = f"{CLI}.main"
+CLI_MAY_IMPORT = tuple(f"platebench.bench.{p}" for p in (
+    "config", "run", "sweep", "report", "io", "benchmark", "perf", "progress", "files", "interrupts")) + (
+    "platebench.errors", "platebench.tolerances", "platebench.version")
+
+
+def _under(name: str, prefixes) -> bool:
+    """``name`` is one of ``prefixes`` or a module inside one of them."""
+    return any(name == p or name.startswith(p + ".") for p in prefixes)
+
+
+def _is_cli_helper(name: str) -> bool:
+    """A private module of the command line (``bench.cli._args``): shared argument groups, no command."""
+    return name.startswith(CLI + ".") and name.rsplit(".", 1)[1].startswith("_")
+
+
+def _is_command(name: str) -> bool:
+    """A command module: ``bench.cli.<name>``, neither the package, ``main`` nor a private helper."""
+    return name.startswith(CLI + ".") and name != CLI_MAIN and not _is_cli_helper(name)
+
+
+def layer_violations(graph: dict) -> list[str]:
+    """Imports that go up the layers (``layer``), across packages or inside one package."""
+    bad = []
+    for name, deps in graph.items():
+        for dep in deps:
+            (a, ai), (b, bi) = layer(name), layer(dep)
+            same_package = name.split(".")[:2] == dep.split(".")[:2]
+            if b > a or (same_package and b == a and bi > ai):
+                bad.append(f"{name} -> {dep}")
+    return sorted(bad)
+
+
+def module_cycles(graph: dict) -> list[list[str]]:
+    """The import cycles between modules (strongly connected components of more than one module); a
+    package ``__init__`` re-exporting its own modules is not a cycle of the code."""
+    cycles = [c for c in _strong_components(graph) if len(c) > 1]
+    return [c for c in cycles if not all(m.startswith(c[0].rsplit(".", 1)[0]) and
+                                         any(MODULES.get(x) is not None and MODULES[x].name == "__init__.py"
+                                             for x in c) for m in c)]
+
+
+def cli_violations(graph: dict) -> list[str]:
+    """Imports of the command line beyond argparse and printing (module doc)."""
+    bad = []
+    for name, deps in graph.items():
+        if not (name == CLI or name.startswith(CLI + ".")):
+            continue
+        for dep in deps:
+            if dep == CLI or dep.startswith(CLI + "."):
+                ok = name == CLI_MAIN or (_is_cli_helper(dep) and dep != name)
+                if _is_cli_helper(name) and not _is_cli_helper(dep):
+                    ok = False
+                if not ok:
+                    bad.append(f"{name} -> {dep} (a command module imports no other command; shared flags are "
+                               "private helpers)")
+            elif not _under(dep, CLI_MAY_IMPORT):
+                bad.append(f"{name} -> {dep} (not in CLI_MAY_IMPORT)")
+    return sorted(bad)
+
+
+def science_violations(graph: dict) -> list[str]:
+    """Imports of the bench (its files, command line, runs) or of the facade by the science packages."""
+    bad = []
+    for name, deps in graph.items():
+        if not _under(name, [f"platebench.{p}" for p in SCIENCE]):
+            continue
+        bad += [f"{name} -> {dep}" for dep in deps
+                if _under(dep, ("platebench.bench",)) or dep in ("platebench", "platebench.api", "platebench.__main__")]
+    return sorted(bad)
+
+
+def _packages(graph: dict) -> set[str]:
+    """The packages among the graph's modules: those with an ``__init__.py``, and every module's parent."""
+    names = set(graph) | {d for deps in graph.values() for d in deps}
+    return {n for n in names if MODULES.get(n) is not None and MODULES[n].name == "__init__.py"} | \
+        {n.rsplit(".", 1)[0] for n in names if "." in n}
+
+
+def _sibling(parent: str, name: str, packages: set[str]) -> str | None:
+    """The sibling under ``parent`` that module ``name`` belongs to: the subpackage holding it, or, for
+    one of ``parent``'s own modules, 'PARENT (own modules, layer L)'; None outside ``parent`` and for
+    ``parent``'s ``__init__`` (the package's face)."""
+    if not name.startswith(parent + "."):
+        return None
+    child = f"{parent}.{name[len(parent) + 1:].split('.')[0]}"
+    if child in packages:
+        return child
+    return f"{parent} (own modules, layer {'.'.join(map(str, layer(name)))})"
+
+
+def sibling_cycles(graph: dict, imports: list | None = None) -> list[list[str]]:
+    """The cycles between sibling packages (module doc), each as the sorted siblings of one strongly
+    connected component; ``imports``, when given, receives the module imports ('a -> b') that join
+    the siblings of each cycle."""
+    packages = _packages(graph)
+    found = []
+    for parent in sorted(packages):
+        edges: dict = {}
+        joins: dict = {}
+        for name, deps in graph.items():
+            a = _sibling(parent, name, packages)
+            if a is None:
+                continue
+            edges.setdefault(a, set())
+            for dep in deps:
+                b = _sibling(parent, dep, packages)
+                if b is not None and b != a:
+                    edges[a].add(b)
+                    edges.setdefault(b, set())
+                    joins.setdefault((a, b), []).append(f"{name} -> {dep}")
+        cycles = [c for c in _strong_components(edges) if len(c) > 1]
+        found += cycles
+        if imports is not None:
+            imports += sorted(j for c in cycles for (a, b), js in joins.items() if a in c and b in c for j in js)
+    return found
+
+
+def _strong_components(graph: dict) -> list[list[str]]:
+    """Tarjan's strongly connected components of ``graph`` (each sorted)."""
+    index, low, stack, on_stack, out = {}, {}, [], set(), []
+
+    def strong(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            out.append(sorted(comp))
+
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, 10000))
+    try:
+        for v in list(graph):
+            if v not in index:
+                strong(v)
+    finally:
+        sys.setrecursionlimit(limit)
+    return out
+
+
+def _planted(graph: dict, name: str, dep: str) -> dict:
+    """A copy of ``graph`` with one more import, ``name`` -> ``dep``."""
+    out = {k: set(v) for k, v in graph.items()}
+    out.setdefault(name, set()).add(dep)
+    out.setdefault(dep, set())
+    return out
+
+
 def test_the_module_graph_is_read():
     assert len(MODULES) > 60
     assert "platebench.reconstruction.paper.pipeline" in GRAPH["platebench.bench.run.paper_method"]
@@ -97,14 +277,8 @@ def test_the_module_graph_is_read():
 
 
 def test_no_module_imports_a_higher_layer():
-    bad = []
-    for name, deps in GRAPH.items():
-        for dep in deps:
-            (a, ai), (b, bi) = layer(name), layer(dep)
-            same_package = name.split(".")[:2] == dep.split(".")[:2]
-            if b > a or (same_package and b == a and bi > ai):
-                bad.append(f"{name} -> {dep}")
-    assert not bad, "imports that go up the layers:\n" + "\n".join(sorted(bad))
+    bad = layer_violations(GRAPH)
+    assert not bad, "imports that go up the layers:\n" + "\n".join(bad)
 
 
 def test_reconstruction_never_sees_ground_truth_or_the_renderer():
@@ -126,45 +300,59 @@ def test_only_scenes_render_imports_mitsuba_or_drjit():
 
 
 def test_there_is_no_import_cycle():
-    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
-
-    def strong(v):  # Tarjan's strongly connected components
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on_stack.add(v)
-        for w in GRAPH[v]:
-            if w not in index:
-                strong(w)
-                low[v] = min(low[v], low[w])
-            elif w in on_stack:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            comp = []
-            while True:
-                w = stack.pop()
-                on_stack.discard(w)
-                comp.append(w)
-                if w == v:
-                    break
-            if len(comp) > 1:
-                cycles.append(sorted(comp))
-
-    sys.setrecursionlimit(10000)
-    for v in GRAPH:
-        if v not in index:
-            strong(v)
-    # a package __init__ re-exporting its own modules is not a cycle of the code
-    cycles = [c for c in cycles if not all(m.startswith(c[0].rsplit(".", 1)[0]) and
-                                           any(MODULES[x].name == "__init__.py" for x in c) for m in c)]
+    cycles = module_cycles(GRAPH)
     assert not cycles, cycles
 
 
-def test_a_lower_layer_importing_a_higher_one_is_caught(tmp_path):
-    """The checker itself can fail: a plates module importing bench is reported."""
-    GRAPH_COPY = dict(GRAPH)
-    GRAPH_COPY["platebench.plates.spec"] = GRAPH["platebench.plates.spec"] | {"platebench.bench.config"}
-    bad = [(n, d) for n, deps in GRAPH_COPY.items() for d in deps if layer(d)[0] > layer(n)[0]]
-    assert ("platebench.plates.spec", "platebench.bench.config") in bad
+def test_the_command_line_is_argparse_and_printing():
+    """``bench.cli`` imports only the bench's packages, ``errors``, ``tolerances`` and ``version``; a command
+    module imports no other command module (module doc, ``cli_violations``)."""
+    assert any(_is_command(n) for n in GRAPH) and CLI_MAIN in GRAPH
+    bad = cli_violations(GRAPH)
+    assert not bad, "\n".join(bad)
+
+
+def test_the_science_packages_know_nothing_of_the_bench():
+    """``plates``, ``scenes``, ``reconstruction`` and ``evaluation`` import nothing of ``bench`` (its files,
+    its command line, its runs) nor the facade (``science_violations``)."""
+    assert all(any(n.startswith(f"platebench.{p}.") for n in GRAPH) for p in SCIENCE)
+    bad = science_violations(GRAPH)
+    assert not bad, "\n".join(bad)
+
+
+def test_no_cycle_between_sibling_packages():
+    """Under each package its subpackages and its own modules import one another in one direction only
+    (``sibling_cycles``): e.g. ``reconstruction.paper`` uses ``reconstruction.calibration`` and not back."""
+    imports: list = []
+    cycles = sibling_cycles(GRAPH, imports)
+    assert not cycles, f"{cycles}, joined by:\n" + "\n".join(imports)
+
+
+@pytest.mark.parametrize("check, name, dep", [
+    (layer_violations, "platebench.plates.spec", "platebench.bench.config"),
+    (layer_violations, "platebench.bench.io.atomic", "platebench.bench.run.render"),
+    (module_cycles, "platebench.reconstruction.paper.squares", "platebench.reconstruction.paper.pipeline"),
+    (cli_violations, "platebench.bench.cli.render", "platebench.scenes.scene_spec"),
+    (cli_violations, "platebench.bench.cli.demo", "platebench.reconstruction.paper.pipeline"),
+    (cli_violations, "platebench.bench.cli.study", "platebench.bench.cli.sense"),
+    (cli_violations, "platebench.bench.cli._args", "platebench.bench.cli.render"),
+    (science_violations, "platebench.evaluation.score", "platebench.bench.io.atomic"),
+    (science_violations, "platebench.plates.spec", "platebench.bench.cli.main"),
+    (science_violations, "platebench.reconstruction.paper.pipeline", "platebench.api"),
+    (sibling_cycles, "platebench.reconstruction.calibration.hand_eye", "platebench.reconstruction.paper.squares"),
+    (sibling_cycles, "platebench.scenes.naming", "platebench.scenes.render.runtime"),
+    (sibling_cycles, "platebench.bench.config.ranges", "platebench.bench.io.atomic"),
+])
+def test_each_rule_reports_a_planted_violation(check, name, dep):
+    """Every rule can fail: the code's graph with one planted import is reported by the rule's checker,
+    which reports nothing of the code's own graph beyond what the test of that rule allows (none)."""
+    assert name in GRAPH and dep in MODULES, (name, dep)
+    assert dep not in GRAPH[name]
+    before = check(GRAPH)
+    after = check(_planted(GRAPH, name, dep))
+    assert len(after) > len(before) or after != before, (check.__name__, name, dep)
+    text = str(after)
+    assert name.rsplit(".", 1)[0] in text or name in text, (check.__name__, after)
 
 
 def test_pyproject_lists_every_package_folder():
@@ -234,7 +422,7 @@ def test_sense_and_study_check_their_flags_before_loading_the_loop(tmp_path, arg
     ``bench.config.sensing``, ``reconstruction.strategy.budget``)."""
     status, text = _cli_in_fresh_python(argv if "--help" in argv else [*argv, "--out", tmp_path / "o"],
                                         ("platebench.bench.run.sensing", "platebench.reconstruction.strategy.planner",
-                                         "platebench.bench.run.study", "mitsuba", "trimesh"), tmp_path)
+                                         "platebench.bench.run.sensing.study", "mitsuba", "trimesh"), tmp_path)
     assert status == ("0 []" if "--help" in argv else "2 []"), (status, text)
     assert " ".join(words.split()) in text, text
     assert not (tmp_path / "o").exists()

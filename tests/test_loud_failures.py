@@ -286,3 +286,31 @@ def test_a_working_directory_that_was_removed_is_one_line(tmp_path):
     script = f'cd "{gone}" && rmdir "{gone}" && exec "{sys.executable}" -m platebench.bench.cli.main info'
     p = subprocess.run(["sh", "-c", script], env=env, capture_output=True, text=True, timeout=120)
     one_line(p, "working directory no longer exists")
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("table", ["results.csv", "results.parquet"])
+def test_an_edited_results_table_is_refused_by_its_readers_and_kept_by_overwrite(tmp_path, table):
+    """The sweep records each table's sha256 (``results.sha256.json``): ``report`` and
+    ``platebench.results()`` refuse a table changed since, naming it, and ``--overwrite`` keeps it."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(tomli_w.dumps({"sweep": {"name": "t"}, "base": SWEEP_BASE, "grid": {"bend_deg": [0]}}))
+    ds = tmp_path / "ds"
+    p = run_cli("sweep", spec, "--out", ds, "--workers", "0", "--no-progress")
+    assert p.returncode == 0, p.stderr[-2000:]
+    import platebench
+    assert len(platebench.results(ds)) >= 1  # the untouched tables are read
+    if table == "results.csv":
+        (ds / "results.parquet").unlink()  # the report reads the CSV where there is no parquet
+        (ds / table).write_text((ds / table).read_text().replace(",ok,", ",ok ,", 1) + "\n")
+    else:
+        (ds / table).write_bytes((ds / table).read_bytes() + b"\0")
+    edited = (ds / table).read_bytes()
+    p = run_cli("report", ds, "--out", tmp_path / "rep")
+    one_line(p, table, "changed after the sweep wrote it")
+    assert p.returncode == 2 and not (tmp_path / "rep").exists()
+    with pytest.raises(Exception, match="changed after the sweep wrote it"):
+        platebench.results(ds)
+    p = run_cli("sweep", spec, "--out", ds, "--workers", "0", "--no-progress", "--overwrite")
+    one_line(p, table)
+    assert p.returncode == 2 and (ds / table).read_bytes() == edited

@@ -351,3 +351,36 @@ def test_peers_that_render_their_own_patterns_run_on_a_pair_a_robot_took(tmp_pat
     f = row.figures
     assert row.result is not None and f.coverage_frac > 0.8, (row.notes, f)
     assert 0.05 < f.error_rms_mm < 30.0, f
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("method", ["sgbm", "sgbm-passive"])
+def test_sgbm_search_beyond_the_images_is_refused_for_either_pair(bent, tmp_path, capsys, method):
+    """Both registered SGBM methods get the search-range check before any work: one line, exit status 2."""
+    from platebench.bench.cli.main import main
+    from platebench.bench.io.sample_files import write_sample
+    sample_dir = write_sample(tmp_path / "s", bent["sample"])
+    out = tmp_path / "cmp"
+    assert main(["compare", str(sample_dir), "--methods", method, "--min-depth-mm", "20", "--max-depth-mm", "2000",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sgbm: --min-depth-mm 20 to --max-depth-mm 2000 asks for disparities" in err[0], err
+    assert not out.exists()
+
+
+@pytest.mark.render
+def test_the_paper_row_refuses_a_reconstruction_of_another_sample(bent, tmp_path):
+    """``compare_sample`` (the Python API) scores the paper row only from a reconstruction made from the
+    sample (``bench.run.score.check_made_from``), as the CLI does."""
+    from platebench.bench.io.images import DatasetError
+    from platebench.bench.io.sample_files import write_sample
+    from platebench.bench.run.compare import compare_sample
+    sample_dir = write_sample(tmp_path / "s", bent["sample"])
+    recon = tmp_path / "recon"
+    recon.mkdir()
+    np.savetxt(recon / "points.csv", np.zeros((1, 3)), delimiter=",", header="x_m,y_m,z_m", comments="")
+    (recon / "recon.json").write_text(json.dumps({"n_images": 2, "input_checksums": {"left_active": "0" * 64}}))
+    with pytest.raises(DatasetError, match=r"was not made from .*: image left_active differs"):
+        compare_sample(sample_dir, ("paper",), recon_dir=recon)
+    (recon / "recon.json").write_text(json.dumps({"n_images": 2}))  # nothing recorded: nothing to refuse
+    assert [r.name for r in compare_sample(sample_dir, ("paper",), recon_dir=recon).rows] == ["paper"]

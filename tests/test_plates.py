@@ -525,3 +525,15 @@ def test_ply_export_round_trip(plates, tmp_path, name):
     assert np.array_equal(loaded.faces, p.mesh.faces)
     assert np.allclose(loaded.vertices, p.mesh.vertices, rtol=0, atol=1e-8)
     assert np.allclose(loaded.vertices, np.asarray(p.mesh.vertices, np.float32), rtol=0, atol=0)
+
+
+def test_arc_spacing_keeps_its_digits_where_one_minus_x_rounds_to_one():
+    """The sagitta rule s = R (1 - cos h) against the exact small-angle form h = sqrt(2 x): where
+    1 - tol / R rounds to 1 the spacing is the half-angle form's, never 0."""
+    import math
+
+    from platebench.plates.meshing import _arc_spacing
+    for radius_m, tol_m in ((1e9, 1e-9), (3.3e10, 2e-8), (0.1, 1e-5), (2.0, 1e-6)):
+        got = _arc_spacing(radius_m, 0.0, tol_m)
+        want = min(2.0 * radius_m * 2.0 * math.asin(math.sqrt(tol_m / (2.0 * radius_m))), radius_m * math.pi / 16)
+        assert got > 0 and math.isclose(got, want, rel_tol=1e-6), (radius_m, tol_m, got, want)

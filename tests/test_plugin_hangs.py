@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from platebench.bench.perf.run_attacks import IMPORT_FAILURES, write_plugins
+from tools.faults.run_attacks import IMPORT_FAILURES, write_plugins
 
 REPO = Path(__file__).resolve().parents[1]
 LIMIT_S = 4  # --method-time-limit-s of these runs

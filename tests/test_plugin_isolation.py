@@ -17,14 +17,14 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from platebench.bench.perf.run_attacks import FAILURES, IMPORT_FAILURES, write_plugins
+from tools.faults.run_attacks import FAILURES, IMPORT_FAILURES, write_plugins
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 4}}
 
 @pytest.fixture
 def plugin_env(tmp_path, monkeypatch):
-    """The misbehaving plug-ins (``bench.perf.run_attacks``: the bad-input harness tries them too) as modules on
+    """The misbehaving plug-ins (``tools/faults/run_attacks.py``: the fault harness tries them too) as modules on
     the path of this process and of the commands it runs."""
     monkeypatch.syspath_prepend(str(tmp_path))
     return write_plugins(tmp_path)

@@ -20,6 +20,7 @@ from platebench.bench.run import methods as methods_mod
 from platebench.bench.run.methods import get_method
 from platebench.bench.run.plugins import PluginError
 from platebench.errors import UserValueError
+from platebench.reconstruction.methods import METHODS
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "examples" / "blockmatch_plugin"
@@ -28,7 +29,7 @@ SMALL = {"scene": {"width": 160, "height": 120}, "render": {"spp": 2, "seed": 2}
 PLUGIN_SOURCE = '''
 """Test plug-ins (written outside the package)."""
 import numpy as np
-from platebench.bench.run.plugins import Depth, Points
+from platebench.reconstruction.methods import Depth, Points
 
 
 def flat_guess(inputs):
@@ -51,10 +52,10 @@ def wrong(inputs):
 @pytest.fixture
 def registry():
     """Plug-ins registered during a test are forgotten after it."""
-    before = dict(methods_mod.METHODS)
-    yield methods_mod.METHODS
-    methods_mod.METHODS.clear()
-    methods_mod.METHODS.update(before)
+    before = dict(METHODS)
+    yield METHODS
+    METHODS.clear()
+    METHODS.update(before)
 
 
 @pytest.fixture

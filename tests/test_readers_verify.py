@@ -17,13 +17,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import record_tables
+
 from platebench.bench.cli.main import main
 from platebench.bench.io.dataset_reader import PlateBenchDataset
 from platebench.bench.io.images import DatasetError, check_ply, exr_size, load_npy, read_pfm, read_png, write_pfm, write_png
 from platebench.bench.io.method_outputs import read_disparity, read_points
 from platebench.bench.io.outputs import STAMP
 from platebench.bench.report.thumbs import thumbnail_png
-from platebench.bench.perf.bad_inputs_outputs import (
+from tools.faults.bad_inputs_outputs import (
     _PLY_HUGE,
     _PLY_LYING,
     _exr_declaring,
@@ -66,6 +68,7 @@ def make_dataset(root: Path, sample: Path) -> Path:
     (root / "manifest.json").write_text(json.dumps({"format": "platebench-sweep", "version": 1, "state": "complete",
                                                     "samples": samples}))
     (root / "results.csv").write_text("sample_id,index,method,status\n0000,0,paper,ok\n0001,1,paper,ok\n")
+    record_tables(root)
     return root
 
 

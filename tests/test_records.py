@@ -306,7 +306,7 @@ def test_specification_records_read_back_what_they_write():
 
     from platebench.bench.config import RigPose
     from platebench.bench.io.export import ExportedSample
-    from platebench.bench.run.study import StudyRealism
+    from platebench.bench.run.sensing.study import StudyRealism
     from platebench.reconstruction.calibration.stereo import StereoCalibration
     from platebench.reconstruction.paper.false_boundary import FeatureRays
     from platebench.scenes.pattern import SquareGridLayout, square_grid
@@ -374,7 +374,7 @@ def test_the_study_report_shows_every_figure_a_row_holds(tmp_path):
 
     from platebench.bench.config import SampleConfig, SceneParams
     from platebench.bench.report.sensing import study_section
-    from platebench.bench.run.study import study_cases, write_study
+    from platebench.bench.run.sensing.study import study_cases, write_study
     from platebench.scenes.scene_spec import RenderSettings
     base = SampleConfig(scene=SceneParams(width=320, height=240), render=RenderSettings(spp=2, seed=0))
     write_study(tmp_path / "study", [c for c in study_cases() if c.family == "flat"][:1], base)
@@ -389,3 +389,78 @@ def test_the_study_report_shows_every_figure_a_row_holds(tmp_path):
     assert not table_cells_not_shown(table["columns"], table["rows"], doc["rows"], table["columns"])
     t = doc["targets"]
     assert f"false alarms {t['false_alarms']} of {t['nothing_hidden']}" in sec["summary"]
+
+
+# ----------------------------------------------------------------------------- a sweep sample's result
+_RESULT_OK = {
+    "format": "platebench-sweep-result", "version": 1, "sample_id": "0000", "index": 0, "config_sha256": "ab" * 32,
+    "status": "ok", "error": None, "phase": None, "params": {"bend_deg": 30}, "config": {"plate": {}},
+    "pose": None, "methods": ["paper"], "variant": "llvm_ad_rgb", "false_boundary_gt": False,
+    "rows": [{"method": "paper", "status": "ok", "error": None, "metrics": {"matched_count": 16},
+              "time_recon_s": 0.5, "time_eval_s": 0.1, "time_render_extra_s": 0.0}],
+    "timings_s": {"render_s": 1.0, "write_s": 0.2, "total_s": 2.0}, "files": {"sample/sample.json": "cd" * 32},
+    "images": {"left_passive": "ef" * 32}, "worker": {"host": "h", "pid": 7, "maxrss_mb": 300.0},
+    "finished_utc": "2026-01-01T00:00:00+00:00", "render_worker": {"host": "g", "pid": 8}}
+
+
+def test_a_sample_result_reads_back_what_result_json_holds_key_for_key_in_order():
+    import json
+
+    from platebench.bench.io.layout import RESULT_FORMAT, VERSION
+    from platebench.bench.io.sweep_records import MethodRun, SampleResult, SampleTimings
+    doc = {**_RESULT_OK, "format": RESULT_FORMAT, "version": VERSION}
+    res = SampleResult.from_dict(doc)
+    assert res.ok and res.timings == SampleTimings(1.0, 0.2, 2.0) and res.rows[0].time_recon_s == 0.5
+    assert json.dumps(res.to_dict()) == json.dumps(doc)  # same keys, same order: result.json unchanged
+    failed = {k: v for k, v in doc.items() if k != "render_worker"}
+    failed.update(status="failed", error="RuntimeError: x", phase="render", variant=None, false_boundary_gt=None,
+                  rows=[MethodRun.failed("paper", "RuntimeError: x").to_dict()], timings_s={"render_s": 1.0,
+                                                                                          "total_s": 1.5})
+    back = SampleResult.from_dict(failed)
+    assert json.dumps(back.to_dict()) == json.dumps(failed) and not back.ok
+    assert list(failed["rows"][0]) == ["method", "status", "error", "metrics"]  # a failed run has no times
+
+
+def test_a_sample_result_gives_the_results_tables_rows():
+    from platebench.bench.io.sweep_records import SampleResult, table_rows
+    res = SampleResult.from_dict({**_RESULT_OK, "config": _small_config()})
+    (row,) = table_rows(res)
+    assert (row["method"], row["matched_count"], row["false_boundary_gt"]) == ("paper", 16, False)
+    assert row["time_render_s"] == 1.0 and row["time_total_s"] == 2.0 and row["worker"] == "h:7"
+
+
+def _small_config() -> dict:
+    from platebench.bench.config import SampleConfig
+    return SampleConfig().to_dict()
+
+
+def test_visibility_and_false_boundary_verdicts_read_from_their_files():
+    from platebench.bench.io.report_records import (
+        FalseBoundaryRecord,
+        RunTimings,
+        SensingRun,
+        boundary_hidden,
+        visibility_records,
+    )
+    vis = visibility_records({"left": {"visible_fraction": 0.8, "false_boundary": True, "hidden_segments": [],
+                                       "n_points": 10, "n_visible": 8},
+                              "right": {"visible_fraction": 1.0, "false_boundary": False}, "note": "x"})
+    assert set(vis) == {"left", "right"} and vis["left"].visible_fraction == 0.8 and boundary_hidden(vis)
+    assert not boundary_hidden({"right": vis["right"]})
+    fb = FalseBoundaryRecord.of({"false_boundary": {"detected": {"left": 16, "right": 14}, "expected": 16,
+                                                    "expected_ids": [1, 2], "counting_test": True,
+                                                    "arrays_disagree": False, "false_boundary_detected": True,
+                                                    "cut_squares": {}}})
+    assert fb.false_boundary_detected and fb.expected_ids == (1, 2) and fb.detected_text() == "left 16, right 14"
+    assert FalseBoundaryRecord.of({}) is None and FalseBoundaryRecord.of({"false_boundary": None}) is None
+    t = RunTimings.from_dict({"plate_s": 0.1, "render_left_passive_s": 1.0, "render_right_passive_s": 2.0,
+                              "ground_truth_s": 0.5, "total_s": 4.0})
+    assert (t.total_s, t.ground_truth_s, t.renders_s) == (4.0, 0.5, 3.0)
+    assert RunTimings.of({"timings_s": {"total_s": 1.5}}).total_s == 1.5 and RunTimings.of({}).total_s is None
+    run = SensingRun.from_dict({"cures": 1, "time_s": 9.0, "final": {"outcome": "cured", "matched": 40,
+                                "false_boundary": {"false_boundary_detected": False},
+                                "gt_visibility": {"left": {"visible_fraction": 1.0, "false_boundary": False}}},
+                                "steps": [{"stage": 2, "pose": {"distance_m": 0.4}}, "junk"]})
+    assert (run.outcome, run.cures, run.time_s, run.final.matched) == ("cured", 1, 9.0, 40)
+    assert run.final.false_boundary.false_boundary_detected is False and len(run.steps) == 1
+    assert run.steps[0].distance_m == 0.4 and run.steps[0].false_boundary is None

@@ -183,6 +183,124 @@ def test_history_words_are_caught(line):
     assert HISTORY.search(line)
 
 
+# ----------------------------------------------------------------------------- docstrings state contracts
+# A docstring or comment of the product says what the code does: its purpose, units, frames, array shapes, what
+# it raises, and the source of a model's number. What a run measured, how the code came to be and the
+# alternatives it rejected are findings: they live in docs/findings/ (the sensing loop's in
+# docs/findings/design-record.md), each figure beside the command that reproduces it.
+_NUM = r"[-+]?\d[\d,]*(?:\.\d+)?"
+_UNIT = r"(?:%|mm|cm|um|µm|px|m|s|ms|deg|degrees?|cures?|plates?|points?|views?|poses?|outcomes?)"
+NOTEBOOK = {
+    "a past figure ('was N', 'were N')": r"\b(?:was|were)\s+(?:about\s+|~|≈)?[-+]?\d",
+    "a figure before a change ('(N before)', '1.2 mm before registration', 'until this rule')":
+        rf"{_NUM}\s*{_UNIT}\s+before\b|\bbefore\s*\)|\b(?:until|before|without)\s+(?:this|the)\s+(?:rule|change|fix)\b",
+    "a delta between figures ('N -> M')": r"\d\s*%?\s*(?:->|→|=>)\s*[-+~≈]?\d",
+    "a measured time ('12.3 s', '8 min', 'took 3', '5x slower')":
+        r"(?<![\w.-])(?<!<= )(?<!≤ )(?<!at most )(?<!within )(?<!limit )(?<!after )(?<!every )(?<!random )"
+        r"\d+(?:\.\d+)?(?:\s*-\s*\d+(?:\.\d+)?)?\s*(?:s|ms|us|µs|min|mins|minutes?|seconds?|hours?|h|CPU-seconds?)"
+        r"(?![\w+*/^])(?!\s*(?:at most|limit|timeout|by default))"
+        r"|\btook\s+(?:about\s+|only\s+)?\d|\d\s*[x×]\s+(?:slower|faster)\b",
+    "a measurement reported ('Measured on ...', '(measured: ...)', 'measured 0.2 px')":
+        r"(?:^|[.(;]\s*|#\s*)(?-i:M)easured\s+(?:on|with|over|at|against|under|in)\b"
+        r"|\(\s*measured\s*(?::|here\b)|\bmeasured\s+\d"
+        r"|\bmeasured\s+(?:on|over|with|in|under)\s+(?:the\s+)?(?:false-boundary\s+)?"
+        r"(?:study|\d+\s+(?:study\s+)?plates)\b",
+    "a study result ('N of M', 'cured 14/23', 'in the study', 'not traced')":
+        r"\b\d+\s+of\s+(?:the\s+)?\d[\d,]*\b|\b(?:cured|alarms?|silent|verified|perturbed)\s+\d+\s*/\s*\d+"
+        r"|\b(?:in|on)\s+the\s+study(?:'s\s+(?:renders|plates|runs|views|\d+\s+plates))?\b(?!')"
+        r"|\bthe\s+study\s+found\b|\bstudy\s+plates\b|\bnot\s+traced\b",
+    "a history word ('previously', 'used to be', 'no longer is', 'now gives', 'the first version')":
+        r"\b(?:previously|formerly|originally)\b|\bused\s+to\s+(?:be|have|take|give|run|cost|read|fail|confirm|cure)\b"
+        r"|\bno\s+longer\s+(?:is|are|does|do|needs?|uses?|takes?|gives?|counts?|applies|fails?)\b"
+        r"|\bnow\s+(?:uses?|gives?|takes?|reads?|counts?|confirms?|cures?|runs?)\b|\bonce\s+had\b"
+        r"|\b(?:an?|the|earlier|previous|older)\s+commit\b|\bthe\s+first\s+version\b",
+}
+NOTEBOOK_RE = {what: re.compile(p, re.IGNORECASE) for what, p in NOTEBOOK.items()}
+
+
+def _notebook(text: str) -> list[str]:
+    """What of ``NOTEBOOK`` a docstring or comment says (the text's line breaks read as spaces)."""
+    flat = re.sub(r"\s*\n\s*", " ", text)
+    return [f"{what}: ...{flat[max(0, m.start() - 40):m.end() + 20]}..." for what, r in NOTEBOOK_RE.items()
+            for m in r.finditer(flat)]
+
+
+def _prose_blocks(path: Path) -> list[tuple[int, str]]:
+    """(line, text) of every docstring of a Python file and of every run of comments on consecutive lines
+    (a sentence may wrap from one comment line to the next)."""
+    blocks, last = [], None
+    for line, text in sorted(_python_prose(path)):
+        if text.startswith("#") and last is not None and line == last + 1 and blocks[-1][1].startswith("#"):
+            blocks[-1] = (blocks[-1][0], blocks[-1][1] + " " + text.lstrip("#").strip())
+        else:
+            blocks.append((line, text))
+        last = line if text.startswith("#") else None
+    return blocks
+
+
+def _product_python() -> list[Path]:
+    """The product's Python files: the package's modules and examples/ (not tests/, docs/ or tools)."""
+    return [p for p in _files({".py"}) if p.relative_to(REPO).parts[0] in PACKAGES + ("examples",)
+            or len(p.relative_to(REPO).parts) == 1]
+
+
+def test_docstrings_and_comments_state_contracts_not_findings():
+    said = [f"{p.relative_to(REPO)}:{line}: {hit}" for p in _product_python()
+            for line, text in _prose_blocks(p) for hit in _notebook(text)]
+    assert not said, ("move these to docs/findings/ and say the contract instead:\n" + "\n".join(said))
+
+
+def test_the_notebook_guard_reads_docstrings_and_wrapped_comments(tmp_path):
+    planted = tmp_path / "planted.py"
+    planted.write_text('"""A module.\n\nThe fold took 3 cures\n(was 7)."""\n\n'
+                       "X = 1  # merged RMS 0.65 -> 0.58 mm\nZ = 3\n"
+                       "# a threshold set on renders (16 mm, Measured\n# on the study with the lead rule)\nY = 2\n")
+    hits = [(line, hit.split(":")[0]) for line, text in _prose_blocks(planted) for hit in _notebook(text)]
+    assert {line for line, _ in hits} == {1, 6, 8}, hits  # the comment wrapped over lines 8-9 as one
+
+
+@pytest.mark.parametrize("text", [
+    "(the 120-degree fold up: 3 cures, was 7)", "the S-curves 4 and 18 (were 14 and 18)",
+    "``MAX_CURE_VIEWS`` 12 (8 before)", "1.01 mm on a fold, 1.23 mm before registration",
+    "(two cures before)", "Until this rule, the turn was taken about the 3D direction",
+    "stray points 2531 of 227,165 -> 1285 of 216,738", "on that curl 105 -> 5", "97.0 -> 95.6 % on average",
+    "RMS median 0.65 → 0.58 mm", "polylines take about 0.1-0.3 s.", "(scipy.ndimage takes 0.25 s to import)",
+    "so about 3 to 4 minutes of wall time", "a sample takes 12.3 s", "8 min on 2 cores",
+    "it costs every other command 30-50 ms", "the fold took 1 cure", "it is also about 5x slower",
+    "Measured on the study: a baseline", "# Measured on the centres of a 170-degree fold",
+    "1/sqrt(spp) (measured: corner error 0.10 px)", "measured 329 CPU-seconds in all",
+    "measured over the false-boundary study's 61 plates", "(Measured with ``platebench study false-boundary``",
+    "6 of 31 plates with nothing hidden", "cured 14/23 and false alarms 1/31", "a silent wrong verdict in the study.",
+    "the study found such pieces", "Measured on 3 study plates", "by 1-3 outcomes, a difference not traced",
+    "the refinement previously ran twice", "the loop used to take cures there", "the planner no longer needs it",
+    "the verdict now confirms corners", "The planner's model once had a membrane",
+    "renders cached from an earlier commit",
+    "The first version cut the rays with the plane",
+])
+def test_the_notebook_guard_catches(text):
+    assert _notebook(text), text
+
+
+@pytest.mark.parametrize("text", [
+    "World frame, metres, radians.", "spp 16 default", "the 1.0 mm tolerance (``tol.confirm_m``)", "in metres",
+    "ABB IRB 1600, measured: \"unidirectional position repeatability better than 37 um\" (Slamani et al. 2012)",
+    "a six-axis PUMA, measured against a CMM (0.02 mm)", "(N, 2) -> (N, 3) pixels", "name -> module exposing HELP",
+    "0.5 -> '0_5', 1.0 -> '1_0'", "(2,) -> (3,)", "exits with status 2 before any work", "checked before any render",
+    "the output rule before the first render", "wait (10 s at most each) until they are gone",
+    "Target on a GPU: whole sample <= 0.15 s.", "the time limit, seconds (``timeout_s``)", "the measured outline",
+    "corner noise measured on renders at the start of the run", "a trial that measured: the points measured",
+    "Measured surface points (S,3) with unit normals", "a robot took the pair", "stretches no longer than LINK_M",
+    "a working directory that no longer exists", "from now on a signal is recorded", "stop now",
+    "every 30 degrees of azimuth at 20, 40 and 60 degrees", "exit status 130 / 143", "a 2/3-inch sensor",
+    "the study's tables", "the false-boundary study's cylinders", "edge length used to fit the curves",
+    "1/4000 of the shorter boundary", "(N, 2h+1, 2)", "``platebench study false-boundary`` (61 plates, 640 x 480)",
+    "leftovers of earlier runs", "a file committed once", "the paper's 16 squares at 0.4 m",
+    "each point's error (measured minus true, metres)", "then a random 0-6 s, then kill -9",
+])
+def test_the_notebook_guard_lets_contracts_pass(text):
+    assert not _notebook(text), _notebook(text)
+
+
 # ----------------------------------------------------------------------------- one source for each tolerance
 def _package_sources() -> list[Path]:
     return [p for p in _files({".py"}) if p.relative_to(REPO).parts[0] not in ("tests", "docs")

@@ -146,14 +146,14 @@ def test_poisoned_sample_does_not_take_down_its_neighbour(tmp_path):
         summary = run_sweep(spec, out, ex, progress=False)
         assert len(killed) >= 2  # once or more beside its neighbour, then alone until its retries ran out
         assert killed[-2:] and len(ex.isolated) >= 1
-        status = {sid: (r["status"], r.get("error") or "") for sid, r in summary.results.items()}
+        status = {sid: (r.status, r.error or "") for sid, r in summary.results.items()}
         assert status["0001"][0] == "failed" and status["0001"][1].startswith("WorkerLost"), status
         assert status["0000"] == ("ok", "") and status["0002"] == ("ok", ""), status
         assert "0001" in ex.isolated
         ok_before = {s: mtimes(out / "samples" / s) for s in ("0000", "0002")}
         # --retry-failed runs the poisoned sample again; it fails alone again, the others are not touched
         summary = run_sweep(spec, out, LocalExecutor(2, retries=1), resume=True, retry_failed=True, progress=False)
-        assert summary.run == 1 and summary.results["0001"]["status"] == "failed"
+        assert summary.run == 1 and summary.results["0001"].status == "failed"
         assert {s: mtimes(out / "samples" / s) for s in ("0000", "0002")} == ok_before
     finally:
         stop.set()
@@ -180,7 +180,7 @@ def test_resume_redoes_samples_whose_files_do_not_match(tmp_path):
     assert any("1 of 3 samples already done, 2 to run (2 whose files no longer match" in m for m in said), said
     assert mtimes(out / "samples" / "0002") == untouched
     for sid in ("0000", "0001", "0002"):
-        assert validate_result(out, sid)["status"] == "ok"
+        assert validate_result(out, sid).status == "ok"
     assert read_manifest(out)["state"] == "complete"
 
 

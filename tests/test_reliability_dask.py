@@ -98,7 +98,7 @@ def test_lost_scheduler_is_an_error_of_the_sweep_and_resume_finishes_it(tmp_path
     assert m["state"] == "interrupted", m["state"]
     assert m["counts"]["failed"] == 0 and m["counts"]["ok"] == len(before) and m["counts"]["pending"] > 0
     for sid in before:
-        assert validate_result(out, sid)["status"] == "ok"
+        assert validate_result(out, sid).status == "ok"
 
     with LoopbackCluster(n_workers=2) as c:
         r = subprocess.run(sweep_cmd(spec, out, "--scheduler", c.address, "--resume"), cwd=REPO,

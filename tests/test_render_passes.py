@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from platebench.bench.perf.run_attacks import STATUS, cli_cmd, leftovers
+from tools.faults.run_attacks import STATUS, cli_cmd, leftovers
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
 from platebench.scenes.naming import image_seed
 from platebench.scenes.render import runtime

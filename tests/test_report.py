@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import record_tables
+
 from platebench.bench.io.outputs import STAMP, OutputRefusedError
 from platebench.bench.report import plots as P
 from platebench.bench.report import summary as S
@@ -38,6 +40,8 @@ def _write_csv(path: Path, rows: list[dict], columns: list[str]) -> None:
         for r in rows:
             w.writerow(["" if r.get(c) is None else (str(r[c]).lower() if isinstance(r[c], bool) else r[c])
                         for c in columns])
+    if path.name == "results.csv":
+        record_tables(path.parent)
 
 
 def make_dataset(root: Path, columns: list[str] | None = None) -> Path:

@@ -20,6 +20,7 @@ from platebench.bench.report.html import ReportInputError, write_report
 from platebench.bench.report.inputs import detect_inputs, load_results, sample_folder
 from platebench.errors import UserValueError
 from tests.test_report import embedded_thumbnails, make_dataset, make_study
+from tests.conftest import record_tables
 
 
 def _refused(capsys, path: Path, match: str) -> None:
@@ -55,6 +56,7 @@ def test_sample_id_outside_the_dataset_is_refused(tmp_path, capsys, bad):
     bad = str(elsewhere) if bad == "ABS" else bad
     text = (ds / "results.csv").read_text().replace("\n0000,", f"\n{bad},", 1)
     (ds / "results.csv").write_text(text)
+    record_tables(ds)
     _refused(capsys, ds, r"results\.csv: line 2: sample_id .* is not the name of a folder inside")
     assert (elsewhere / "sample" / "plate.ply").read_text() == "secret"
 
@@ -99,6 +101,7 @@ def test_study_json_of_the_wrong_shape_is_refused(tmp_path, capsys):
 def test_garbage_results_csv_is_refused(tmp_path, capsys, content, match):
     ds = make_dataset(tmp_path / "ds")
     (ds / "results.csv").write_bytes(content)
+    record_tables(ds)
     _refused(capsys, ds, match)
 
 
@@ -110,10 +113,12 @@ def test_results_csv_with_bad_cells_is_refused(tmp_path, capsys):
     cells = lines[2].split(",")
     cells[header.index("depth_rms_mm")] = "abc"
     (ds / "results.csv").write_text("\n".join([lines[0], lines[1], ",".join(cells), *lines[3:]]) + "\n")
+    record_tables(ds)
     _refused(capsys, ds, r"results\.csv: line 3, column 'depth_rms_mm': 'abc' is not a number")
     cells = lines[1].split(",")
     cells[header.index("paper_bound_met")] = "maybe"
     (ds / "results.csv").write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
+    record_tables(ds)
     _refused(capsys, ds, r"line 2, column 'paper_bound_met': 'maybe' is not true or false")
 
 
@@ -123,12 +128,14 @@ def test_garbage_parquet_is_refused_and_a_good_one_is_typed(tmp_path, capsys):
     ds = make_dataset(tmp_path / "ds")
     frame, _ = load_results(ds)
     (ds / "results.parquet").write_bytes(b"PAR1 this is not parquet")
+    record_tables(ds)
     _refused(capsys, ds, r"results\.parquet: not a readable Parquet table")
     # a typed table (what the sweep writes): flags stay flags, the parquet wins over the CSV
     table = pa.table({"sample_id": ["0000", "0001"], "method": ["paper", "paper"], "status": ["ok", "ok"],
                       "depth_rms_mm": [0.01, None], "paper_bound_met": pa.array([True, None], pa.bool_()),
                       "matched_count": pa.array([16, 12], pa.int64())})
     pq.write_table(table, ds / "results.parquet")
+    record_tables(ds)
     frame, source = load_results(ds)
     assert source == "results.parquet" and len(frame) == 2
     assert frame["paper_bound_met"].tolist()[0] is True and frame["paper_bound_met"].tolist()[1] is None
@@ -370,7 +377,9 @@ def test_parquet_and_csv_of_one_table_read_the_same(tmp_path):
     (tmp_path / "p").mkdir()
     (tmp_path / "c").mkdir()
     (tmp_path / "p" / "results.parquet").write_bytes(parquet_bytes(rows))
+    record_tables(tmp_path / "p")
     (tmp_path / "c" / "results.csv").write_text(csv_text(rows))
+    record_tables(tmp_path / "c")
     p, _ = load_results(tmp_path / "p")
     c, _ = load_results(tmp_path / "c")
     assert list(p.columns) == list(c.columns)

@@ -17,6 +17,7 @@ from platebench.bench.report.colours import method_colours
 from platebench.bench.report.html import write_report
 from platebench.bench.report.values import fmt
 from tests.test_report import make_compare, make_dataset
+from tests.conftest import record_tables
 
 
 def _with_method(ds: Path, copy_of: str, name: str, **values) -> Path:
@@ -27,6 +28,7 @@ def _with_method(ds: Path, copy_of: str, name: str, **values) -> Path:
     for k, v in values.items():
         extra[k] = v
     pd.concat([frame, extra], ignore_index=True).to_csv(ds / "results.csv", index=False)
+    record_tables(ds)
     return ds
 
 
@@ -97,6 +99,7 @@ def test_a_panel_with_nothing_to_show_is_left_out_and_said(tmp_path, captured):
     frame["false_boundary_detected"] = frame["false_boundary_detected"].astype(object)
     frame.loc[paper_ok, "false_boundary_detected"] = False
     frame.to_csv(ds / "results.csv", index=False)
+    record_tables(ds)
     text = write_report(ds).read_text()
     det = [f for p, f in captured if p.stem == "dataset_detection_vs_bend"]
     assert len(det) == 1
@@ -108,6 +111,7 @@ def test_a_panel_with_nothing_to_show_is_left_out_and_said(tmp_path, captured):
     # no ground-truth false boundary and no positive verdict: the figure itself is left out, in one line
     frame["false_boundary_gt"] = False
     frame.to_csv(ds / "results.csv", index=False)
+    record_tables(ds)
     captured.clear()
     index = write_report(ds, overwrite=True)
     text = index.read_text()
@@ -117,6 +121,7 @@ def test_a_panel_with_nothing_to_show_is_left_out_and_said(tmp_path, captured):
     # a dense-only sweep: the axis plot keeps no panel that no row can fill
     frame = frame[frame["method"] == "sgbm"]
     frame.to_csv(ds / "results.csv", index=False)
+    record_tables(ds)
     captured.clear()
     text = write_report(ds, overwrite=True).read_text()
     axis = [f for p, f in captured if p.stem.startswith("dataset_vs_")]
@@ -135,6 +140,7 @@ def test_headline_table_of_key_figures_and_the_full_table_folded(tmp_path):
     frame.loc[frame.index[-1], "depth_count"] = None
     frame.loc[(frame["method"] == "sgbm") & (frame["sample_id"] == "0001"), "depth_count"] = 11131.0
     frame.to_csv(ds / "results.csv", index=False)
+    record_tables(ds)
     text = write_report(ds).read_text()
     head = _headline(text)
     table = head.split("<table", 1)[1].split("</table>", 1)[0]
@@ -185,3 +191,51 @@ def test_a_plausibility_warning_sits_beside_the_headline_figure(tmp_path):
     assert head.index("3.992e+05") < head.index("coverage")  # the warned figures come first
     cov = next(c for c in cards if "coverage" in c)
     assert "warning" not in cov
+
+
+def _detector_study(root: Path, fired: dict, plates=(("cylinder", 60.0), ("dome", None))) -> Path:
+    """A study folder whose study.json is a real ``StudyResult``: one plate per (family, bend) of
+    ``plates``, nothing hidden at the stage-2 pose, ``fired``: family -> the detectors that fire on
+    its plate."""
+    from platebench.bench.io.records import StudyRow
+    from platebench.bench.run.sensing.study import StudyResult
+    from platebench.reconstruction.strategy.detectors import DETECTORS
+    rows = []
+    for family, bend in plates:
+        on = set(fired.get(family, ()))
+        rows.append(StudyRow(case=f"{family} plate", family=family, bend_deg=bend, outcome="false_alarm" if on else "clean",
+                             boundary_verified=True, cures=len(on), views=14,
+                             detectors={d: d in on for d in DETECTORS}, gt_visible_first_frac=1.0,
+                             gt_visible_final_frac=1.0, gt_hidden_first=False, gt_hidden_final=False, time_s=2.0))
+    root.mkdir(parents=True)
+    (root / "study.json").write_text(json.dumps(StudyResult(tuple(rows), {}, 4.0).to_dict()))
+    return root
+
+
+def test_a_study_report_colours_each_detector_once_and_leaves_out_empty_panels(tmp_path, captured):
+    import html
+    from platebench.reconstruction.strategy.detectors import DETECTORS
+    # nothing hidden: recall is undefined everywhere; two detectors fire (precision 0), three never do
+    study = _detector_study(tmp_path / "study", {"cylinder": ["counting_test"], "dome": ["arrays_disagree"]})
+    text = html.unescape(write_report(study).read_text())
+    det = [f for p, f in captured if p.stem == "detectors_family"]
+    assert len(det) == 1
+    assert [ax.get_ylabel() for ax in det[0].axes] == ["precision"]
+    expected = method_colours(DETECTORS)
+    seen = _legend_colours(captured, {d.replace("_", " "): c for d, c in expected.items()})
+    assert seen == {"counting test": {expected["counting_test"]}, "arrays disagree": {expected["arrays_disagree"]}}
+    assert ("recall panel left out: recall is undefined for every detector in every family (no plate hides part "
+            "of the boundary at the stage-2 pose)") in text
+    assert ("precision: viewpoint consistency, occluding contour, end tangents left out: undefined in every "
+            "family (the detector never fired)") in text
+    # no detector fires either: the figure itself is left out, in one line, and no PNG is kept; no
+    # family split by bend: the outcomes-per-bend figure is left out too
+    captured.clear()
+    study = _detector_study(tmp_path / "quiet", {}, plates=(("dome", None), ("twist", None)))
+    index = write_report(study)
+    text = html.unescape(index.read_text())
+    assert "plot 'detectors family' left out: precision and recall are undefined for every detector" in text
+    assert not list(index.parent.rglob("detectors_family.png"))
+    assert "detectors_family" not in index.read_text()
+    assert "plot 'outcomes bend' left out: no plate is grouped by bend" in text
+    assert not list(index.parent.rglob("outcomes_bend.png")) and list(index.parent.rglob("outcomes_family.png"))

@@ -104,7 +104,7 @@ def test_s_curve_thickness_and_angle_are_checked_against_its_own_curvature():
 
 
 def test_the_s_curve_is_in_sweeps_and_the_study():
-    from platebench.bench.run.study import study_cases
+    from platebench.bench.run.sensing.study import study_cases
     from platebench.bench.sweep.spec import family_defaults, parse_spec
     assert "s_curve" in FAMILIES and family_defaults("s_curve", L, W) == {
         "family": "s_curve", "angle_rad": 10 * DEG, "direction": "up", "axis_rad": 0.0}

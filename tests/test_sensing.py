@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from platebench.bench.config import SampleConfig, SceneParams
-from platebench.bench.run.study import (
+from platebench.bench.run.sensing.study import (
     VisibilityProbe,
     analytic_L,
     bent_plate,
@@ -181,6 +181,68 @@ def test_outcome_classes_follow_ground_truth_and_the_verdict():
     assert outcome_class(False, False, True, True) == "false_alarm"
     assert outcome_class(False, False, False, True) == "false_alarm"
     assert {"cured", "honest", "silent", "clean", "false_alarm"} <= set(OUTCOMES)
+
+
+def _false_alarm_run():
+    """A real ``SensingResult`` of a plate where nothing was hidden, the loop applied a cure anyway and
+    its poses then confirmed the whole boundary: outcome "false_alarm", ``boundary_verified`` True."""
+    from platebench.bench.io.records import MergedFigures
+    from platebench.bench.run.sensing import FinalRecord, SensingResult
+    from platebench.reconstruction.strategy.multiview import BoundaryVerdict
+    pose = SensorPose(np.array([0.0, 0.0, 0.4]), np.zeros(3), np.array([1.0, 0.0, 0.0]), "stage 2")
+    cure = PlannedView("cure 1", pose.at_distance(0.5, "cure 2: move back"), "cure", "cure 2", "a detector fired")
+    vis = {c: {"visible_fraction": 1.0, "false_boundary": False} for c in ("left", "right")}
+    verdict = BoundaryVerdict(True, (), (), (), np.zeros((0, 3)), 1, "the confirmed pieces close into one loop")
+    final = FinalRecord(pose=cure.pose, stage_dir="stage3_cure1", false_boundary=None, matched=16,
+                        boundary_verified=True, verdict_reason=verdict.reason, unverified_parts=(),
+                        poses=("stage 2", "cure 1"), gt_visibility=vis, gt_visibility_first=vis, accuracy=None,
+                        merged=MergedFigures(poses=2, boundary_points=40, boundary_mean_mm=0.4),
+                        outcome=outcome_class(False, False, True, True))
+    return SensingResult(SampleConfig(), steps=(), detectors=(), verification_views=(), cure_views=(cure,),
+                         verdict=verdict, final=final, notes=(), time_s=2.0)
+
+
+def _page_text(index) -> str:
+    """The report's text as a reader sees it: tags dropped, entities read, spaces collapsed."""
+    import html
+    import re
+    return " ".join(html.unescape(re.sub(r"<[^>]+>", " ", index.read_text())).split())
+
+
+def test_a_false_alarms_verdict_in_the_report_never_contradicts_its_outcome(tmp_path):
+    """A false alarm whose poses confirmed the boundary: the report's sensing section and a study's
+    plates table say the loop's verdict in the words the command line uses
+    (``loop_verdict_text``), never a bare "boundary verified: yes" beside "false_alarm"."""
+    from platebench.bench.io.records import StudyRow, loop_verdict_text
+    from platebench.bench.report.html import write_report
+    from platebench.bench.run.sensing.study import StudyResult
+    from platebench.reconstruction.strategy.detectors import DETECTORS
+    run = _false_alarm_run()
+    assert run.final.outcome == "false_alarm" and run.final.boundary_verified and run.cures == 1
+    (tmp_path / "sense").mkdir()
+    (tmp_path / "sense" / "sensing.json").write_text(json.dumps(run.to_dict()))
+    text = _page_text(write_report(tmp_path / "sense"))
+    said = loop_verdict_text("false_alarm", True, 1, run.final.verdict_reason)
+    assert "after 1 cure that nothing hidden called for (the false alarm" in said
+    assert said[1:] in text and "false_alarm" in text
+    assert "boundary verified" not in text.lower()
+
+    rows = tuple(StudyRow(case=f"cylinder {b:g} down axis 0", family="cylinder", bend_deg=float(b), direction="down",
+                          axis_deg=0.0, distance_m=0.4, outcome=oc, boundary_verified=True, cures=cures, views=14,
+                          detectors=dict.fromkeys(DETECTORS, cures > 0), gt_visible_first_frac=1.0,
+                          gt_visible_final_frac=1.0, gt_hidden_first=False, gt_hidden_final=False,
+                          verdict="the confirmed pieces close into one loop", time_s=2.0)
+                 for b, oc, cures in ((30, "clean", 0), (60, "false_alarm", 2)))
+    (tmp_path / "study").mkdir()
+    (tmp_path / "study" / "study.json").write_text(json.dumps(StudyResult(rows, {}, 4.0).to_dict()))
+    index = write_report(tmp_path / "study")
+    text = _page_text(index)
+    plates = index.read_text().split("Plates (2)", 1)[1].split("</table>", 1)[0]
+    assert "boundary verified" not in plates and "loop verdict" in plates
+    alarm = rows[1].verdict_text()
+    assert "after 2 cures that nothing hidden called for (the false alarm" in alarm
+    assert f"false_alarm {alarm}" in text and f"clean {rows[0].verdict_text()}" in text
+    assert "boundary verified" not in text.lower()
 
 
 def _rectangle(n_per_mm=1.0, L=0.1, W=0.06, keep=None):
@@ -366,7 +428,12 @@ def test_reference_plate_is_clean_with_no_cure(tmp_path, distance_m, seed):
     assert (tmp_path / "stage3" / "recon" / "recon.json").is_file()
     from platebench.bench.report.sensing import sensing_section
     sec = sensing_section(tmp_path, tmp_path / "plots")
-    assert sec["outcome"] == "clean" and sec["figures"][0] == {"label": "boundary verified", "value": True}
+    assert sec["outcome"] == "clean" and sec["figures"][0]["label"] == "outcome"
+    # the verdict in the one wording the command line uses, never a bare "boundary verified" card
+    assert "boundary verified" not in [f["label"] for f in sec["figures"]]
+    from platebench.bench.io.records import loop_verdict_text
+    verdict = loop_verdict_text("clean", True, 0, s.final.verdict_reason)
+    assert verdict[1:] in sec["summary"] and "confirmed the whole boundary" in verdict
     assert [p["file"] for p in sec["plots"]] == ["multiview.png"] and (tmp_path / "plots" / "multiview.png").is_file()
 
 
@@ -464,7 +531,7 @@ def test_with_the_papers_grid_a_fold_seen_from_behind_is_never_called_verified(d
     seen from behind may then confirm nothing at all: either way the boundary is not called
     verified, and the reason says why."""
     from platebench.bench.config.sample_config import parse_grid
-    from platebench.bench.run.study import perturbed_cases, study_cases
+    from platebench.bench.run.sensing.study import perturbed_cases, study_cases
     case = perturbed_cases([c for c in study_cases() if c.name == "fold 170 down"], 0.0, distance_mm)[0]
     base = SampleConfig(scene=SceneParams(width=640, height=480, pattern=parse_grid("4x4@40")),
                         render=RenderSettings(spp=2))

@@ -199,7 +199,7 @@ def test_a_studys_realism_scale_reaches_every_plates_draw():
     import argparse
 
     from platebench.bench.cli.study import study_base
-    from platebench.bench.run.study import study_cases, with_realism_seeds
+    from platebench.bench.run.sensing.study import study_cases, with_realism_seeds
     from platebench.scenes.scene_spec import RenderSettings
 
     args = argparse.Namespace(realism="1995", realism_scale="robot_accuracy=0.5", grid=None, width=320)
@@ -213,7 +213,7 @@ def test_a_studys_realism_scale_reaches_every_plates_draw():
     assert half.sigma_angle_rad == pytest.approx(0.5 * full.sigma_angle_rad, rel=1e-12)
     assert half.joint_sigma_rad == pytest.approx(full.joint_sigma_rad, rel=1e-12)
     # the study's settings record the scale and read it back; a study at the sourced magnitudes writes none
-    from platebench.bench.run.study import StudyRealism
+    from platebench.bench.run.sensing.study import StudyRealism
     rz = StudyRealism("1995", base.realism.sources, "seeds", 0.15, tuple(base.realism.scales.items()))
     assert rz.to_dict()["realism_scales"] == {"robot_accuracy": 0.5}
     assert StudyRealism.from_dict(json.loads(json.dumps(rz.to_dict()))) == rz

@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.run.study import AXIS_WRAP_SAFE, perturbed_cases, study_cases
+from platebench.bench.run.sensing.study import AXIS_WRAP_SAFE, perturbed_cases, study_cases
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
 from platebench.plates.spec import Fold
 from tests.conftest import run_cli
@@ -83,7 +83,7 @@ def test_a_perturbed_study_runs_and_records_the_shift(tmp_path):
 
 
 def test_perturb_flag_parses_signed_shifts_and_refuses_large_ones():
-    from platebench.bench.cli.study import parse_perturb
+    from platebench.bench.config.study import parse_perturb
     from platebench.errors import UserValueError
 
     assert parse_perturb("-1,-5") == (-1.0, -5.0) and parse_perturb(" 1 , 5 ") == (1.0, 5.0)

@@ -86,7 +86,7 @@ class _Job:
     scratch: Path
     time_limit_s: float | None
     split: str
-    descriptors: dict
+    descriptors: "SampleDescriptors"
 
 
 @dataclass(frozen=True)
@@ -136,9 +136,9 @@ def _one_line(e: BaseException) -> str:
 
 def _row(job: _Job, method: str, status: str, error: str, kind: str, fig, time_s) -> BenchmarkRow:
     d = job.descriptors
-    return BenchmarkRow(job.split, job.sample_id, method, status, error, d["family"], d["bend_deg"],
-                        bend_bin(d["bend_deg"]), d["direction"], d["axis_deg"], d["distance_m"], d["material"],
-                        d["realism"], d["false_boundary_gt"], kind, fig.plate_px, fig.estimated_px, fig.coverage_frac,
+    return BenchmarkRow(job.split, job.sample_id, method, status, error, d.family, d.bend_deg,
+                        bend_bin(d.bend_deg), d.direction, d.axis_deg, d.distance_m, d.material,
+                        d.realism, d.false_boundary_gt, kind, fig.plate_px, fig.estimated_px, fig.coverage_frac,
                         fig.bad_2mm_pct, fig.bad_0_5mm_pct, fig.depth_rms_mm, fig.depth_median_abs_mm,
                         fig.depth_mean_signed_mm, time_s)
 
@@ -256,13 +256,29 @@ def _renderer(sample_dir: Path):
     return r
 
 
-def _descriptors(split: Split, sample_id: str, sample_dir: Path) -> dict:
+@dataclass(frozen=True)
+class SampleDescriptors:
+    """What a benchmark row says of its sample: the split's descriptors (family, bend in degrees, bend
+    direction, axis in degrees, distance in metres, material, realism) and ground truth's false
+    boundary (part of the true boundary hidden from the left or the right camera)."""
+
+    family: str
+    bend_deg: float
+    direction: str
+    axis_deg: float
+    distance_m: float
+    material: str
+    realism: str
+    false_boundary_gt: bool
+
+
+def _descriptors(split: Split, sample_id: str, sample_dir: Path) -> SampleDescriptors:
+    from platebench.bench.io.report_records import visibility_records  # noqa: PLC0415
     from platebench.bench.io.sample_files import read_json  # noqa: PLC0415
     s = split.sample(sample_id)
-    vis = read_json(sample_dir / "gt" / "visibility.json")
-    fb = any(bool((vis.get(v) or {}).get("false_boundary")) for v in ("left", "right"))
-    return {"family": s.family, "bend_deg": s.bend_deg, "direction": s.direction, "axis_deg": s.axis_deg,
-            "distance_m": s.distance_m, "material": s.material, "realism": s.realism, "false_boundary_gt": fb}
+    vis = visibility_records(read_json(sample_dir / "gt" / "visibility.json"))
+    fb = any(bool(vis[v].false_boundary) for v in ("left", "right") if v in vis)
+    return SampleDescriptors(s.family, s.bend_deg, s.direction, s.axis_deg, s.distance_m, s.material, s.realism, fb)
 
 
 def score_benchmark(dataset: Path, split: Split, *, methods=(), outputs=(), workers: int = 1,

@@ -139,7 +139,7 @@ def _descriptors(plan: SamplePlan, part: str) -> SplitSample:
     realism = (d.get("realism") or {}).get("preset") or "ideal"
     return SplitSample(plan.sample_id, part, type(dfm).family, None if angle is None else math.degrees(angle),
                        direction or "", None if axis is None else math.degrees(axis),
-                       float(d["scene"]["distance_m"]), str(material), str(realism))
+                       float(cfg.scene.distance_m), str(material), str(realism))
 
 
 def parse_split(doc: dict, text: str, name: str) -> Split:

@@ -38,7 +38,6 @@ compare.json) or no method gave a row, with one summary line on stderr; 2 refuse
 from __future__ import annotations
 
 import argparse
-import inspect
 import sys
 import time
 from pathlib import Path
@@ -55,7 +54,7 @@ if TYPE_CHECKING:
 HELP = "score peer methods (Gray code, phase shifting, SGBM) and plug-ins side by side"
 # bench.run.compare (the renderer, every peer method) and bench.report.plots (pandas, Matplotlib) are
 # imported where they are used; these names of bench.run.compare stay reachable here (see __getattr__)
-_RUN_COMPARE_NAMES = ("ALL_METHODS", "METHODS", "Comparison", "compare_sample", "comparison_json")
+_RUN_COMPARE_NAMES = ("Comparison", "compare_sample", "comparison_json")
 
 
 def __getattr__(name: str):
@@ -116,9 +115,9 @@ def _recon_inputs(sample: Path, recon: Path | None) -> list[Path]:
 
 def _check_methods(methods) -> None:
     """Refuse an unknown method (UserValueError naming it and what is allowed), before anything else."""
-    from platebench.bench.run.compare import _resolve_plugins  # noqa: PLC0415  (the one check compare_sample makes)
+    from platebench.bench.run.compare import resolve_methods  # noqa: PLC0415  (the one check compare_sample makes)
 
-    _resolve_plugins(methods)
+    resolve_methods(methods)
 
 
 def _check_recon_flag(recon: Path | None) -> None:
@@ -149,48 +148,35 @@ def _check_paper_recon(sample: Path, recon: Path | None) -> None:
 
 
 def _check_sgbm_range(sample: Path, depth_range_m) -> None:
-    """Refuse an SGBM disparity search that OpenCV cannot run on the sample's images: it needs
-    ``width - (minDisparity + numDisparities) > blockSize // 2`` (numDisparities is a positive multiple of
-    16, ``reconstruction.peers.sgbm.disparity_range``)."""
+    """Refuse an SGBM disparity search that OpenCV cannot run on the sample's images
+    (``bench.config.sgbm_range``); a damaged sample is left to its reader, after the output rule."""
+    from platebench.bench.config.sgbm_range import check_sgbm_range  # noqa: PLC0415
     from platebench.bench.io.images import DatasetError  # noqa: PLC0415
     from platebench.bench.io.sample_files import load_calibration  # noqa: PLC0415
-    from platebench.reconstruction.peers.sgbm import default_depth_range, disparity_range, sgbm  # noqa: PLC0415
 
     try:
         rig = load_calibration(sample).rig
     except (DatasetError, OSError):
-        return  # a damaged sample: the reader refuses it, after the output rule
-    block = inspect.signature(sgbm).parameters["block_size"].default
-    try:
-        rng = depth_range_m if depth_range_m is not None else default_depth_range(rig)
-        d_min, n_disp = disparity_range(rig, rng)
-    except ValueError as e:
-        raise UserValueError(f"sgbm: {e}") from None
-    width = rig.left.width
-    end = width - block // 2 - 1  # the largest minDisparity + numDisparities OpenCV accepts
-    if d_min + n_disp > end:
-        fb = rig.left.f_px * rig.baseline_m
-        what = (f"--min-depth-mm {depth_range_m[0] * 1e3:g} to --max-depth-mm {depth_range_m[1] * 1e3:g}"
-                if depth_range_m is not None else f"the default depth range {rng[0] * 1e3:.1f}-{rng[1] * 1e3:.1f} mm")
-        raise UserValueError(f"sgbm: {what} asks for disparities {d_min} to {d_min + n_disp} px (numDisparities "
-                             f"{n_disp}, a multiple of 16), beyond the {width} px wide images: allowed a search that "
-                             f"ends by {end} px (minDisparity + numDisparities < width - blockSize/2), i.e. "
-                             f"--min-depth-mm above about {fb / max(end - 16, 1) * 1e3:.1f} here")
+        return
+    check_sgbm_range(rig, depth_range_m)
 
 
 def _method_list(text: str) -> tuple:
     """Names as given; unknown ones are refused by ``compare_sample`` (plug-ins resolve there)."""
-    from platebench.bench.run.compare import ALL_METHODS  # noqa: PLC0415
+    from platebench.bench.config.methods import builtin_names  # noqa: PLC0415
 
     names = tuple(m.strip() for m in text.split(",") if m.strip())
     if not names:
-        raise argparse.ArgumentTypeError(f"--methods {text!r} names no method: choose from {', '.join(ALL_METHODS)}, "
+        known = ", ".join(builtin_names())
+        raise argparse.ArgumentTypeError(f"--methods {text!r} names no method: choose from {known}, "
                                          "an installed plug-in or module:function")
     return names
 
 
 def add_parser(sub) -> None:
-    from platebench.bench.run.compare import ALL_METHODS, METHODS  # noqa: PLC0415
+    from platebench.bench.config.methods import builtin_names, default_names  # noqa: PLC0415
+
+    known, defaults = builtin_names(), default_names()  # the registry's, in its order
 
     p = sub.add_parser("compare", help=HELP,
                        description="Re-render a sample's scene under each peer method's projector sequence, "
@@ -198,9 +184,9 @@ def add_parser(sub) -> None:
                                    "in mm, coverage of the plate, Middlebury/ETH3D disparity metrics). "
                                    "Writes compare.json and compare.png.")
     p.add_argument("sample", type=Path, metavar="SAMPLE_DIR", help="sample directory from 'platebench render'")
-    p.add_argument("--methods", type=_method_list, default=METHODS,
-                   help=f"comma-separated list from {', '.join(ALL_METHODS)}, installed plug-ins (entry points "
-                        f"of platebench.methods) and module:function plug-ins (default: {','.join(METHODS)})")
+    p.add_argument("--methods", type=_method_list, default=defaults,
+                   help=f"comma-separated list from {', '.join(known)}, installed plug-ins (entry points "
+                        f"of platebench.methods) and module:function plug-ins (default: {','.join(defaults)})")
     p.add_argument("--out", type=Path, help="output directory (default SAMPLE_DIR/compare)")
     p.add_argument("--overwrite", action="store_true", help="replace a comparison directory 'platebench compare' "
                    "wrote (nothing else is replaced)")
@@ -237,7 +223,7 @@ def run(args) -> int:
     # what the flags name, before the output rule and before any render (module doc)
     _check_methods(args.methods)
     _check_recon_flag(args.recon)
-    if "sgbm" in args.methods:
+    if any(m in ("sgbm", "sgbm-passive") for m in args.methods):
         _check_sgbm_range(Path(args.sample), depth_range)
     t0 = time.perf_counter()
     out = Path(args.out) if args.out is not None else Path(args.sample) / "compare"

@@ -18,12 +18,12 @@ from platebench.bench.io.atomic import write_json
 from platebench.bench.io.outputs import output_dir
 from platebench.errors import PlateBenchError
 from platebench.version import __version__
+from platebench.bench.io.report_records import RunTimings
 
 # the work's modules (renderer, pipeline, scores) are imported in _run(), once --out is checked
 HELP = "the main job: the paper's reference experiment end to end, a bend sweep, a false-boundary study and the report"
-# How long the whole demo takes (README says the same; tests/test_readme.py checks that they agree):
-# measured 329 CPU-seconds in all (render, methods, sweeps on 2 workers, study, report; /usr/bin/time),
-# so about 3 to 4 minutes of wall time on 2 free cores.
+# How long the whole demo takes (README says the same; tests/test_readme.py checks that they agree;
+# the measurement: docs/findings/design-record.md).
 DEMO_TIME = "about 4 minutes on 2 cores"
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"  # installed as platebench/examples (package data)
 DEMO_SPEC = EXAMPLES / "demo_sweep.toml"
@@ -63,12 +63,12 @@ class DemoFailed(PlateBenchError):
 def _run(args, out: Path, final: Path) -> int:
     """The demo into the staging directory ``out`` (paths are shown as they will be: under ``final``)."""
     from platebench.bench.io.recon_files import image_checksums, write_reconstruction  # noqa: PLC0415
-    from platebench.bench.io.sample_files import load_inputs, write_sample  # noqa: PLC0415
+    from platebench.bench.io.sample_files import write_sample  # noqa: PLC0415
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
+    from platebench.bench.report.text import format_score_table, step_lines, summary_lines, table_lines  # noqa: PLC0415
+    from platebench.bench.run.paper_method import reconstruct_dir  # noqa: PLC0415
     from platebench.bench.run.render import render_sample  # noqa: PLC0415
     from platebench.bench.run.score import score_files  # noqa: PLC0415
-    from platebench.evaluation.score import format_table  # noqa: PLC0415
-    from platebench.reconstruction.paper.pipeline import projector_feature_rays, reconstruct  # noqa: PLC0415
 
     t0 = time.perf_counter()
 
@@ -80,20 +80,17 @@ def _run(args, out: Path, final: Path) -> int:
     with bar(7, "render reference") as pbar:
         sample, _ = render_sample(SampleConfig(), progress=step_callback(pbar))
         write_sample(ref / "sample", sample)
-    print(f"rendered        {shown(ref / 'sample')} in {sample.timings_s['total_s']:.1f} s ({sample.variant})")
-    inputs = load_inputs(ref / "sample")
-    rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
-    r = reconstruct(inputs.images, inputs.calibration.rig, rays, inputs.pattern)
+    print(f"rendered        {shown(ref / 'sample')} in {RunTimings.from_dict(sample.timings_s).total_s:.1f} s ({sample.variant})")
+    r, inputs = reconstruct_dir(ref / "sample")
     write_reconstruction(ref / "recon", r, ref / "sample", image_checksums(inputs.images))
-    print(f"reconstructed   {shown(ref / 'recon')} in {r.timings_s['total_s'] * 1e3:.0f} ms")
+    print(f"reconstructed   {shown(ref / 'recon')} in {RunTimings.from_dict(r.timings_s).total_s * 1e3:.0f} ms")
     score = score_files(ref / "sample", ref / "recon")
     write_json(ref / "recon" / "score.json", score.to_dict())
-    print(format_table(score))
+    print(format_score_table(score))
     if args.quick:
         return 0
 
     print("\n== 2. the sensing loop (paper IV-B, V-B; verification views) on the reference plate")
-    from platebench.bench.cli.sense import step_lines, summary_lines  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions, run_sensing  # noqa: PLC0415
     with bar(4 + SensingOptions().max_views, "sense") as pbar:
         s = run_sensing(SampleConfig(), out / "sensing", progress=step_callback(pbar))
@@ -110,10 +107,8 @@ def _run(args, out: Path, final: Path) -> int:
     print(f"sweep           {summary.ok} ok, {summary.failed} failed, {summary.samples_per_min:.1f} samples/min")
 
     print("\n== 4. false-boundary study (the sensing loop on a few bent plates; the L formula)")
-    from platebench.bench.cli.study import table_lines  # noqa: PLC0415
-    from platebench.bench.config import SceneParams  # noqa: PLC0415
-    from platebench.bench.run.study import REFERENCE_ASPECT, study_cases, write_study  # noqa: PLC0415
-    from platebench.scenes.scene_spec import RenderSettings  # noqa: PLC0415
+    from platebench.bench.config import RenderSettings, SceneParams  # noqa: PLC0415
+    from platebench.bench.run.sensing.study import REFERENCE_ASPECT, study_cases, write_study  # noqa: PLC0415
     cases = [c for c in study_cases((170.0, 200.0)) if c.family == "cylinder" and c.axis_deg in (0.0, 90.0)
              and c.aspect == REFERENCE_ASPECT and c.distance_m == 0.40]
     base = SampleConfig(scene=SceneParams(width=480, height=360),

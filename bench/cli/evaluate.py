@@ -2,7 +2,7 @@
 
 Either a PlateBench reconstruction directory (``platebench reconstruct``: the paper's metrics),
 or exactly one file of another program's output, scored with the metrics of its kind
-(``evaluation.field_scores``; formats in ``bench.io.method_outputs``):
+(``bench.run.field_score``; formats in ``bench.io.method_outputs``):
 
 * ``--disparity F``: left-view disparity, PFM, or 16-bit PNG with ``--disparity-scale``;
 * ``--depth F``: left-view z-depth in metres, EXR/PFM/NPY;
@@ -25,11 +25,10 @@ from platebench.errors import UserValueError
 
 # the readers and scores (trimesh, SciPy, OpenCV, the pipeline's types) are imported where they are used
 HELP = "score a reconstruction or another program's disparity/depth/points/mesh against exact truth"
-KIND_FLAGS = ("disparity", "depth", "points", "mesh")
 
 
 def add_parser(sub) -> None:
-    from platebench.evaluation.field_scores import COVERAGE_RADIUS_M, OUTLIER_M  # noqa: PLC0415
+    from platebench.bench.run.field_score import COVERAGE_RADIUS_M, OUTLIER_M  # noqa: PLC0415
 
     p = sub.add_parser(
         "evaluate", help=HELP,
@@ -68,7 +67,9 @@ def add_parser(sub) -> None:
 
 
 def _kind(args) -> tuple[str | None, Path | None]:
-    given = [(k, getattr(args, k)) for k in KIND_FLAGS if getattr(args, k) is not None]
+    from platebench.bench.run.field_score import KINDS  # noqa: PLC0415
+
+    given = [(k, getattr(args, k)) for k in KINDS if getattr(args, k) is not None]
     if args.recon_dir is not None:
         given.insert(0, ("recon", args.recon_dir))
     if len(given) != 1:
@@ -85,84 +86,6 @@ def _kind(args) -> tuple[str | None, Path | None]:
         if not (math.isfinite(v) and 0 < v <= 1000):
             raise UserValueError(f"--{flag.replace('_', '-')} = {v} is out of range: allowed > 0 to 1000 mm")
     return given[0]
-
-
-def _read(kind: str, path: Path, args):
-    from platebench.bench.io.method_outputs import (  # noqa: PLC0415
-        read_depth,
-        read_disparity,
-        read_mesh,
-        read_points,
-    )
-    from platebench.bench.run.plugins import Depth, Disparity, Mesh, Points  # noqa: PLC0415
-
-    if kind == "disparity":
-        return Disparity(read_disparity(path, args.disparity_scale))
-    if kind == "depth":
-        return Depth(read_depth(path))
-    if kind == "points":
-        return Points(read_points(path))
-    return Mesh(read_mesh(path))
-
-
-def _f(x: float, fmt: str = ".4f") -> str:
-    return "-" if x is None or not math.isfinite(x) else format(x, fmt)
-
-
-def format_field_table(score) -> str:
-    """A readable summary of a field score (millimetres, pixels, percent)."""
-    from platebench.evaluation.field_scores import (  # noqa: PLC0415
-        DepthScore,
-        DisparityScore,
-        MeshScore,
-        PointCloudScore,
-    )
-
-    lines = []
-    if isinstance(score, DisparityScore):
-        for reg in (score.middlebury.all, score.middlebury.nonocc):
-            if reg is None:
-                continue
-            bad = ", ".join(f"bad{t:g} {_f(v, '.2f')} %" for t, v in reg.bad_pct)
-            q = ", ".join(f"A{k} {_f(v, '.3f')}" for k, v in reg.quantiles)
-            lines.append(f"{'middlebury ' + reg.region:16s} {reg.gt_count} px: {bad}; invalid {_f(reg.invalid_pct, '.2f')} "
-                         f"%; avgerr {_f(reg.avgerr)} px, rms {_f(reg.rms)} px; {q} px")
-        for reg in (score.eth3d.all, score.eth3d.nonocc):
-            if reg is None:
-                continue
-            bad = ", ".join(f"bad{t:g} {_f(v, '.2f')} %" for t, v in reg.bad_pct)
-            lines.append(f"{'eth3d ' + reg.region:16s} coverage {_f(reg.coverage, '.4f')}; {bad}; avgerr "
-                         f"{_f(reg.avgerr)} px, rms {_f(reg.rms)} px")
-        depth = score.depth
-    else:
-        depth = score if isinstance(score, DepthScore) else None
-    if depth is not None:
-        e = depth.errors
-        q = ", ".join(f"A{k} {_f(v * 1e3)}" for k, v in e.quantiles_m)
-        lines.append(f"{'depth':16s} {depth.estimated_px}/{depth.plate_px} plate px (coverage "
-                     f"{_f(depth.coverage_frac, '.4f')}), {depth.off_plate_px} off the plate; |error| mean "
-                     f"{_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
-                     f"{_f(e.max_m * 1e3)} mm; {q} mm; bias {_f(e.signed_mean_m * 1e3)} mm")
-    if isinstance(score, PointCloudScore):
-        e, c = score.distance, score.surface
-        lines.append(f"{'points':16s} {score.count} (+{score.dropped_count} non-finite dropped); distance to the "
-                     f"surface mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
-                     f"{_f(e.max_m * 1e3)} mm")
-        lines.append(f"{'outliers':16s} {score.outlier_count} beyond {score.outlier_threshold_m * 1e3:g} mm "
-                     f"({_f(100 * score.outlier_frac, '.2f')} %)")
-        lines.append(f"{'coverage':16s} {_f(score.coverage.coverage_frac, '.4f')} ({score.coverage.estimated_px}/"
-                     f"{score.coverage.plate_px} plate px of the left view hold a point)")
-        lines.append(f"{'surface cov.':16s} {_f(c.surface_coverage_frac, '.4f')} of the plate's top within "
-                     f"{c.coverage_radius_m * 1e3:g} mm")
-    if isinstance(score, MeshScore):
-        for name, e in (("accuracy", score.accuracy), ("completeness", score.completeness)):
-            lines.append(f"{name:16s} mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS "
-                         f"{_f(e.rms_m * 1e3)}, max {_f(e.max_m * 1e3)} mm ({e.count} samples)")
-        lines.append(f"{'overall':16s} {_f(score.overall_m * 1e3)} mm (DTU: mean of the two)")
-        for t, p, r, f in score.thresholds:
-            lines.append(f"{'at ' + format(t * 1e3, 'g') + ' mm':16s} precision {100 * p:.2f} %, recall "
-                         f"{100 * r:.2f} %, F-score {100 * f:.2f} %")
-    return "\n".join(lines)
 
 
 def _out(args, kind: str, path: Path) -> Path:
@@ -201,40 +124,26 @@ def run(args) -> int:
                                  "reconstruct'; score another program's output with --disparity, --depth, --points "
                                  "or --mesh F)")
         out = _out(args, kind, path)
+        from platebench.bench.report.text import format_score_table  # noqa: PLC0415
         from platebench.bench.run.score import score_files  # noqa: PLC0415
-        from platebench.evaluation.score import format_table  # noqa: PLC0415
 
         score = score_files(args.sample_dir, args.recon_dir)
         write_json(out, score.to_dict())
-        print(format_table(score))
+        print(format_score_table(score))
         print(f"{'written':16s} {out}")
         return 0
-    from platebench.bench.io.field_truth import load_field_truth  # noqa: PLC0415
-    from platebench.bench.run.plugins import score_document, score_output  # noqa: PLC0415
-    from platebench.evaluation.field_scores import COVERAGE_RADIUS_M, OUTLIER_M, score_point_cloud  # noqa: PLC0415
+    from platebench.bench.report.text import format_field_table  # noqa: PLC0415
+    from platebench.bench.run.field_score import COVERAGE_RADIUS_M, OUTLIER_M, score_file  # noqa: PLC0415
 
     out = _out(args, kind, path)
-    truth = load_field_truth(args.sample_dir)
-    output = _read(kind, path, args)
-    what = f"{path}"
-    if kind == "points":
-        score = score_point_cloud(
-            output.points, truth, what=what,
-            outlier_m=OUTLIER_M if args.outlier_mm is None else args.outlier_mm / 1e3,
-            coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
-    else:
-        score = score_output(output, truth, what)
-    from platebench.evaluation.plausibility import plausibility_hints  # noqa: PLC0415
-
-    hints = plausibility_hints(kind, getattr(output, kind), truth)
     name = args.name or path.stem
-    doc = score_document(name, kind, score, args.sample_dir)
-    doc["input"] = str(path)
-    doc["hints"] = list(hints)  # plausibility: is the file what its flag says? (evaluation.plausibility)
-    write_json(out, doc)
+    scored = score_file(kind, path, args.sample_dir, name, args.disparity_scale,
+                        outlier_m=OUTLIER_M if args.outlier_mm is None else args.outlier_mm / 1e3,
+                        coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
+    write_json(out, scored.document)
     print(f"{'method':16s} {name} ({kind}: {path})")
-    print(format_field_table(score))
-    for h in hints:
+    print(format_field_table(scored.score))
+    for h in scored.hints:
         print(f"{'hint':16s} {h}")
     print(f"{'written':16s} {out}")
     return 0

@@ -28,10 +28,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from platebench.bench.io.versions import check_lock, package_versions  # noqa: PLC0415
-    from platebench.scenes.render import runtime  # noqa: PLC0415
+    from platebench.bench.io.versions import check_lock, package_versions, renderer_setup  # noqa: PLC0415
     lock = check_lock()
-    print(json.dumps({"renderer": runtime.describe(), "packages": package_versions(), "lock": lock.to_dict()},
+    print(json.dumps({"renderer": renderer_setup(), "packages": package_versions(), "lock": lock.to_dict()},
                      indent=2))
     if lock.path is None:
         print("platebench: note: no requirements.lock beside this installation: versions not checked",

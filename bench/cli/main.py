@@ -1,5 +1,8 @@
 """``platebench``: the command line. Each sub-command lives in its own ``bench.cli.<name>`` module
-(argparse and printing only; the work is in ``bench.run``, ``bench.sweep``, ``bench.report``).
+(argparse and printing only: its flags are checked and its configuration built in ``bench.config``, the
+work is in ``bench.run``, ``bench.sweep``, ``bench.benchmark``, and the text it prints about a result in
+``bench.report.text``). A command module imports no other command module; the argument groups several
+commands share are in ``bench.cli._args`` (tests/test_layers.py holds these rules).
 
 Exit status, the same for every command, so that a script can trust it:
 
@@ -77,7 +80,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 class _Version(argparse.Action):
-    """``--version``: the package metadata is read only when asked (it costs every other command 30-50 ms)."""
+    """``--version``: the package metadata is read only when asked (not at every command's start-up)."""
 
     def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
         super().__init__(option_strings, dest, nargs=0, default=default, help=help)

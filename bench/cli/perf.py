@@ -4,15 +4,15 @@ from __future__ import annotations
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.config.sample_config import RenderSettings
 from platebench.bench.files import regular_size
 from platebench.bench.io.atomic import write_json
 from platebench.bench.io.outputs import check_output
 from platebench.errors import UserValueError
-from platebench.scenes.scene_spec import RenderSettings
 
 HELP = "benchmarks: render and reconstruct timings against same-run baselines"
 TARGETS = ("render", "reconstruct", "sweep", "score", "sequences")
-EXTRA = ("chaos", "bad-input", "variants", "gpu")  # run only when named
+EXTRA = ("variants", "gpu")  # run only when named
 
 
 def add_parser(sub) -> None:
@@ -27,9 +27,7 @@ def add_parser(sub) -> None:
                                    "the sequence three patterns to a launch vs one frame a launch. Reference experiment at "
                                    "1280x960, spp 16 unless told otherwise.")
     p.add_argument("targets", nargs="*", metavar="TARGET",
-                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also chaos (a 20-sample Dask "
-                        "sweep whose scheduler, workers and sweep process are killed and resumed, 10 rounds) and "
-                        "bad-input (every bad input tried, scored: one clean line, tracebacks, leftovers), "
+                   help=f"what to benchmark: {', '.join(TARGETS)} (default: all); also "
                         "variants (the same scene rendered by each of --variants, pixels compared with the first, "
                         "samples per second), and gpu (every throughput figure of a GPU machine beside its "
                         "baseline: host pixels and subnormal floats, whole sample vs raw renders, cuda vs llvm, "
@@ -83,13 +81,7 @@ def run(args) -> int:
             raise UserValueError(f"perf {args.targets[0]} runs alone: got {' '.join(args.targets)}")
         if args.targets[0] == "variants":
             return _variants(args)
-        if args.targets[0] == "gpu":
-            return _gpu(args)
-        if args.targets[0] == "chaos":
-            from platebench.bench.perf.chaos import main as chaos  # noqa: PLC0415
-            return chaos(["--json", str(args.json)] if args.json else [])
-        from platebench.bench.perf.bad_inputs import main as bad_inputs  # noqa: PLC0415
-        return bad_inputs(["--json", str(args.json)] if args.json else [])
+        return _gpu(args)
     bad = [t for t in args.targets if t not in TARGETS]
     if bad:
         raise UserValueError(f"perf target {bad[0]!r} is not known: choose from {', '.join(TARGETS + EXTRA)}")

@@ -1,6 +1,6 @@
 """``platebench reconstruct``: the paper's pipeline on a sample's images and calibration.
 
-The files it reads (``INPUTS``: the four PNG images, calib.json, pattern.json) are verified as every
+The files it reads (``bench.io.layout.METHOD_INPUTS``: the four PNG images, calib.json, pattern.json) are verified as every
 reader verifies a sample (``bench.io.verify``): a symbolic link is refused before anything is opened;
 once they are read (a damaged file is named by its reader), a file that differs from the checksum
 recorded when the sample was written (the stamp of ``platebench render``, a sweep's manifest) is
@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.io.layout import METHOD_INPUTS
 from platebench.bench.io.outputs import output_dir
 from platebench.errors import UserValueError
-from platebench.scenes.naming import IMAGE_NAMES
+from platebench.bench.io.report_records import RunTimings
 
 HELP = "run the paper's passive + active stereo pipeline on a sample"
-INPUTS = (*(f"images/{n}.png" for n in IMAGE_NAMES), "calib.json", "pattern.json")  # what it reads of a sample
 _REFUSING = "refusing to reconstruct it"
 
 
@@ -44,7 +44,7 @@ def run(args) -> int:
         raise UserValueError(f"--grid-mm = {args.grid_mm} is out of range: allowed 0.1 to 20 mm")
     from platebench.bench.io.verify import refuse_linked_inputs  # noqa: PLC0415
 
-    refuse_linked_inputs(args.sample_dir, INPUTS, then=_REFUSING)
+    refuse_linked_inputs(args.sample_dir, METHOD_INPUTS, then=_REFUSING)
     with output_dir(args.out, "reconstruction", overwrite=args.overwrite,
                     inputs=[args.sample_dir, args.calibration]) as stage:
         r = _reconstruct(args, stage)
@@ -60,35 +60,17 @@ def _reconstruct(args, stage: Path):
     inputs = load_inputs(args.sample_dir)
     from platebench.bench.io.verify import verify_inputs  # noqa: PLC0415
 
-    verify_inputs(args.sample_dir, INPUTS, then=_REFUSING)  # the files read are the sample's, as written
+    verify_inputs(args.sample_dir, METHOD_INPUTS, then=_REFUSING)  # the files read are the sample's, as written
     from platebench.bench.io.recon_files import image_checksums, write_reconstruction  # noqa: PLC0415
-    from platebench.reconstruction.paper.pipeline import (  # noqa: PLC0415
-        PipelineOptions,
-        projector_feature_rays,
-        reconstruct,
-    )
-    from platebench.reconstruction.paper.plate_region import ReconstructionError  # noqa: PLC0415
+    from platebench.bench.run.paper_method import PipelineOptions, reconstruct_inputs  # noqa: PLC0415
 
-    rig = inputs.calibration.rig
-    rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
+    calibration = None
     if args.calibration is not None:
         from platebench.bench.run.calibration import load_estimated_calibration  # noqa: PLC0415
-        rig, rays = load_estimated_calibration(args.calibration)
-    try:
-        r = reconstruct(inputs.images, rig, rays, inputs.pattern,
-                        PipelineOptions(grid_step_m=args.grid_mm * 1e-3))
-    except ReconstructionError as e:
-        raise ReconstructionError(name_the_file(str(e), args.sample_dir)) from None
+        calibration = load_estimated_calibration(args.calibration)
+    r = reconstruct_inputs(inputs, args.sample_dir, PipelineOptions(grid_step_m=args.grid_mm * 1e-3), calibration)
     write_reconstruction(stage, r, args.sample_dir, image_checksums(inputs.images), into=True)
     return r
-
-
-def name_the_file(message: str, sample_dir: Path) -> str:
-    """Turn 'left_active: ...' into 'SAMPLE/images/left_active.png: ...'."""
-    for name in IMAGE_NAMES:
-        if message.startswith(name + ":"):
-            return f"{Path(sample_dir) / 'images' / (name + '.png')}{message[len(name):]}"
-    return message
 
 
 def print_summary(r, out) -> None:
@@ -112,4 +94,4 @@ def print_summary(r, out) -> None:
         print(f"unmatched       {note}")
     print(f"points z        {np.nanmin(z):.3f} .. {np.nanmax(z):.3f} mm")
     print(f"surface         {len(r.surface_vertices)} vertices, {len(r.surface_faces)} faces")
-    print(f"time            {r.timings_s['total_s'] * 1e3:.0f} ms")
+    print(f"time            {RunTimings.from_dict(r.timings_s).total_s * 1e3:.0f} ms")

@@ -8,22 +8,21 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from platebench.bench.config import SampleConfig, SceneParams, parse_grid
-from platebench.bench.cli.sense import add_verify_grid_flag, verify_grid_arg
-from platebench.bench.config.ranges import parse_range_text
-from platebench.errors import UserValueError
-from platebench.scenes.scene_spec import RenderSettings
+from platebench.bench.cli._args import add_verify_grid_flag
+from platebench.bench.config.study import (
+    ACCURACY_SPP,
+    DEFAULT_WIDTH,
+    DEFAULT_WORKERS,
+    MAX_PERTURB_AXIS_DEG,
+    MAX_PERTURB_MM,
+    MAX_WORKERS,
+)
 
-# bench.run.study (the sensing loop, the renderer) is imported where it is used, once the flags are
-# checked; the parser's defaults are plain values (bench.config.sensing)
+# bench.run.sensing.study (the sensing loop, the renderer) is imported where it is used, once the flags are
+# checked (bench.config.study); the parser's defaults are plain values (bench.config.sensing, bench.config.study)
 HELP = ("studies: 'study false-boundary' runs the sensing loop on plates of every family; 'study accuracy' the "
         "paper's accuracy test under a real rig's errors, with an error budget; 'study cut-squares' the paper's "
         "pipeline on oblique bends, cut squares set apart")
-MAX_BENDS = 400  # bend values a study accepts (each gives 8 cylinders)
-MAX_PERTURB_AXIS_DEG = 10.0  # --perturb: small shifts only (the study's plates, moved a little)
-MAX_PERTURB_MM = 50.0
-DEFAULT_WORKERS = 2  # plates at once (study --workers)
-MAX_WORKERS = 64
 
 
 FALSE_BOUNDARY_TEXT = ("the sensing loop (stages 1-3, verification views, cures) on cylinders convex and concave "
@@ -202,88 +201,46 @@ def _add_cut_squares(kinds) -> None:
 def run(args) -> int:
     if args.which == "accuracy":
         return run_accuracy(args)
-    if args.realism not in (None, "ideal") and args.which == "cut-squares":
-        raise UserValueError(f"--realism = {args.realism} for the cut-squares study: it places its cameras itself; "
-                             "allowed: ideal")
-    if args.realism_scale and args.which == "cut-squares":
-        raise UserValueError(f"--realism-scale {args.realism_scale} for the cut-squares study: it has no error "
-                             "source to scale (allowed with accuracy and false-boundary)")
-    if args.spp is None:
-        args.spp = 2
     if args.which == "cut-squares":
         return run_cut_squares(args)
-    from platebench.bench.config.sensing import DEFAULT_BENDS_DEG, STUDY_AXES_DEG  # noqa: PLC0415
+    from platebench.bench.config.study import StudySettings, false_boundary_flags  # noqa: PLC0415
 
-    bends = parse_range_text(args.bend or ",".join(f"{b:g}" for b in DEFAULT_BENDS_DEG), "--bend", 0.0, 350.0,
-                             max_count=MAX_BENDS)
-    l_bends = parse_range_text(args.l_bends, "--l-bends", 1.0, 179.0, max_count=MAX_BENDS) \
-        if args.l_bends.strip() else []
-    if args.width is not None and not (160 <= args.width <= 4096):
-        raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
-    if not (1 <= args.spp <= 1024):
-        raise UserValueError(f"--spp = {args.spp} is out of range: allowed 1 to 1024")
-    try:
-        render = RenderSettings(spp=args.spp, seed=args.seed)  # its own checks, as 'render --seed' has them
-    except ValueError as e:
-        raise UserValueError(f"--{e}") from None
-    if not (1 <= args.workers <= MAX_WORKERS):
-        raise UserValueError(f"--workers = {args.workers} is out of range: allowed 1 to {MAX_WORKERS}")
-    axis_deg, distance_mm = parse_perturb(args.perturb)
-    fams = [f.strip() for f in args.families.split(",") if f.strip()]
-    if fams != ["all"]:
-        from platebench.plates.spec import FAMILIES  # noqa: PLC0415
-        bad = [f for f in fams if f not in FAMILIES]
-        if bad:
-            raise UserValueError(f"--families value {bad[0]!r} is unknown: allowed all or " + ", ".join(FAMILIES))
-    axes = parse_range_text(args.axes or ",".join(f"{a:g}" for a in STUDY_AXES_DEG), "--axes", 0.0, 179.9,
-                            max_count=MAX_BENDS)
-    if not (0.25 <= args.aspect <= 8.0):
-        raise UserValueError(f"--aspect = {args.aspect} is out of range: allowed 0.25 to 8")
-    if args.limit is not None and args.limit < 1:
-        raise UserValueError(f"--limit = {args.limit} is out of range: allowed >= 1")
-    if args.grid:
-        parse_grid(args.grid)  # its one-line error before the loop is loaded (study_base reads it again)
-    verify_grid = verify_grid_arg(args.verify_grid)
+    flags = false_boundary_flags(args)
     # the flags are good: the loop and the study
     from platebench.bench.progress import bar  # noqa: PLC0415
+    from platebench.bench.run.journal import journal_path  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
-    from platebench.bench.run.study import StudyRealism, perturbed_cases, study_cases, with_realism_seeds  # noqa: PLC0415
-    from platebench.bench.run.study import write_study  # noqa: PLC0415
+    from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
+    from platebench.bench.run.sensing.study import (  # noqa: PLC0415
+        StudyRealism,
+        perturbed_cases,
+        study_cases,
+        with_realism_seeds,
+        write_study,
+    )
 
-    extra = None
-    if args.extra_axes is not None:
-        extra = parse_range_text(args.extra_axes, "--extra-axes", 0.0, 179.9, max_count=2)
-        if len(extra) != 2:
-            raise UserValueError(f"--extra-axes = {args.extra_axes!r}: give two axes, FIRST,LAST (degrees)")
-    cases = study_cases(bends, None if fams == ["all"] else fams, axes, args.aspect, extra)
-    if args.limit is not None:
-        cases = cases[:args.limit]
-    cases = perturbed_cases(cases, axis_deg, distance_mm)
+    cases = study_cases(list(flags.bends_deg), flags.family_filter, list(flags.axes_deg), flags.aspect,
+                        None if flags.extra_axes_deg is None else list(flags.extra_axes_deg))
+    if flags.limit is not None:
+        cases = cases[:flags.limit]
+    cases = perturbed_cases(cases, flags.perturb_axis_deg, flags.perturb_distance_mm)
     if args.dry_run:
         for line in plate_lines(cases):
             print(line)
         return 0
-    base, options_extra = study_base(args, render)
+    base, options_extra = study_base(args, flags.render)
     if not base.realism.is_ideal:
-        cases = with_realism_seeds(cases, args.seed)
-    width, height = base.scene.width, base.scene.height
+        cases = with_realism_seeds(cases, flags.render.seed)
+    verify_grid = flags.verify_grid
     if verify_grid == "auto":
-        from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
-        verify_grid = auto_verify_grid(width)
+        verify_grid = auto_verify_grid(base.scene.width)
     options = SensingOptions(verify_grid=verify_grid, **options_extra)
-    settings = {"bends_deg": bends, "axes_deg": axes, "aspect": args.aspect, "families": fams,
-                "grid": args.grid or "paper's 4x4 (sense's default)",
-                "verify_grid": verify_grid or "stage 3's", "width_px": width,
-                "height_px": height, "spp": args.spp, "seed": args.seed,
-                "perturb_axis_deg": axis_deg, "perturb_distance_mm": distance_mm, "plates": len(cases),
-                "workers": args.workers}
+    settings = StudySettings.of(flags, base, verify_grid, len(cases)).to_dict()
     if not base.realism.is_ideal:
         settings.update(StudyRealism(
             base.realism.name, base.realism.sources,
             "--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
             options.corner_noise_px, tuple(base.realism.scales.items())).to_dict())
-    from platebench.bench.run.journal import journal_path  # noqa: PLC0415
-
     ran = 0
     with bar(len(cases), "study false-boundary", unit="plate") as pbar:
         def progress(row):
@@ -293,13 +250,15 @@ def run(args) -> int:
             pbar.write(f"{row.case:38s} {row.outcome:12s} {row.time_s:6.1f} s")
             sys.stdout.flush()  # a plate's line as it finishes, also through a pipe (tee, a log, a test)
         try:
-            study = write_study(args.out, cases, base, args.overwrite, progress, settings, l_bends, args.workers,
-                                args.resume, options)
+            study = write_study(args.out, cases, base, args.overwrite, progress, settings, list(flags.l_bends_deg),
+                                flags.workers, args.resume, options)
         except (KeyboardInterrupt, Exception):
             if ran and journal_path(args.out).exists():
                 print(f"platebench: {ran} finished plates are kept in {journal_path(args.out)}; "
                       "the same command with --resume runs the rest", file=sys.stderr)
             raise
+    from platebench.bench.report.text import table_lines  # noqa: PLC0415
+
     if study.resumed_plates:
         print(f"resumed         {study.resumed_plates} plates from the journal of an interrupted run")
     for line in table_lines(study):
@@ -308,72 +267,25 @@ def run(args) -> int:
     return 0
 
 
-def study_base(args, render: RenderSettings) -> tuple[SampleConfig, dict]:
-    """The false-boundary study's sample configuration (before each plate's) and the sensing options
-    it adds: ideal, ``--width`` (default 640) by 3/4 of it; under ``--realism``, the preset's camera at
-    its own size, or at ``--width`` with its field of view and aspect kept, and the corner noise of its
-    calibration views measured once for every plate (``realism.measure_corner_noise``); the preset's sources
-    scaled by ``--realism-scale``."""
-    grid = parse_grid(args.grid) if args.grid else {}
-    if args.realism in (None, "ideal"):
-        if args.realism_scale:
-            raise UserValueError(f"--realism-scale {args.realism_scale} without an error source: allowed only with "
-                                 "--realism 1995 or modern (ideal has none to scale)")
-        width = args.width or DEFAULT_WIDTH
-        return SampleConfig(scene=SceneParams(width=width, height=width * 3 // 4, pattern=grid), render=render), {}
-    from dataclasses import replace  # noqa: PLC0415
+def study_base(args, render) -> tuple:
+    """The false-boundary study's sample configuration before each plate's
+    (``bench.config.study.study_sample_config`` of ``args.realism``, ``args.realism_scale``, ``args.grid``,
+    ``args.width``) and the sensing options it adds: under a realism preset with estimates, the corner
+    noise of its calibration views measured once for every plate (``bench.run.realism.measure_corner_noise``)."""
+    from platebench.bench.config.study import study_sample_config  # noqa: PLC0415
 
-    from platebench.bench.cli.render import realism_camera_at_width  # noqa: PLC0415
-    from platebench.bench.config.presets import with_realism  # noqa: PLC0415
+    cfg = study_sample_config(args.realism, args.realism_scale, args.grid, args.width, render)
+    if args.realism in (None, "ideal"):
+        return cfg, {}
     from platebench.bench.run.realism import measure_corner_noise  # noqa: PLC0415
 
-    from platebench.bench.config.realism import realism_preset  # noqa: PLC0415
-
-    realism = realism_preset(args.realism)
-    if args.realism_scale:
-        realism = with_scales(realism, args.realism_scale)
-    cfg = with_realism(SampleConfig(scene=SceneParams(pattern=grid), render=render), realism)
-    if args.width is not None:
-        at = replace(cfg, scene=replace(cfg.scene, width=args.width,
-                                        height=max(16, round(args.width * cfg.scene.height / cfg.scene.width))))
-        cfg = realism_camera_at_width(cfg, at, args.width)
     noise = measure_corner_noise(cfg) if cfg.realism.estimates else 0.0
     return cfg, {"corner_noise_px": noise}
 
 
-DEFAULT_WIDTH = 640  # false-boundary: the ideal camera's image width (px)
-MAX_DRAWS = 1000
-ACCURACY_SPP = 16  # the no-source floor of the block's corners: 0.74 mm at spp 4, 0.33 at 16, 0.22 at 64 (8 draws)
-
-
-def with_scales(realism, text: str):
-    """``realism`` with the scales of ``--realism-scale`` ('SOURCE=F,SOURCE=F'); one-line errors name
-    the value and what is allowed."""
-    from dataclasses import replace  # noqa: PLC0415
-
-    from platebench.bench.config.realism import SOURCES  # noqa: PLC0415
-
-    scales = {}
-    for item in (t.strip() for t in text.split(",")):
-        name, eq, value = item.partition("=")
-        if not eq:
-            raise UserValueError(f"--realism-scale item {item!r} is not SOURCE=F (e.g. robot_accuracy=4)")
-        try:
-            f = float(value)
-        except ValueError:
-            raise UserValueError(f"--realism-scale {name.strip()} = {value!r} is not a number") from None
-        name = name.strip()
-        if name in scales:
-            raise UserValueError(f"--realism-scale source {name!r} is given twice: allowed once")
-        if name not in realism.sources:
-            raise UserValueError(f"--realism-scale source {name!r} is not on in realism {realism.name}: allowed "
-                                 + ", ".join(s for s in SOURCES if s in realism.sources))
-        scales[name] = f
-    return replace(realism, scales={**realism.scales, **scales})
-
-
 def run_accuracy(args) -> int:
-    from platebench.bench.config.realism import realism_preset  # noqa: PLC0415
+    """``study accuracy`` (``bench.run.accuracy``): its flags checked, the study run, written and printed."""
+    from platebench.bench.config.study import accuracy_flags  # noqa: PLC0415
     from platebench.bench.io.atomic import write_json, write_text  # noqa: PLC0415
     from platebench.bench.io.outputs import output_dir  # noqa: PLC0415
     from platebench.bench.progress import bar  # noqa: PLC0415
@@ -381,26 +293,12 @@ def run_accuracy(args) -> int:
     from platebench.bench.run.accuracy import TARGETS, AccuracySettings, budget_configs, run_accuracy_study  # noqa: PLC0415
     from platebench.bench.run.accuracy import accuracy_csv  # noqa: PLC0415
 
-    realism = realism_preset(args.realism or "1995")
-    if args.realism_scale:
-        realism = with_scales(realism, args.realism_scale)
-    if not (1 <= args.draws <= MAX_DRAWS):
-        raise UserValueError(f"--draws = {args.draws} is out of range: allowed 1 to {MAX_DRAWS}")
-    targets = tuple(t.strip() for t in args.targets.split(",") if t.strip())
-    bad = [t for t in targets if t not in TARGETS]
-    if bad or not targets:
-        raise UserValueError(f"--targets value {(bad or [args.targets])[0]!r} is not allowed: allowed "
-                             + ", ".join(TARGETS) + " (comma-separated)")
-    spp = ACCURACY_SPP if args.spp is None else args.spp
-    if not (1 <= spp <= 1024):
-        raise UserValueError(f"--spp = {spp} is out of range: allowed 1 to 1024")
-    try:
-        RenderSettings(spp=spp, seed=args.seed)
-    except ValueError as e:
-        raise UserValueError(f"--{e}") from None
-    settings = AccuracySettings(realism, args.draws, targets, not args.no_budget, spp, args.seed, corners=args.corners)
+    flags = accuracy_flags(args, TARGETS)
+    realism = flags.realism
+    settings = AccuracySettings(realism, flags.draws, flags.targets, flags.budget, flags.spp, flags.seed,
+                                corners=flags.corners)
     confs = budget_configs(realism, settings.budget)
-    total = len(confs) * args.draws * len(targets)
+    total = len(confs) * flags.draws * len(flags.targets)
     with output_dir(args.out, "accuracy study", overwrite=args.overwrite) as stage:
         done: dict = {}
         with bar(total, f"study accuracy ({realism.name})", unit="trial") as pbar:
@@ -408,7 +306,7 @@ def run_accuracy(args) -> int:
                 pbar.update(1)
                 key = (trial.target, trial.config)
                 done.setdefault(key, []).append(trial)
-                if len(done[key]) == args.draws:
+                if len(done[key]) == flags.draws:
                     pbar.write(config_line(trial.target, trial.config, done[key]))
                     sys.stdout.flush()
             study = run_accuracy_study(settings, progress)
@@ -486,9 +384,9 @@ def accuracy_lines(study) -> list[str]:
     return out
 
 
-
 def run_cut_squares(args) -> int:
     """``study cut-squares`` (``bench.run.cut_study``): its flags checked, the study run and printed."""
+    from platebench.bench.config.study import cut_squares_settings  # noqa: PLC0415
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.cut_study import (  # noqa: PLC0415
         CUT_AXES_DEG,
@@ -498,146 +396,23 @@ def run_cut_squares(args) -> int:
         write_cut_study,
     )
 
-    def values(text, key, default, lo, hi):
-        return parse_range_text(text or ",".join(f"{v:g}" for v in default), key, lo, hi, max_count=MAX_BENDS)
-    bends = values(args.bend, "--bend", CUT_BENDS_DEG, 0.0, 350.0)
-    axes = values(args.axes, "--axes", CUT_AXES_DEG, 0.0, 179.9)
-    distances = values(args.distances, "--distances", CUT_DISTANCES_M, 0.2, 2.0)
-    if args.width is None:
-        args.width = DEFAULT_WIDTH
-    if args.width is not None and not (160 <= args.width <= 4096):
-        raise UserValueError(f"--width = {args.width} is out of range: allowed 160 to 4096")
-    try:
-        render = RenderSettings(spp=args.spp, seed=args.seed)
-    except ValueError as e:
-        raise UserValueError(f"--{e}") from None
-    base = SampleConfig(scene=SceneParams(width=args.width, height=args.width * 3 // 4,
-                                          pattern=parse_grid(args.grid) if args.grid else {}), render=render)
-    settings = {"bends_deg": bends, "axes_deg": axes, "distances_m": distances, "width_px": args.width,
-                "spp": args.spp, "seed": args.seed, "grid": args.grid or "paper's 4x4"}
-    n = len(bends) * 2 * len(axes) * len(distances)
-    with bar(n, "study cut-squares", unit="plate") as pbar:
-        doc = write_cut_study(args.out, base, args.overwrite, lambda row: pbar.update(1), settings,
-                              bends_deg=bends, axes_deg=axes, distances_m=distances)
+    st = cut_squares_settings(args, CUT_BENDS_DEG, CUT_AXES_DEG, CUT_DISTANCES_M)
+    with bar(st.plates, "study cut-squares", unit="plate") as pbar:
+        doc = write_cut_study(args.out, st.base, args.overwrite, lambda row: pbar.update(1), st.to_dict(),
+                              bends_deg=list(st.bends_deg), axes_deg=list(st.axes_deg),
+                              distances_m=list(st.distances_m))
     for line in table_lines(doc):
         print(line)
     print(f"written         {args.out / 'cut_study.json'}")
     return 0
 
 
-def parse_perturb(text: str) -> tuple[float, float]:
-    """'AXIS_DEG,DISTANCE_MM' -> (degrees, millimetres), each within the allowed small shift."""
-    parts = [p.strip() for p in str(text).split(",")]
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        axis_deg, distance_mm = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise UserValueError(f"--perturb = {text!r} is not AXIS_DEG,DISTANCE_MM: allowed two numbers, e.g. 1,5") from None
-    if not (abs(axis_deg) <= MAX_PERTURB_AXIS_DEG):
-        raise UserValueError(f"--perturb axis = {axis_deg:g} deg is out of range: allowed -{MAX_PERTURB_AXIS_DEG:g} "
-                             f"to {MAX_PERTURB_AXIS_DEG:g}")
-    if not (abs(distance_mm) <= MAX_PERTURB_MM):
-        raise UserValueError(f"--perturb distance = {distance_mm:g} mm is out of range: allowed -{MAX_PERTURB_MM:g} "
-                             f"to {MAX_PERTURB_MM:g}")
-    return axis_deg, distance_mm
-
-
 def plate_lines(cases) -> list[str]:
-    """``study false-boundary --dry-run``: each plate (``bench.run.study.StudyCase``) on a line, then the count."""
+    """``study false-boundary --dry-run``: each plate (``bench.run.sensing.study.StudyCase``) on a line, then the count."""
     def value(v, unit):
         return "-" if v is None else f"{v:g}{unit}"
     out = [f"{'plate':44s} {'family':9s} {'bend':>6s} {'dir':>4s} {'axis':>6s} {'aspect':>6s} {'distance':>8s}"]
     out += [f"{c.name:44s} {c.family:9s} {value(c.bend_deg, ''):>6s} {c.direction or '-':>4s} "
             f"{value(c.axis_deg, ''):>6s} {c.aspect:6.3f} {c.distance_m:7.3f}m" for c in cases]
     out.append(f"{len(cases)} plates (bend and axis in degrees; nothing run or written: --dry-run)")
-    return out
-
-
-def _f(v, spec=".2f"):
-    return "-" if v is None else format(v, spec)
-
-
-def _pct(frac):
-    return _f(None if frac is None else frac * 100, ".0f")
-
-
-def _yn(v):
-    return "-" if v is None else ("Y" if v else ".")
-
-
-def legend_lines(short: dict, outcomes=()) -> list[str]:
-    """The per-plate table's columns in words (``table_lines``); ``short``: detector name -> its column;
-    ``outcomes``: the outcome classes the table shows, each explained (``OUTCOME_TEXT``)."""
-    from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
-
-    return ["columns: outcome: the plate's class (below); cur: cures the loop applied; vws: poses it measured "
-            "from (stage 2, verification views, cures);",
-            "  " + ", ".join(f"{col}: {name.replace('_', ' ')}" for name, col in short.items())
-            + ": each detector at the stage-2 pose (Y fired, . quiet, - not evaluated);",
-            "  GT vis 1st: the least share of the true boundary a camera sees from the stage-2 pose; final: from "
-            "the final poses together; reach: the reachable poses see all of it (Y/.); pairs: pairs of reachable "
-            "poses could confirm all of it (Y/.) (these four: ground truth, for scoring only; the loop's own verdict "
-            "is in the outcome);",
-            "  bnd mm: the merged boundary's mean distance to the true one; cover: share of the true surface the "
-            "merged surface covers; time s: the plate's run"] + [
-        f"  {c}: {OUTCOME_TEXT[c]}" for c in OUTCOME_TEXT if c in outcomes]
-
-
-def table_lines(study) -> list[str]:
-    """The per-plate table, outcome counts, detector scores and targets of a ``bench.run.study.StudyResult``
-    as text lines."""
-    from platebench.bench.run.study import StudyRealism, detector_scores  # noqa: PLC0415
-    from platebench.reconstruction.strategy.detectors import DETECTORS  # noqa: PLC0415
-
-    short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
-             "occluding_contour": "occ", "end_tangents": "end"}
-    out = [f"{'plate':38s} {'outcome':12s} {'cur':>3s} {'vws':>3s} " + " ".join(f"{short[d]:>3s}" for d in DETECTORS)
-           + f" {'GT vis 1st':>10s} {'final':>6s} {'reach':>5s} {'pairs':>5s} {'bnd mm':>6s} {'cover':>5s} {'time s':>6s}"]
-    rows = list(study.rows)
-    for r in rows:
-        if r.outcome == "error":
-            out.append(f"{r.case:38s} {'error':12s} {r.error}")
-            continue
-        out.append(f"{r.case:38s} {r.outcome:12s} {r.cures:3d} {r.views:3d} "
-                   + " ".join(f"{_yn(r.fired(d)):>3s}" for d in DETECTORS)
-                   + f" {_f(r.gt_visible_first_frac, '10.3f')} {_f(r.gt_visible_final_frac, '6.3f')} "
-                   f"{_yn(r.gt_reachable):>5s} {_yn(r.gt_verifiable):>5s} "
-                   f"{_f(r.merged_boundary_mean_mm, '6.2f')} "
-                   f"{_f(r.merged_surface_coverage_frac, '5.2f')} {r.time_s:6.1f}")
-    out += legend_lines(short, {r.outcome for r in rows})
-    alarms = [r for r in rows if r.outcome == "false_alarm"]
-    if alarms:  # what the loop itself concluded where nothing was hidden (its verdict is no ground truth)
-        out.append("false alarms, the loop's verdict on each:")
-        out += [f"  {r.case}: {r.verdict_text()}" for r in alarms]
-    out.append("outcomes: " + ", ".join(f"{k} {v}" for k, v in study.outcomes().items()))
-    for fam, c in study.outcomes("family").items():
-        out.append(f"  {fam:9s} " + ", ".join(f"{k} {v}" for k, v in c.items() if v))
-    for b, c in study.outcomes("bend").items():
-        out.append(f"  bend {b:>4s} " + ", ".join(f"{k} {v}" for k, v in c.items() if v))
-    for d, s in detector_scores(rows)["all"].items():
-        out.append(f"detector {d:22s} precision {_f(s.precision)}, recall {_f(s.recall)} (TP {s.true_positive}, "
-                   f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
-    rz = StudyRealism.from_dict(study.settings)
-    if rz.realism:
-        out.append(f"realism {rz.realism}: " + ", ".join(rz.realism_sources) + "; each plate's draw: "
-                   + (rz.realism_seeds or "") + f"; corner noise of the calibration views {rz.corner_noise_px or 0:.3f} px")
-        if rz.realism_scales:
-            out.append("scaled from the sourced magnitudes: " + ", ".join(f"{k} x{v:g}" for k, v in rz.realism_scales))
-    t = study.targets
-    out.append(f"targets: silent {t.silent}, errors {t.errors}, cured {t.seen_all_of_curable}/{t.curable} "
-               f"({_pct(t.seen_all_frac)} %: the final poses see it all), verified {t.cured_of_verifiable} of the "
-               f"{t.verifiable} verifiable ({_pct(t.cured_of_verifiable_frac)} %), false alarms "
-               f"{t.false_alarms}/{t.nothing_hidden} ({_pct(t.false_alarm_frac)} %); "
-               + ", ".join(f"{k}: {'n/a' if v is None else ('met' if v else 'NOT met')}" for k, v in t.met.items()))
-    out.append(f"  the loop verified the boundary on {t.cured_of_curable} of the {t.curable} curable plates "
-               f"({_pct(t.cured_frac)} %); the others it names as unverified (outcome unconfirmed or honest); "
-               f"{t.verifiable} of the {t.curable} are verifiable by pairs of reachable poses (GT)")
-    n = len(rows)
-    ran = study.plates_run
-    w = study.settings.get("workers", 1)
-    each = sum(r.time_s or 0.0 for r in rows)
-    out.append(f"time: {study.time_s:.0f} s for {ran} plates ({study.time_s / max(ran, 1):.1f} s per plate; {w} "
-               f"worker{'s' if w != 1 else ''}, each plate's own run {each / max(n, 1):.1f} s on average)"
-               + (f"; {n - ran} more from the journal of an interrupted run" if ran != n else ""))
     return out

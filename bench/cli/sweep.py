@@ -159,9 +159,9 @@ def _run(args) -> int:
           + (f" ({summary.skipped} already done before)" if summary.skipped else ""))
     if summary.run:
         print(f"time        {summary.wall_s:.1f} s for {summary.run} samples ({summary.samples_per_min:.1f} samples/min)")
-    failed = [r for r in summary.results.values() if r["status"] == "failed"]
-    for r in sorted(failed, key=lambda r: r.get("index", 0))[:5]:
-        print(f"failed      {r['sample_id']}: {r.get('error')}")
+    failed = [r for r in summary.results.values() if r.status == "failed"]
+    for r in sorted(failed, key=lambda r: r.index or 0)[:5]:
+        print(f"failed      {r.sample_id}: {r.error}")
     if len(failed) > 5:
         print(f"failed      ... and {len(failed) - 5} more (see results.csv)")
     out = summary.dataset

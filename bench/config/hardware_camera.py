@@ -92,8 +92,8 @@ PULNIX_TM540_1995 = CameraHardware(
     f_number=1.4,  # widest aperture of a 16 mm f/1.4 C-mount lens (Raspberry Pi's 16 mm C-mount lens: "F1.4 to
     #                F16"). The paper's working aperture is not published: the widest is the worst case for defocus.
     sensor=SensorModel(bit_depth=8,  # 8-bit frame grabber, as the bench's 1995 camera
-                       full_well_e=4000.0,  # NOT SOURCED: the TM-540's datasheet (S/N) was not found; the bench's
-                       read_noise_dn=1.5,  # earlier "1995" camera values stand in (shot noise 4000 e-, read 1.5 DN)
+                       full_well_e=4000.0,  # NOT SOURCED: the TM-540's datasheet (S/N) was not found; placeholder
+                       read_noise_dn=1.5,  # values stand in (full well 4000 e-, read noise 1.5 DN)
                        gamma=1.0),  # linear response (gamma switch off), as the bench's 1995 camera
     line_jitter_px=0.1,  # PLL line synchronisation of an analogue grabber: Beyer 1992 ("Advances in characterisation
     #                      and calibration of digital imaging systems", IAPRS XXIX-B5, p. 545ff) measured pixel-
@@ -118,8 +118,8 @@ BASLER_ACA2040_55UM = CameraHardware(
     focal_length_m=_LENS_MODERN_M,
     f_number=None,  # NOT SOURCED: the working aperture depends on the set-up; no defocus is modelled
     sensor=SensorModel(bit_depth=16,  # digital output, stored in 16 bits as the bench's modern camera
-                       full_well_e=20000.0,  # NOT SOURCED: the IMX265's EMVA 1288 data were not found; the bench's
-                       read_noise_dn=3.0,  # earlier "modern" camera values stand in
+                       full_well_e=20000.0,  # NOT SOURCED: the IMX265's EMVA 1288 data were not found; placeholder
+                       read_noise_dn=3.0,  # values stand in (full well 20000 e-, read noise 3 DN)
                        gamma=1.0),
     line_jitter_px=0.0,  # a digital (USB3 Vision) camera sends its pixels: no analogue line to re-sample (Beyer 1992:
     #                      pixel-synchronous sampling is below 0.005 px already)

@@ -1,87 +1,38 @@
 """Export a PlateBench dataset to the layouts stereo code reads: Middlebury (2014 SDK) and KITTI 2015.
 
 Each sample is read as a ``PlateBenchDataset`` item (``bench.io.dataset_reader``) and written in
-the layout the format's own tools read unchanged.
+the layout the format's own tools read unchanged; the file trees, ``calib.txt`` and
+``calib_cam_to_cam`` fields are in docs/reference.md ("Export layouts"). Images:
+``images="active"`` (default) takes the camera images under the projected square grid (a plain
+white plate under passive light has no texture to match), ``"passive"`` those under the overhead
+light.
 
-Images: ``images="active"`` (default) takes the camera images under the projected square grid,
-``"passive"`` those under the overhead light. A plain white plate under passive light has no
-texture: a matcher finds nothing to match inside it, so the active images are the ones a stereo
-method can be scored on.
+Middlebury (``fmt="middlebury"``): ``OUT/trainingF/<scene>/`` only (full resolution; ``<scene>``
+is ``scene_name`` of the sample id, two colliding names refused); depth Z = baseline f / (d + doffs)
+in the baseline's unit (mm). ``shift`` = s crops the left image to columns [s, W) and the right one
+to [0, W - s): every disparity becomes d - s and doffs grows by s. Allowed: 0 to ``max_shift_px``
+(``floor(d_min) - 1``, d_min the smallest true disparity of any sample's plate), else refused,
+naming the value and the range, before anything is written; ``shift="auto"`` picks s per sample
+(the plate's disparities then start at ``min_disparity_px``).
 
-Middlebury (``fmt="middlebury"``): the tree of the Middlebury 2014 SDK (MiddEval3), full
-resolution only::
+KITTI 2015 (``fmt="kitti"``): ``OUT/training/``, one K for both rectified cameras, Z = f B / d
+(metres, no disparity offset) and 0 < d < 256 px (uint16 = round(256 d)). A sample whose largest
+true disparity does not fit is reduced by the smallest whole factor k that fits (area averaging of
+k x k blocks; K with it: f / k, principal point (c + 0.5) / k - 0.5; disparities the block mean
+where all its pixels have one, divided by k), recorded in export.json (``resample_factor``,
+``resampled``, ``f_px``, ``baseline_m``). Principal points that differ (doffs not 0) or a
+``shift`` are refused with the reason.
 
-    OUT/trainingF/<scene>/im0.png    left image (the camera's 8- or 16-bit grey DN)
-    OUT/trainingF/<scene>/im1.png    right image
-    OUT/trainingF/<scene>/calib.txt  cam0, cam1 ([f 0 cx; 0 f cy; 0 0 1], px), doffs (px, the shift
-                                     included), baseline (mm), width, height, ndisp, isint, tight
-                                     vmin/vmax, dyavg/dymax (``bench.io.middlebury``)
-    OUT/trainingF/<scene>/disp0GT.pfm    left true disparity, float32 px, +inf unknown (PFM, scale
-                                         -1: little-endian, rows bottom-up)
-    OUT/trainingF/<scene>/mask0nocc.png  255 = seen by both cameras, 128 = occluded in the right
-                                         view, 0 = unknown
-    OUT/trainingF/<scene>/disp1GT.pfm    right true disparity (its pixel u matches the left u + d);
-                                         beyond what the SDK reads
+A sweep whose manifest lists more samples than the dataset holds rendered is refused with one line
+naming how many of how many, unless ``allow_incomplete`` (then ``ExportSummary.note`` says so and
+export.json records it under ``sweep``). Pairs that are no rectified pair (``unrectified``: a
+robot's pair or a distorting lens) are left out, counted in the note and listed in export.json
+(``left_out_unrectified``), unless ``include_unrectified`` (then exported and marked).
 
-Depth from a disparity d (px): Z = baseline f / (d + doffs), in the baseline's unit (mm). Only
-``trainingF`` (F: full resolution) is written: the SDK takes the resolution as an argument (F, H,
-Q) and finds the scenes under ``training<res>``; a half or quarter resolution would be a resampling
-of the images and of the truth, which is not written. ``<scene>`` is the sample id
-(``PlateBenchDataset.sample_id``: ``0003`` for a sweep's ``samples/0003/sample``, the folder name
-of a single render) with every character outside letters, digits and ``. _ -`` replaced by ``_``
-(``scene_name``); two samples whose names collide are refused.
-
-Shift (Middlebury only): ``shift`` = s crops the left image to columns [s, W) and the right one to
-[0, W - s): every disparity becomes d - s and doffs grows by s, so the depth rule above still
-holds. The largest shift a dataset allows is ``floor(d_min) - 1`` px, d_min the smallest true
-disparity of any sample's plate (the whole unshifted view), so that every exported true disparity
-is at least 1 px (``max_shift_px``; export.json records it as ``max_shift_px``). A larger shift is
-refused, naming the value and the range, before anything is written. ``shift="auto"`` picks s per
-sample (the plate's disparities then start at ``min_disparity_px``).
-
-KITTI 2015 (``fmt="kitti"``), ``OUT/training/``::
-
-    image_2/NNNNNN_10.png, image_3/NNNNNN_10.png        left / right image
-    disp_occ_0/NNNNNN_10.png, disp_noc_0/NNNNNN_10.png  uint16 = round(256 d), 0 = unknown; all / non-occluded
-    calib_cam_to_cam/NNNNNN.txt                          S/R/P_rect_02 and _03: both cameras' rectified
-                                                         projection matrices (3 x 4), the same K (equal
-                                                         principal points), P_rect_02[0, 3] = 0,
-                                                         P_rect_03[0, 3] = -f B (f px, B metres)
-
-What KITTI's tools assume, and this layout keeps: the two rectified cameras share K, so depth is
-Z = f B / d with f = P_rect_02[0, 0] and B = (P_rect_02[0, 3] - P_rect_03[0, 3]) / f (metres; no
-disparity offset: the Middlebury ``doffs`` has no place in KITTI's calibration), and 0 < d < 256 px
-(the uint16 PNG holds 256 d, so a disparity is known to 1/512 px). The bench's rigs give larger
-disparities (about 500 px at 1280 x 960, f 2000 px, B 0.1 m, Z 0.4 m), and a crop (``shift``)
-would make the principal points differ, which KITTI loaders misread. So the KITTI export resamples
-instead: each sample's images are reduced by the smallest whole factor k that brings its largest
-true disparity under 256 px (area averaging of k x k pixel blocks, OpenCV INTER_AREA), K with
-them (f / k; a principal point (c + 0.5) / k - 0.5), and the disparities are the mean over each
-block where all its pixels have a true disparity, divided by k (exact for a plane, where d is
-affine in the image). ``export.json`` says so for every sample (``resample_factor``,
-``resampled``, ``f_px``, ``baseline_m``). A rig whose principal points differ (doffs not 0) or a
-``shift`` is refused with the reason.
-
-Sweep datasets (``platebench sweep``): a sweep whose manifest lists more samples than the dataset
-holds rendered (interrupted, still running, or a sample failed before its render was written) is
-refused with one line naming how many of how many samples are there, unless ``allow_incomplete``:
-then the samples that are there are exported, ``ExportSummary.note`` says how many of how many
-(the command line prints it), and export.json records it under ``sweep``.
-
-Pairs that are no rectified pair (``unrectified``: taken by a robot, whose cameras really stand
-elsewhere than the told rig, or through a distorting lens; the realism presets make them): both
-formats assume a rectified, undistorted pair, and for these Z = f B / (d + doffs) with the told
-calibration misses the true depth (by up to a few per cent on the 1995 rig). They are left out,
-the note says how many and why, and export.json lists them (``left_out_unrectified``); with
-``include_unrectified`` they are exported and marked (``unrectified``: why).
-
-``OUT/export.json`` lists every exported sample (``samples``: its id, its folder or files in the
-export, its source directory, shift, doffs, vmin/vmax and size). The output follows the output
-rule (``bench.io.outputs``: never the dataset itself nor inside it; an existing ``OUT`` is replaced
-only with ``overwrite`` and only when it is an export), is staged and renamed into place: it
-appears complete or not at all. Every sample is checked against its recorded checksums (every
-file but the linear-radiance EXRs, both lightings' camera images included) before the first is
-written or ``progress`` is told.
+``OUT/export.json`` lists every exported sample. The output follows the output rule
+(``bench.io.outputs``: never the dataset itself nor inside it; an existing ``OUT`` replaced only
+with ``overwrite`` and only when it is an export), staged and renamed into place. Every sample is
+checked against its recorded checksums before the first is written or ``progress`` is told.
 """
 from __future__ import annotations
 

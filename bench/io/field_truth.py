@@ -37,8 +37,12 @@ def top_faces(n_faces: int, n_vertices: int, n_boundary: int, thickness_m: float
 
 
 def load_field_truth(sample_dir: Path) -> FieldTruth:
-    """The ground truth every output kind is scored against (left view; world frame, metres)."""
+    """The ground truth every output kind is scored against (left view; world frame, metres). The sample's
+    files are verified first (``bench.io.verify.verify_sample``): one changed, swapped or replaced by a
+    link is refused (``DatasetError``)."""
+    from platebench.bench.io.verify import sample_checksums, verify_sample  # noqa: PLC0415
     sample_dir = require_dir(Path(sample_dir), "sample directory", DatasetError)
+    verify_sample(sample_dir, sample_checksums(sample_dir), then="refusing to score against it")
     gt = load_ground_truth(sample_dir)
     rig = load_calibration(sample_dir).rig
     posed = load_true_cameras(sample_dir)  # the cameras really posed (realism): the true rays start there

@@ -5,6 +5,7 @@
     DATASET/manifest.json            MANIFEST: spec, status, checksums of every sample
     DATASET/spec.toml                SPEC_COPY: the sweep spec as run
     DATASET/results.csv|.parquet     RESULTS_CSV / RESULTS_PARQUET: one row per (sample, method)
+    DATASET/results.sha256.json      RESULTS_CHECKSUMS: each table's sha256 (bench.io.table_checksums)
     DATASET/samples/<id>/result.json RESULT: the sample's record
     DATASET/samples/<id>/sample/     the rendered sample (bench.io.sample_files)
     DATASET/samples/<id>/recon/<m>/  a method's output, <m> = method_folder(method name)
@@ -16,6 +17,8 @@ from __future__ import annotations
 
 import re
 
+from platebench.scenes.naming import IMAGE_NAMES
+
 FORMAT = "platebench-sweep"
 VERSION = 1
 RESULT_FORMAT = "platebench-sweep-result"
@@ -23,10 +26,14 @@ MANIFEST = "manifest.json"
 SPEC_COPY = "spec.toml"
 RESULTS_CSV = "results.csv"
 RESULTS_PARQUET = "results.parquet"
+RESULTS_CHECKSUMS = "results.sha256.json"  # the sha256 of each results table, written after them
 SAMPLES = "samples"
 RESULT = "result.json"
 SAMPLE = "sample"
 RECON = "recon"
+# the files of a sample the paper's method reads (``platebench reconstruct``): the four images, the
+# calibration and the pattern, never ground truth
+METHOD_INPUTS = (*(f"images/{n}.png" for n in IMAGE_NAMES), "calib.json", "pattern.json")
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]")
 
@@ -42,5 +49,5 @@ def method_folder(method: str) -> str:
     return name
 
 
-__all__ = ["FORMAT", "VERSION", "RESULT_FORMAT", "MANIFEST", "SPEC_COPY", "RESULTS_CSV", "RESULTS_PARQUET",
+__all__ = ["FORMAT", "VERSION", "RESULT_FORMAT", "MANIFEST", "SPEC_COPY", "RESULTS_CSV", "RESULTS_PARQUET", "RESULTS_CHECKSUMS",
            "SAMPLES", "RESULT", "SAMPLE", "RECON", "method_folder"]

@@ -29,7 +29,6 @@ place is the same place.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import stat
@@ -37,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable
 
-from platebench.bench.files import JSON_MAX_BYTES, file_kind, open_regular, read_capped
+from platebench.bench.files import JSON_MAX_BYTES, file_kind, file_sha256, open_regular, read_capped  # noqa: F401
 from platebench.bench.io.atomic import (
     OutputExistsError,
     is_temp_name,
@@ -45,7 +44,17 @@ from platebench.bench.io.atomic import (
     target_of_temp,
     write_json,
 )
-from platebench.bench.io.layout import FORMAT, MANIFEST, RESULT, RESULTS_CSV, RESULTS_PARQUET, SAMPLES, SPEC_COPY
+from platebench.bench.io.layout import (
+    FORMAT,
+    MANIFEST,
+    RESULT,
+    RESULTS_CHECKSUMS,
+    RESULTS_CSV,
+    RESULTS_PARQUET,
+    SAMPLES,
+    SPEC_COPY,
+)
+from platebench.bench.io.table_checksums import recorded_table_checksums
 
 __all__ = ["STAMP", "KINDS", "OutputKind", "OutputRefusedError", "canonical", "check_output", "guard_output",
            "check_replace", "output_dir", "write_stamp", "read_stamp", "foreign_entries", "unowned_entries",
@@ -334,15 +343,6 @@ def output_dir(target, kind: str, *, overwrite: bool = False, inputs: Iterable =
 
 
 # ----------------------------------------------------------------------------- stamps
-def file_sha256(path: Path) -> str:
-    """The sha256 of a file's bytes (hex), read in 1 MiB pieces."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _files(root: Path) -> dict[str, str]:
     out = {}
     for dirpath, dirnames, filenames in os.walk(root):
@@ -375,7 +375,10 @@ def _dataset_listing(root: Path) -> dict[str, str | None] | None:
     sha256, None for the dataset's own records, which a sweep rewrites)."""
     if not _dict_with(root / MANIFEST, format=FORMAT):
         return None
-    listed: dict[str, str | None] = dict.fromkeys((MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET))
+    listed: dict[str, str | None] = dict.fromkeys((MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET,
+                                                   RESULTS_CHECKSUMS))
+    listed.update((name, sha) for name, sha in (recorded_table_checksums(root) or {}).items()
+                  if name in (RESULTS_CSV, RESULTS_PARQUET))  # an edited table is the user's now
     samples = root / SAMPLES
     with contextlib.suppress(OSError):
         for e in os.scandir(samples):

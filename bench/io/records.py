@@ -152,7 +152,7 @@ def loop_verdict_text(outcome: str | None, verified: bool | None, cures: int | N
 
 @dataclass(frozen=True)
 class StudyRow(Record):
-    """One plate of the false-boundary study (``bench.run.study.study_row``): the plate (its case's
+    """One plate of the false-boundary study (``bench.run.sensing.study.study_row``): the plate (its case's
     parameters), the loop's outcome and verdict, ground truth's visibility (``gt_*``, for scoring
     only), each detector's verdict at the stage-2 pose (``detectors``: name -> fired, None where it
     could not be evaluated; ``det_<name>`` columns in the files), the merged reconstruction's
@@ -234,7 +234,7 @@ class StudyRow(Record):
 
 @dataclass(frozen=True)
 class StudyTargets(Record):
-    """The study's targets (``bench.run.study.targets``): silent = 0, errors = 0, the final poses
+    """The study's targets (``bench.run.sensing.study.targets``): silent = 0, errors = 0, the final poses
     see the whole boundary on >= 90 % of the curable plates, verified >= 90 % of the verifiable
     ones, false alarms <= 2 % of the plates with nothing hidden; the counts they are computed from,
     and ``met``: target -> met (None where no plate is of its kind)."""
@@ -262,7 +262,7 @@ def study_rows(doc: Mapping[str, Any]) -> list[StudyRow]:
 
 @dataclass(frozen=True)
 class LFormulaRow(Record):
-    """The paper's L formula at one convex cylindrical bend (``bench.run.study.l_formula_table``):
+    """The paper's L formula at one convex cylindrical bend (``bench.run.sensing.study.l_formula_table``):
     the bend (deg), the sensing distance L (m) and the rig distance it predicts (L plus the height
     of AB, m), and for a baseline along the bend's axis and along the bend the ground-truth smallest
     rig distance at which both cameras see the whole true boundary (m; infinite: never) and its

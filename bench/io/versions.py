@@ -233,3 +233,11 @@ def check_lock(path: Path | None = None) -> LockCheck:
             status = "ok" if have == version else "differs"
         rows.append((name, version, have, status))
     return LockCheck(path, tuple(rows), tuple(shadows))
+
+
+def renderer_setup() -> dict:
+    """The renderer's set-up on this machine: the libLLVM drjit uses, its version, and the Mitsuba
+    variant chosen (``scenes.render.runtime.describe``)."""
+    from platebench.scenes.render import runtime  # noqa: PLC0415
+
+    return runtime.describe()

@@ -35,17 +35,61 @@ import os
 import platform
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.perf_records import GpuTargetFigures
+from platebench.bench.io.report_records import RunTimings
 from platebench.scenes.scene_spec import RenderSettings
 
 __all__ = ["perf_gpu", "TARGETS_GPU"]
 
-TARGETS_GPU = {"whole_sample_s": 0.15, "sweep_samples_per_s": 10.0, "study_s": 60.0}
+
+
+@dataclass(frozen=True)
+class GpuTargets:
+    """The targets of a GPU machine (module doc): a whole sample in at most ``whole_sample_s`` seconds,
+    the sweep pipeline at ``sweep_samples_per_s`` samples per second or more, the 61-plate study in
+    at most ``study_s`` seconds."""
+
+    whole_sample_s: float = 0.15
+    sweep_samples_per_s: float = 10.0
+    study_s: float = 60.0
+
+    def met(self, seen: GpuTargetFigures, full: bool) -> dict:
+        """Target -> met, for the figures ``seen`` (a figure not measured misses its target; the study's
+        target is None without ``full``)."""
+        return {"whole_sample_s": _or(seen.whole_sample_s, np.inf) <= self.whole_sample_s,
+                "sweep_samples_per_s": _or(seen.sweep_samples_per_s, 0.0) >= self.sweep_samples_per_s,
+                "study_s": _or(seen.study_s, np.inf) <= self.study_s if full else None}
+
+
+def _or(v, default):
+    return default if v is None else v
+
+
+@dataclass(frozen=True)
+class HostPixelTimes:
+    """Best seconds over the repeats of each host-side operation on one render (module doc, 1): the
+    channel mean of the render, of its flushed copy and of random values; the slice sum; the
+    digitisation and the EXR write of the channel mean with and without subnormals; the bench's
+    device mean and copy."""
+
+    mean_axis2_render_s: float
+    mean_axis2_flushed_s: float
+    mean_axis2_random_s: float
+    slice_sum_render_s: float
+    digitize_render_s: float
+    digitize_flushed_s: float
+    write_exr_render_s: float
+    write_exr_flushed_s: float
+    device_mean_to_host_s: float
+
+
+TARGETS_GPU = GpuTargets()
 STUDY_TIMEOUT_S = 300.0  # perf gpu --full: the study is stopped after five times its 60-s target
 CPU_VARIANT, GPU_VARIANT = "llvm_ad_rgb", "cuda_ad_rgb"
 
@@ -103,25 +147,25 @@ def subnormal_check(cfg: SampleConfig, repeat: int = 3, log=print) -> dict:
         flushed[np.abs(flushed) < FLOAT32_TINY] = 0.0
         rand = np.random.default_rng(0).random(a.shape, dtype=np.float32)
         grey, grey_flushed = a.mean(axis=2), flushed.mean(axis=2)
-        t = {"mean_axis2_render_s": _best(lambda: a.mean(axis=2), repeat)[0],  # noqa: B023
-             "mean_axis2_flushed_s": _best(lambda: flushed.mean(axis=2), repeat)[0],  # noqa: B023
-             "mean_axis2_random_s": _best(lambda: rand.mean(axis=2), repeat)[0],  # noqa: B023
-             "slice_sum_render_s": _best(lambda: a[..., 0] + a[..., 1] + a[..., 2], repeat)[0],  # noqa: B023
-             "digitize_render_s": _best(lambda: cfg.sensor.digitize(grey, seed=1), repeat)[0],  # noqa: B023
-             "digitize_flushed_s": _best(lambda: cfg.sensor.digitize(grey_flushed, seed=1), repeat)[0],  # noqa: B023
-             "write_exr_render_s": _best(lambda: write_exr(exr, grey), repeat)[0],  # noqa: B023
-             "write_exr_flushed_s": _best(lambda: write_exr(exr, grey_flushed), repeat)[0],  # noqa: B023
-             "device_mean_to_host_s": _best(lambda: grey_to_host(mi, img), repeat)[0]}  # noqa: B023
+        t = HostPixelTimes(_best(lambda: a.mean(axis=2), repeat)[0],  # noqa: B023
+                           _best(lambda: flushed.mean(axis=2), repeat)[0],  # noqa: B023
+                           _best(lambda: rand.mean(axis=2), repeat)[0],  # noqa: B023
+                           _best(lambda: a[..., 0] + a[..., 1] + a[..., 2], repeat)[0],  # noqa: B023
+                           _best(lambda: cfg.sensor.digitize(grey, seed=1), repeat)[0],  # noqa: B023
+                           _best(lambda: cfg.sensor.digitize(grey_flushed, seed=1), repeat)[0],  # noqa: B023
+                           _best(lambda: write_exr(exr, grey), repeat)[0],  # noqa: B023
+                           _best(lambda: write_exr(exr, grey_flushed), repeat)[0],  # noqa: B023
+                           _best(lambda: grey_to_host(mi, img), repeat)[0])  # noqa: B023
         sub = [count_subnormal(a[..., c]) for c in range(3)]
         out[light] = {"subnormal_per_channel": sub, "subnormal_in_channel_mean": count_subnormal(grey),
                       "pixels": int(a.shape[0] * a.shape[1]), "nan": int(np.isnan(a).sum()),
-                      "c_contiguous": bool(a.flags["C_CONTIGUOUS"]), **t}
+                      "c_contiguous": bool(a.flags["C_CONTIGUOUS"]), **asdict(t)}
         log(f"{r.variant:12s} {light:7s}: subnormal floats per channel {sub} of {a.shape[0] * a.shape[1]} px; "
-            f"host mean(axis=2) {t['mean_axis2_render_s'] * 1e3:.1f} ms (flushed copy "
-            f"{t['mean_axis2_flushed_s'] * 1e3:.1f}, random {t['mean_axis2_random_s'] * 1e3:.1f}); digitize "
-            f"{t['digitize_render_s'] * 1e3:.1f} ms (flushed {t['digitize_flushed_s'] * 1e3:.1f}); EXR write "
-            f"{t['write_exr_render_s'] * 1e3:.1f} ms (flushed {t['write_exr_flushed_s'] * 1e3:.1f}); the bench's "
-            f"device mean + copy {t['device_mean_to_host_s'] * 1e3:.1f} ms")
+            f"host mean(axis=2) {t.mean_axis2_render_s * 1e3:.1f} ms (flushed copy "
+            f"{t.mean_axis2_flushed_s * 1e3:.1f}, random {t.mean_axis2_random_s * 1e3:.1f}); digitize "
+            f"{t.digitize_render_s * 1e3:.1f} ms (flushed {t.digitize_flushed_s * 1e3:.1f}); EXR write "
+            f"{t.write_exr_render_s * 1e3:.1f} ms (flushed {t.write_exr_flushed_s * 1e3:.1f}); the bench's "
+            f"device mean + copy {t.device_mean_to_host_s * 1e3:.1f} ms")
     import shutil  # noqa: PLC0415
     shutil.rmtree(exr.parent, ignore_errors=True)
     return out
@@ -141,7 +185,7 @@ def sample_figures(cfg: SampleConfig, repeat: int = 3, log=print) -> dict:
         c, t = time.process_time(), time.perf_counter()
         s, _ = render_sample(cfg, r)
         whole = np.minimum(whole, (time.perf_counter() - t, time.process_time() - c))
-        gt = min(gt, s.timings_s["ground_truth_s"])
+        gt = min(gt, RunTimings.from_dict(s.timings_s).ground_truth_s)
     other = replace(cfg, plate=replace(cfg.plate, deformation=CylindricalBend(np.radians(40.0), "up")),
                     scene=replace(cfg.scene, distance_m=cfg.scene.distance_m * 1.25))
     with KernelCounter() as kc:
@@ -170,6 +214,7 @@ def sweep_figures(width: int, height: int, spp: int, samples: int, workers: int,
     """The sweep pipeline against one local worker (module doc)."""
     from platebench.bench.sweep.executors import LocalExecutor, LoopbackCluster, PipelineExecutor, run_sweep  # noqa: PLC0415
     out = {"workers": workers}
+    rates = {}  # "pipeline", "one_worker" -> samples per second
     with tempfile.TemporaryDirectory(prefix="platebench-perf-gpu-") as tmp:
         root = Path(tmp)
         run_sweep(_sweep_spec(1, width, height, spp), root / "warm", LocalExecutor(1), progress=False)
@@ -192,12 +237,13 @@ def sweep_figures(width: int, height: int, spp: int, samples: int, workers: int,
             wall = time.perf_counter() - t0
             steady = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0]) if len(arrivals) > 1 else float("nan")
             key = "pipeline" if make is None else "one_worker"
+            rates[key] = s.run / wall
             out[key] = {"samples": s.run, "ok": s.ok, "failed": s.failed, "wall_s": wall,
-                        "samples_per_s": s.run / wall, "steady_samples_per_s": steady,
+                        "samples_per_s": rates[key], "steady_samples_per_s": steady,
                         "peak_rss_mib": {k: round(v["maxrss_mb"], 1) for k, v in s.worker_stats.items()}}
             log(f"sweep {name}: {s.run} samples ({s.ok} ok) in {wall:.1f} s = {s.run / wall:.2f} samples/s "
                 f"(steady {steady:.2f}/s)")
-    out["ratio_pipeline_over_one_worker"] = out["pipeline"]["samples_per_s"] / out["one_worker"]["samples_per_s"]
+    out["ratio_pipeline_over_one_worker"] = rates["pipeline"] / rates["one_worker"]
     return out
 
 
@@ -245,7 +291,7 @@ def perf_gpu(width: int = 1280, height: int = 960, spp: int = 16, repeat: int = 
         log("no GPU present: the llvm figures below are this machine's CPU; the GPU rows are not measured here "
             "(run `platebench perf gpu --full` on a machine with a CUDA device)")
     out = {"machine": info, "gpu_present": gpu, "variants": variants, "image_size_px": [width, height], "spp": spp,
-           "targets_gpu": TARGETS_GPU, "errors": {}}
+           "targets_gpu": asdict(TARGETS_GPU), "errors": {}}
     base = SampleConfig(render=RenderSettings(spp=spp))
     base = replace(base, scene=replace(base.scene, width=width, height=height))
     n = sweep_samples or (90 if full else 18)
@@ -276,11 +322,6 @@ def perf_gpu(width: int = 1280, height: int = 960, spp: int = 16, repeat: int = 
     if not full:
         log("study false-boundary: not run (--full runs the 61 plates)")
     if gpu:
-        out["targets_met"] = {
-            "whole_sample_s": out.get("sample", {}).get(GPU_VARIANT, {}).get("whole_sample_s", np.inf)
-            <= TARGETS_GPU["whole_sample_s"],
-            "sweep_samples_per_s": out.get("sweep", {}).get("pipeline", {}).get("samples_per_s", 0.0)
-            >= TARGETS_GPU["sweep_samples_per_s"],
-            "study_s": out.get("study", {}).get("wall_s", np.inf) <= TARGETS_GPU["study_s"] if full else None}
+        out["targets_met"] = TARGETS_GPU.met(GpuTargetFigures.from_dict(out, GPU_VARIANT), full)
         log(f"GPU targets: {out['targets_met']}")
     return out

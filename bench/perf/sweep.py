@@ -13,7 +13,7 @@ and the two-stage pipeline (one render worker, CPU workers finishing).
   measured inside the worker and returned with each sample's result.
 
 Ratios: 2 local workers / 1 (target >= 1.7 on a 2-core machine), end to end and steady; the
-machine's load average (1 min) before and after is reported with them, and the machine's own
+machine's one-minute load average before and after is reported with them, and the machine's own
 2-over-1 (``cpu_capacity``: the CPU one and two busy processes of this session obtain), since on
 a shared machine the scheduler may give a session one share however many processes it runs
 (Linux's per-session autogroups); Dask workers and the pipeline's run in sessions of their own.
@@ -51,12 +51,13 @@ def _measure(name: str, spec, executor, root: Path, log) -> dict:
     steady = 60.0 * (n - 1) / (arrivals[-1] - arrivals[0]) if n > 1 and arrivals[-1] > arrivals[0] else float("nan")
     workers = {k: {"samples": v["samples"], "peak_rss_mib": round(v["maxrss_mb"], 1)}
                for k, v in sorted(summary.worker_stats.items())}
+    first = arrivals[0] - t0 if arrivals else float("nan")
     row = {"config": name, "samples": n, "ok": summary.ok, "failed": summary.failed, "wall_s": wall,
            "samples_per_min": 60.0 * n / wall, "steady_samples_per_min": steady,
-           "first_result_s": arrivals[0] - t0 if arrivals else float("nan"), "workers": workers}
+           "first_result_s": first, "workers": workers}
     peaks = ", ".join(f"{v['peak_rss_mib']:.0f} MiB ({v['samples']} samples)" for v in workers.values())
     log(f"{name:14s} {n:3d} samples {wall:7.1f} s  {row['samples_per_min']:6.1f}/min end-to-end  "
-        f"{steady:6.1f}/min steady  first result {row['first_result_s']:.1f} s  worker peak RSS: {peaks}")
+        f"{steady:6.1f}/min steady  first result {first:.1f} s  worker peak RSS: {peaks}")
     return row
 
 
@@ -105,11 +106,11 @@ def perf_sweep(n_samples: int = 20, width: int = 320, height: int = 240, spp: in
         out["runs"].append(_measure("local x2", spec, LocalExecutor(2), root, log))
         t = time.perf_counter()
         with LoopbackCluster(n_workers=2, nthreads=1) as cluster:
-            out["dask_cluster_start_s"] = time.perf_counter() - t
+            start_s = out["dask_cluster_start_s"] = time.perf_counter() - t
             out["runs"].append(_measure("dask 2 workers", spec, DaskExecutor(cluster.address), root, log))
         with LoopbackCluster(n_workers=3, nthreads=1, render_workers=1) as cluster:
             out["runs"].append(_measure("pipeline 1+2", spec, PipelineExecutor(cluster.address), root, log))
-        log(f"(dask cluster start-up, not counted above: {out['dask_cluster_start_s']:.1f} s)")
+        log(f"(dask cluster start-up, not counted above: {start_s:.1f} s)")
     out["cpu_capacity_cores"] = {"1_process": cpu_capacity(1), "2_processes": cpu_capacity(2)}
     cap = out["cpu_capacity_cores"]["2_processes"] / max(out["cpu_capacity_cores"]["1_process"], tol.tiny)
     out["ratio_capacity_2_over_1"] = cap

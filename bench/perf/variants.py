@@ -21,6 +21,7 @@ import numpy as np
 
 from platebench.bench.config import SampleConfig, SceneParams
 from platebench.bench.io.atomic import write_bytes
+from platebench.bench.io.report_records import RunTimings
 from platebench.bench.run.render import render_sample
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.scenes.scene_spec import RenderSettings
@@ -29,8 +30,9 @@ from platebench.tolerances import tol
 EQUAL_WITHIN = 1e-5  # radiance units: pixels this close count as equal
 
 
-def _one(variant: str, width: int, height: int, spp: int, repeat: int, log) -> tuple[dict, dict, dict]:
-    """(figures, seed-0 images, seed-1 images) of one variant: float32 (H, W) radiance per image name."""
+def _one(variant: str, width: int, height: int, spp: int, repeat: int, log) -> tuple[dict, dict, dict, float]:
+    """(figures, seed-0 images, seed-1 images, samples per second of its renders) of one variant: float32
+    (H, W) radiance per image name."""
     from platebench.bench.run.paper_method import reconstruct_sample  # noqa: PLC0415
     from platebench.bench.run.score import score_in_memory  # noqa: PLC0415
     from platebench.evaluation.metrics_row import MetricsRow  # noqa: PLC0415
@@ -42,11 +44,12 @@ def _one(variant: str, width: int, height: int, spp: int, repeat: int, log) -> t
     best, total, gt = np.inf, None, None
     for _ in range(repeat):
         sample, renderer = render_sample(cfg(0), renderer)
-        t = sum(v for k, v in sample.timings_s.items() if k.startswith("render_"))
-        if t < best:
-            best, total, gt = t, sample.timings_s["total_s"], sample.timings_s["ground_truth_s"]
+        timings = RunTimings.from_dict(sample.timings_s)
+        if timings.renders_s < best:
+            best, total, gt = timings.renders_s, timings.total_s, timings.ground_truth_s
     other, renderer = render_sample(cfg(1), renderer)
-    fig = {"variant": renderer.variant, "render_4_images_s": best, "samples_per_s": 4 * spp * width * height / best,
+    samples_per_s = 4 * spp * width * height / best
+    fig = {"variant": renderer.variant, "render_4_images_s": best, "samples_per_s": samples_per_s,
            "whole_sample_s": total, "ground_truth_s": gt}
     try:
         row = MetricsRow.from_score(score_in_memory(sample, reconstruct_sample(sample)))
@@ -56,12 +59,12 @@ def _one(variant: str, width: int, height: int, spp: int, repeat: int, log) -> t
                   f"correct {row.correct_match_count}")
     except ReconstructionError as e:  # too small an image for the pipeline: say so, time the renders anyway
         fig["paper_error"] = scored = f"paper's pipeline: {e}"
-    log(f"{renderer.variant:14s} 4 images {best:7.3f} s  {fig['samples_per_s'] / 1e6:8.1f} M samples/s  "
+    log(f"{renderer.variant:14s} 4 images {best:7.3f} s  {samples_per_s / 1e6:8.1f} M samples/s  "
         f"whole sample {total:6.2f} s  {scored}")
 
     def radiance(s):
         return {k: np.asarray(v, np.float32) for k, v in s.radiance.items()}
-    return fig, radiance(sample), radiance(other)
+    return fig, radiance(sample), radiance(other), samples_per_s
 
 
 def compare_images(imgs: dict, ref: dict, ref_seed1: dict) -> dict:
@@ -79,10 +82,11 @@ def perf_variants(variants: list[str], width: int = 640, height: int = 480, spp:
     """Render and compare ``variants`` (module doc); ``save``/``against``: an .npz of the first
     variant's images for a comparison across machines."""
     out, ref = {"image_size_px": [width, height], "spp": spp, "variants": []}, None
+    first_rate = None  # the first variant's samples per second
     for i, v in enumerate(variants):
-        fig, imgs, seed1 = _one(v, width, height, spp, repeat, log)
+        fig, imgs, seed1, rate = _one(v, width, height, spp, repeat, log)
         if i == 0:
-            ref = (imgs, seed1)
+            ref, first_rate = (imgs, seed1), rate
             if save is not None:
                 buf = io.BytesIO()  # written whole and atomically (bench.io.atomic), never half a file
                 np.savez_compressed(buf, **imgs, **{f"seed1_{k}": a for k, a in seed1.items()})
@@ -93,7 +97,7 @@ def perf_variants(variants: list[str], width: int = 640, height: int = 480, spp:
                 fig["images_vs_saved"] = compare_images(imgs, *other)
         else:
             fig["images_vs_first"] = compare_images(imgs, *ref)
-            fig["throughput_ratio_vs_first"] = fig["samples_per_s"] / out["variants"][0]["samples_per_s"]
+            fig["throughput_ratio_vs_first"] = rate / first_rate
         for what, cmp in (("first", fig.get("images_vs_first")), ("saved", fig.get("images_vs_saved"))):
             if cmp:
                 eq = min(c["frac_pixels_equal"] for c in cmp.values())

@@ -14,6 +14,7 @@ import pandas as pd
 
 from platebench.bench.config.axes import PARAMETERS, parameter_label
 from platebench.bench.io.layout import RECON, method_folder
+from platebench.bench.io.sweep_records import BEND_COLUMN, VERDICT_COLUMN
 from platebench.bench.report import plots as P
 from platebench.bench.report import summary as S
 from platebench.bench.report.inputs import load_results, read_manifest, records, sample_folder
@@ -212,7 +213,7 @@ def _bar_table(summ: dict) -> dict:
 # ----------------------------------------------------------------------------- bend
 def _bend_part(page: Page, frame: pd.DataFrame, name: str, prefix: str) -> dict:
     """Error and detection against the bend angle, when the sweep has more than one bend."""
-    if "bend_deg" not in frame.columns or frame["bend_deg"].round(6).nunique() < 2:
+    if BEND_COLUMN not in frame.columns or frame[BEND_COLUMN].round(6).nunique() < 2:
         return {"bend_plots": [], "bend_table": None, "detection": None}
     rows = records(frame)
     plots = [page.plot(f"{prefix}error_vs_bend", P.plot_error_vs_bend, rows, title=f"{name}: error against bend angle",
@@ -223,18 +224,18 @@ def _bend_part(page: Page, frame: pd.DataFrame, name: str, prefix: str) -> dict:
                                "bend down; dots are samples, lines join the median per bend; red crosses on the "
                                "bottom edge mark failed rows at that bend.")]
     detection = None
-    det = frame[frame["false_boundary_detected"].notna()] if "false_boundary_detected" in frame.columns \
+    det = frame[frame[VERDICT_COLUMN].notna()] if VERDICT_COLUMN in frame.columns \
         else frame.iloc[:0]
     if len(det):
         plots.append(page.plot(f"{prefix}detection_vs_bend", P.plot_detection_vs_bend, records(det),
-                               flags=("false_boundary_detected",),
+                               flags=(VERDICT_COLUMN,),
                                title=f"{name}: false-boundary detection against ground truth",
                                caption="Precision and recall (0..1) of the pipeline's false-boundary verdict "
                                        "against ground-truth boundary visibility, per bend-angle bin (degrees, n = "
                                        "cases in the bin); grey bars: fraction of cases in the bin with a "
                                        "ground-truth false boundary. A gap means undefined (no positive verdict, "
                                        "or no ground-truth positive, in that bin)."))
-        detection = S.precision_recall(det, "false_boundary_detected")
+        detection = S.precision_recall(det, VERDICT_COLUMN)
     return {"bend_plots": plots, "bend_table": _bend_table(frame), "detection": detection}
 
 

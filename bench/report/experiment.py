@@ -16,6 +16,7 @@ from pathlib import Path
 from platebench.bench.config import SampleConfig
 from platebench.bench.config.axes import PARAMETERS, parameter_columns
 from platebench.bench.io.records import compare_methods, score_record
+from platebench.bench.io.report_records import FalseBoundaryRecord, RunTimings, boundary_hidden, visibility_records
 from platebench.bench.report import plots as P
 from platebench.bench.report.inputs import (
     load_compare,
@@ -138,7 +139,8 @@ def _score_tables(score: dict) -> list[dict]:
     """Every figure of score.json, one key/value table per part (units in the keys)."""
     tables = []
     loose = {k: v for k, v in score.items() if not isinstance(v, dict)}
-    for part, body in [("score", loose)] + [(k, v) for k, v in score.items() if isinstance(v, dict)]:
+    parts = [(k, v) for k, v in score.items() if isinstance(v, dict) and k != "per_point"]  # per point: the error map
+    for part, body in [("score", loose)] + parts:
         flat = _flatten(body)
         if flat:
             tables.append({"title": part.replace("_", " "), "rows": list(flat.items())})
@@ -154,12 +156,13 @@ def _visibility(sample: Path) -> str | None:
     path = sample / "gt" / "visibility.json"
     if not path.is_file():
         return None
-    vis = read_json(path, "visibility record")
-    if not isinstance(vis, dict):
+    doc = read_json(path, "visibility record")
+    if not isinstance(doc, dict):
         return None
-    parts = [f"{cam} sees {fmt(100 * v['visible_fraction'], 3)} %" for cam, v in vis.items()
-             if isinstance(v, dict) and finite(v.get("visible_fraction")) is not None]
-    hidden = any(isinstance(v, dict) and v.get("false_boundary") for v in vis.values())
+    vis = visibility_records(doc)
+    parts = [f"{cam} sees {fmt(100 * v.visible_fraction, 3)} %" for cam, v in vis.items()
+             if finite(v.visible_fraction) is not None]
+    hidden = boundary_hidden(vis)
     return ("part of the true boundary is hidden (a false boundary): " if hidden else
             "the whole true boundary is visible: ") + ", ".join(parts)
 
@@ -167,9 +170,8 @@ def _visibility(sample: Path) -> str | None:
 def _sample_part(page: Page, sample: Path, prefix: str, thumbs: bool = True) -> dict:
     meta = load_sample_meta(sample)
     config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
-    timings = meta.get("timings_s") if isinstance(meta.get("timings_s"), dict) else {}
     return {"href": page.link(sample), "rel": page.rel(sample), "facts": _config_facts(config),
-            "variant": meta.get("variant"), "render_s": timings.get("total_s"),
+            "variant": meta.get("variant"), "render_s": RunTimings.of(meta).total_s,
             "visibility": _visibility(sample), "reference": is_reference(config),
             "thumbs": page.thumbnails(sample) if thumbs else [],
             "packages": [(k, v if v is not None else "not installed")
@@ -187,17 +189,16 @@ def sample_section(page: Page, sample: Path, prefix: str) -> dict:
 
 def _recon_facts(meta: dict) -> list[tuple[str, object]]:
     """What recon.json (the paper's pipeline) says of itself; [] for other methods' folders."""
-    fb = meta.get("false_boundary") if isinstance(meta.get("false_boundary"), dict) else {}
-    timings = meta.get("timings_s") if isinstance(meta.get("timings_s"), dict) else {}
     if not meta:
         return []
+    fb = FalseBoundaryRecord.of(meta) or FalseBoundaryRecord()
     return [("points triangulated", meta.get("n_points")), ("boundary points", meta.get("n_boundary_points")),
-            ("squares detected per image", ", ".join(f"{k} {v}" for k, v in (fb.get("detected") or {}).items())),
-            ("squares expected (method)", fb.get("expected")), ("counting test", fb.get("counting_test")),
-            ("arrays disagree (Fig. 2)", fb.get("arrays_disagree")),
-            ("false boundary detected", fb.get("false_boundary_detected")),
+            ("squares detected per image", fb.detected_text() or ""),
+            ("squares expected (method)", fb.expected), ("counting test", fb.counting_test),
+            ("arrays disagree (Fig. 2)", fb.arrays_disagree),
+            ("false boundary detected", fb.false_boundary_detected),
             ("unmatched", ", ".join(map(str, meta.get("unmatched") or [])) or None),
-            ("reconstruction time (s)", timings.get("total_s"))]
+            ("reconstruction time (s)", RunTimings.of(meta).total_s)]
 
 
 def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True) -> dict:

@@ -42,7 +42,9 @@ import pyarrow.parquet as pq
 from platebench.bench.config.axes import PARAMETERS
 from platebench.bench.files import JSON_MAX_BYTES, read_capped
 from platebench.bench.io.layout import FORMAT, MANIFEST, RESULTS_CSV, RESULTS_PARQUET, SAMPLES
+from platebench.bench.io.images import DatasetError
 from platebench.bench.io.outputs import GENERATOR_REPORT, KINDS
+from platebench.bench.io.table_checksums import verify_table
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS
 
@@ -398,6 +400,10 @@ def load_results(dataset: Path) -> tuple[pd.DataFrame | None, str]:
     path = next((d / n for n in (RESULTS_PARQUET, RESULTS_CSV) if (d / n).is_file()), None)
     if path is None:
         return None, ""
+    try:
+        verify_table(path)
+    except DatasetError as e:
+        raise ReportInputError(str(e)) from None
     frame = _check_table(_read_table(path), path)
     for i, sid in enumerate(frame["sample_id"]):
         where = f"{path}: {'line' if path.suffix == '.csv' else 'row'} {i + 2 if path.suffix == '.csv' else i + 1}"

@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 
 from platebench.bench.io.records import study_extras
+from platebench.bench.io.report_records import SensingRun, SensingStep, StudyCase, boundary_hidden
 from platebench.bench.report import plots as P
 from platebench.bench.report.inputs import load_sensing, load_study
 from platebench.bench.report.page import column_label
@@ -52,13 +53,14 @@ def _series(rows: list[dict]) -> tuple:
 
 
 def _study_figures(rows: list[dict]) -> list[dict]:
-    ok = [r for r in rows if (r.get("status") or "ok") == "ok"]
-    times = [t for t in (finite(r.get("time_s")) for r in rows) if t is not None]
+    cases = [StudyCase.from_dict(r) for r in rows]
+    ok = [c for c in cases if (c.status or "ok") == "ok"]
+    times = [t for t in (finite(c.time_s) for c in cases) if t is not None]
     figs = [{"label": "cases", "value": len(rows)}, {"label": "reconstructed", "value": len(ok), "status": "good"},
             {"label": "failed", "value": len(rows) - len(ok), "status": "bad" if len(rows) > len(ok) else ""},
-            {"label": "GT false boundary", "value": sum(flag(r.get("false_boundary_gt")) is True for r in rows)},
-            {"label": "detected", "value": sum(flag(r.get("detected")) is True for r in rows)}]
-    outcomes = [r["outcome"] for r in rows if isinstance(r.get("outcome"), str)]
+            {"label": "GT false boundary", "value": sum(flag(c.false_boundary_gt) is True for c in cases)},
+            {"label": "detected", "value": sum(flag(c.detected) is True for c in cases)}]
+    outcomes = [c.outcome for c in cases if isinstance(c.outcome, str)]
     figs += [{"label": k, "value": outcomes.count(k)} for k in dict.fromkeys(outcomes)]
     if times:
         figs.append({"label": "total time", "value": round(sum(times), 1), "unit": "s"})
@@ -183,47 +185,45 @@ def _constant_columns(rows: list[dict]) -> list[str]:
 
 # ----------------------------------------------------------------------------- sensing run
 def _step_row(step: dict) -> dict:
-    fb = step.get("false_boundary") if isinstance(step.get("false_boundary"), dict) else {}
-    vis = step.get("gt_visibility") if isinstance(step.get("gt_visibility"), dict) else {}
-    pose = step.get("pose") if isinstance(step.get("pose"), dict) else {}
-    what = f"stage {step['stage']}" if "stage" in step else str(step.get("decision", ""))
-    if step.get("method") is not None:
-        what += f" (cure {step['method']})"
-    return {"step": what, "distance (m)": pose.get("distance_m"),
-            "squares detected": ", ".join(f"{k} {v}" for k, v in (fb.get("detected") or {}).items()) or None,
-            "squares expected": fb.get("expected"), "matched": step.get("matched"),
-            "false boundary detected": fb.get("false_boundary_detected"),
-            "GT visible L": (vis.get("left") or {}).get("visible_fraction"),
-            "GT visible R": (vis.get("right") or {}).get("visible_fraction"),
-            "reason": step.get("reason") or pose.get("reason")}
+    st = SensingStep.from_dict(step)
+    fb, vis = st.false_boundary, st.gt_visibility
+    what = f"stage {st.stage}" if "stage" in step else str(step.get("decision", ""))
+    if st.method is not None:
+        what += f" (cure {st.method})"
+    return {"step": what, "distance (m)": st.distance_m,
+            "squares detected": fb.detected_text() if fb else None,
+            "squares expected": fb.expected if fb else None, "matched": st.matched,
+            "false boundary detected": fb.false_boundary_detected if fb else None,
+            "GT visible L": vis["left"].visible_fraction if "left" in vis else None,
+            "GT visible R": vis["right"].visible_fraction if "right" in vis else None,
+            "reason": st.reason or st.pose_reason}
 
 
 def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
     """The sensing run of ``sensing_dir`` (its sensing.json) as a generic section dict."""
     doc = load_sensing(sensing_dir)
-    final = doc.get("final") or {}
-    fb = final.get("false_boundary") if isinstance(final.get("false_boundary"), dict) else {}
-    vis = final.get("gt_visibility") if isinstance(final.get("gt_visibility"), dict) else {}
-    acc = final.get("accuracy") if isinstance(final.get("accuracy"), dict) else {}
-    outcome = doc.get("outcome", final.get("outcome"))
-    figures = [{"label": "cures", "value": doc.get("cures")},
-               {"label": "points matched", "value": final.get("matched")},
-               {"label": "false boundary detected", "value": fb.get("false_boundary_detected"),
-                "status": "bad" if fb.get("false_boundary_detected") else "good"}]
-    if "boundary_verified" in final:
-        figures.append({"label": "boundary verified", "value": final["boundary_verified"]})
-    figures += [{"label": f"GT: {cam} camera sees", "value": (v or {}).get("visible_fraction"),
+    run = SensingRun.from_dict(doc)
+    final = run.final
+    detected = final.false_boundary.false_boundary_detected if final.false_boundary else None
+    vis = final.gt_visibility
+    outcome = run.outcome
+    figures = [{"label": "cures", "value": run.cures},
+               {"label": "points matched", "value": final.matched},
+               {"label": "false boundary detected", "value": detected, "status": "bad" if detected else "good"}]
+    if "boundary_verified" in (doc.get("final") or {}):
+        figures.append({"label": "boundary verified", "value": final.boundary_verified})
+    figures += [{"label": f"GT: {cam} camera sees", "value": v.visible_fraction,
                  "unit": "fraction of the boundary"} for cam, v in vis.items()]
-    figures += [{"label": column_label(k), "value": v} for k, v in acc.items()]
-    if finite(doc.get("time_s")) is not None:
-        figures.append({"label": "time", "value": round(doc["time_s"], 1), "unit": "s"})
-    hidden = any(isinstance(v, dict) and v.get("false_boundary") for v in vis.values())
+    figures += [{"label": column_label(k), "value": v} for k, v in final.accuracy.items()]
+    if finite(run.time_s) is not None:
+        figures.append({"label": "time", "value": round(run.time_s, 1), "unit": "s"})
+    hidden = boundary_hidden(vis)
     summary = ((f"Outcome: {outcome}. " if outcome else "")
                + ("Ground truth: part of the true boundary is still hidden at the final pose. " if hidden else
                   "Ground truth: the final pose sees the whole true boundary. ")
-               + ("The loop reports a false boundary." if fb.get("false_boundary_detected") else
+               + ("The loop reports a false boundary." if detected else
                   "The loop reports no false boundary."))
-    steps = [s for s in doc.get("steps") or [] if isinstance(s, dict)]
+    steps = [s for s in doc.get("steps") or [] if isinstance(s, dict)]  # the table's rows, as the file holds them
     stages = sorted(p.name for p in Path(sensing_dir).glob("stage*") if p.is_dir())
     links = [{"label": "sensing.json", "path": "sensing.json"}] + [{"label": f"{n} folder", "path": n} for n in stages]
     return {"title": "Sensing run", "summary": summary, "outcome": outcome, "figures": figures,

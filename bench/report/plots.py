@@ -30,15 +30,18 @@ import numpy as np
 
 from platebench.bench.config.axes import parameter_label
 from platebench.bench.io.atomic import write_bytes
+from platebench.bench.io.sweep_records import BEND_COLUMN, TRUTH_COLUMN
 from platebench.bench.report.colours import colour_of
 from platebench.bench.report.summary import FAILURE_KINDS, axis_stats, precision_recall
 from platebench.bench.report.values import finite as _num
 from platebench.bench.report.values import flag as _flag
 from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label, metric_unit
+from platebench.evaluation.stats import ErrorStats
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
-           "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "bend_bins", "compare_error_figure", "plot_output_error_map",
+           "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "scored_per_point", "bend_bins",
+           "compare_error_figure", "plot_output_error_map",
            "output_file", "plot_accuracy_study", "LeftOut", "drawn"]
 
 DPI = 100
@@ -107,6 +110,11 @@ def _save(fig, path) -> Path:
 def _bend_key(v) -> float | None:
     x = _num(v)
     return None if x is None else round(x, 6)
+
+
+def _bend(row) -> float | None:
+    """A row's bend angle (degrees, rounded as ``_bend_key``; None when it has none)."""
+    return _bend_key(row.get(BEND_COLUMN))
 
 
 def _empty(ax, text: str) -> None:
@@ -179,12 +187,12 @@ def plot_error_vs_bend(rows, path, metrics=("centres_depth_rms_mm", "depth_rms_m
         drawn, allv = False, []
         for key in sorted(groups, key=lambda k: tuple(str(x) for x in k)):
             grp = groups[key]
-            pts = [(_bend_key(r.get("bend_deg")), _num(r.get(metric))) for r in grp if _ok(r)]
+            pts = [(_bend(r), _num(r.get(metric))) for r in grp if _ok(r)]
             pts = [(b, v) for b, v in pts if b is not None and v is not None]
             label = _series_label(key, tuple(series)).replace(", ", " / ") if key else metric
             color = colors.get(colour_key(key), "C0")
             ls = _DIRECTION_STYLE.get(str(key[d_at]) if d_at is not None else "", "-")
-            fails = sorted({_bend_key(r.get("bend_deg")) for r in grp if not _ok(r)} - {None})
+            fails = sorted({_bend(r) for r in grp if not _ok(r)} - {None})
             if pts:
                 b, v = np.array(pts).T
                 allv.extend(v.tolist())
@@ -226,14 +234,14 @@ def bend_bins(bends, max_bins: int = 10) -> np.ndarray:
 
 
 def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arrays_disagree"),
-                           gt_key: str = "false_boundary_gt", max_bins: int = 10, title: str | None = None,
+                           gt_key: str = TRUTH_COLUMN, max_bins: int = 10, title: str | None = None,
                            left_out: LeftOut | None = None) -> Path:
     """Precision and recall of each detection flag against ground truth, per bend-angle bin.
 
     Grey bars (right axis): fraction of cases in the bin with a ground-truth false boundary.
     Precision is undefined (gap) in a bin with no positive verdict, recall in a bin with no
     ground-truth positive. A panel undefined in every bin is left out (``left_out``, module doc)."""
-    rows = [r for r in (rows or []) if _bend_key(r.get("bend_deg")) is not None and _flag(r.get(gt_key)) is not None]
+    rows = [r for r in (rows or []) if _bend(r) is not None and _flag(r.get(gt_key)) is not None]
     flags = [f for f in flags if any(_flag(r.get(f)) is not None for r in rows)]
     if not rows or not flags:
         _nothing(left_out, "no case has both a ground-truth and a detection verdict")
@@ -242,7 +250,7 @@ def plot_detection_vs_bend(rows, path, flags=("detected", "counting_test", "arra
             _empty(ax, "no cases with both a ground-truth and a detection verdict")
         fig.tight_layout()
         return _save(fig, path)
-    bends = [_bend_key(r["bend_deg"]) for r in rows]
+    bends = [_bend(r) for r in rows]
     edges = bend_bins(bends, max_bins)
     idx = np.clip(np.digitize(bends, edges) - 1, 0, len(edges) - 2)
     centres = 0.5 * (edges[1:] + edges[:-1])
@@ -328,7 +336,7 @@ def plot_hidden_fraction_vs_bend(rows, path, smallest_hiding: dict | None = None
     one line per series (direction, and aspect / distance when they vary). Bottom: per case, ground
     truth (a false boundary exists) and the pipeline's verdict: filled = yes, hollow = no, grey
     x = no verdict (reconstruction failed)."""
-    rows = [r for r in (rows or []) if _bend_key(r.get("bend_deg")) is not None]
+    rows = [r for r in (rows or []) if _bend(r) is not None]
     series = tuple(series) or ("direction",)
     keyf = lambda r: tuple(r.get(k) for k in series)  # noqa: E731
     keys = sorted({keyf(r) for r in rows}, key=lambda k: tuple(str(x) for x in k))
@@ -344,16 +352,16 @@ def plot_hidden_fraction_vs_bend(rows, path, smallest_hiding: dict | None = None
     colors = dict(zip(keys, _colors(len(keys))))
     markers = "os^vD<>p"
     for j, key in enumerate(keys):
-        grp = sorted((r for r in rows if keyf(r) == key), key=lambda r: _bend_key(r["bend_deg"]))
+        grp = sorted((r for r in rows if keyf(r) == key), key=lambda r: _bend(r))
         label = _series_label(key, series)
-        pts = [(_bend_key(r["bend_deg"]), _hidden(r)) for r in grp]
+        pts = [(_bend(r), _hidden(r)) for r in grp]
         pts = [(b, h) for b, h in pts if h is not None]
         if pts:
             b, h = np.array(pts).T
             ax.plot(b, h, "-", marker=markers[j % len(markers)], color=colors[key], ms=4, lw=1.4,
                     label=f"{label}: worse camera")
         for side, mk in (("left", "<"), ("right", ">")):
-            p2 = [(_bend_key(r["bend_deg"]), _num(r.get(f"hidden_frac_{side}"))) for r in grp]
+            p2 = [(_bend(r), _num(r.get(f"hidden_frac_{side}"))) for r in grp]
             p2 = [(b, h) for b, h in p2 if h is not None]
             if p2 and len(keys) <= 4:
                 b, h = np.array(p2).T
@@ -374,14 +382,14 @@ def plot_hidden_fraction_vs_bend(rows, path, smallest_hiding: dict | None = None
     labels = []
     for j, key in enumerate(keys):
         name = _series_label(key, series)
-        for k, (what, get) in enumerate((("GT false boundary", lambda r: _flag(r.get("false_boundary_gt"))),
+        for k, (what, get) in enumerate((("GT false boundary", lambda r: _flag(r.get(TRUTH_COLUMN))),
                                          ("detected", _detected_any))):
             y = j * 2 + k
             labels.append((y, f"{name}: {what}"))
             for r in rows:
                 if keyf(r) != key:
                     continue
-                b, v = _bend_key(r["bend_deg"]), get(r)
+                b, v = _bend(r), get(r)
                 if v is None:
                     ev.plot(b, y, "x", color="0.5", ms=6)
                 else:
@@ -402,7 +410,7 @@ def plot_cure_success_vs_bend(rows, path, title: str | None = None, left_out: Le
     """Cases with a ground-truth false boundary: left, fraction of cases each cure removes it
     (the boundary fully visible at the new pose) per bend; right, hidden fraction (0..1) before
     and after each cure."""
-    rows = [r for r in (rows or []) if _bend_key(r.get("bend_deg")) is not None and _flag(r.get("false_boundary_gt"))]
+    rows = [r for r in (rows or []) if _bend(r) is not None and _flag(r.get(TRUTH_COLUMN))]
     cures = [("cure1", "cure 1: orient (look along the tangent)"), ("cure2", "cure 2: move back")]
     fig = _figure(10.0, 4.0)
     a1, a2 = fig.subplots(1, 2, sharex=True)
@@ -413,25 +421,25 @@ def plot_cure_success_vs_bend(rows, path, title: str | None = None, left_out: Le
             _empty(ax, "no case with a ground-truth false boundary and a cure result")
         fig.tight_layout()
         return _save(fig, path)
-    bends = sorted({_bend_key(r["bend_deg"]) for r in tried})
+    bends = sorted({_bend(r) for r in tried})
     for j, (c, label) in enumerate(cures):
         rate, ns = [], []
         for b in bends:
-            vals = [_flag(r.get(f"{c}_removed")) for r in tried if _bend_key(r["bend_deg"]) == b]
+            vals = [_flag(r.get(f"{c}_removed")) for r in tried if _bend(r) == b]
             vals = [v for v in vals if v is not None]
             rate.append(np.mean(vals) if vals else np.nan)
             ns.append(len(vals))
         off = (j - 0.5) * 0.6
         a1.plot(np.array(bends) + off, rate, "o-", ms=6, lw=1.4, color=f"C{j}", label=label)
-        pts = [(_bend_key(r["bend_deg"]), _num(r.get(f"{c}_hidden_frac"))) for r in tried]
+        pts = [(_bend(r), _num(r.get(f"{c}_hidden_frac"))) for r in tried]
         pts = sorted(((b, h) for b, h in pts if h is not None), key=lambda t: t[0])
         if pts:
             b, h = np.array(pts).T
             a2.plot(b + off, h, "o", ms=5, color=f"C{j}", label=f"after {c}")
-    for b, k in zip(bends, [sum(1 for r in tried if _bend_key(r["bend_deg"]) == b) for b in bends]):
+    for b, k in zip(bends, [sum(1 for r in tried if _bend(r) == b) for b in bends]):
         a1.annotate(f"n={k}", (b, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 3),
                     textcoords="offset points", ha="center", fontsize=6, color="0.4", annotation_clip=False)
-    before = sorted(((_bend_key(r["bend_deg"]), _hidden(r)) for r in tried if _hidden(r) is not None),
+    before = sorted(((_bend(r), _hidden(r)) for r in tried if _hidden(r) is not None),
                     key=lambda t: t[0])
     if before:
         b, h = np.array(before).T
@@ -808,51 +816,56 @@ def error_map_data(sample_dir, recon_dir) -> ErrorMapData:
     """What the error map shows (``ErrorMapData``), from a sample directory and a reconstruction
     directory (metres in, millimetres out): the GT outline, the reconstructed surface's vertices
     and faces with their exact distance to the GT mesh, the reconstructed boundary, and the square
-    centres with their 3D error against the true centre (projector ray through the feature centre
-    cut with the mesh; identity from the GT feature map at the left pixel), or, where the identity
-    is unknown, their distance to the true surface (``centre_kind`` says which)."""
-    from platebench.bench.io.images import read_npy, read_png  # noqa: PLC0415
+    centres with their 3D error against the true centre, or, where the identity is unknown, their
+    distance to the true surface (``centre_kind`` says which). The errors are the score's
+    (``evaluation.score.PerPointErrors``, ``scored_per_point``)."""
+    from platebench.bench.io.images import read_npy  # noqa: PLC0415
     from platebench.bench.io.recon_files import load_reconstruction  # noqa: PLC0415
-    from platebench.bench.io.sample_files import read_mesh  # noqa: PLC0415
-    from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
 
     sample_dir, recon_dir = Path(sample_dir), Path(recon_dir)
-    mesh = read_mesh(sample_dir / "plate.ply")
     gt_boundary = read_npy(sample_dir / "boundary.npy", (None, 3)) if (sample_dir / "boundary.npy").is_file() \
         else None
     rec = load_reconstruction(recon_dir)
+    has_surface = rec.surface is not None and len(rec.surface.vertices) > 0
+    per = scored_per_point(sample_dir, recon_dir, len(rec.points), len(rec.surface.vertices) if has_surface else 0)
     out = dict(gt_boundary=gt_boundary, rec_boundary=rec.boundary if len(rec.boundary) else None, centres=rec.points,
                feature_id=rec.feature_id)
-    if rec.surface is not None and len(rec.surface.vertices):
-        v = np.asarray(rec.surface.vertices, float)
-        out.update(surface_vertices=v, surface_faces=np.asarray(rec.surface.faces, int),
-                   surface_dist_mm=point_to_surface_distance(v, mesh) * 1e3)
+    mm = 1e3
+    if has_surface:
+        out.update(surface_vertices=np.asarray(rec.surface.vertices, float),
+                   surface_faces=np.asarray(rec.surface.faces, int), surface_dist_mm=per.surface_distance_m * mm)
     if len(rec.points):
-        err = point_to_surface_distance(rec.points, mesh) * 1e3
-        kind = np.full(len(rec.points), "surface", dtype="<U7")
-        try:
-            from platebench.bench.io.sample_files import load_calibration, load_pattern  # noqa: PLC0415
-            from platebench.evaluation.truth import (  # noqa: PLC0415
-                feature_at_pixels,
-                true_feature_points,
-            )
-            calib = load_calibration(sample_dir)
-            pattern = load_pattern(sample_dir)
-            ids = np.array([f.id for f in pattern.features])
-            centers = np.array([f.center for f in pattern.features], float).reshape(-1, 2)
-            true_pts = true_feature_points(mesh, calib.projector_camera, centers)
-            fmap = read_png(sample_dir / "gt" / "left_feature.png").astype(np.int32) - 1
-            gid = feature_at_pixels(fmap, rec.uv_left)
-            index = {int(i): k for k, i in enumerate(ids)}
-            for k, g in enumerate(gid):
-                j = index.get(int(g))
-                if j is not None and np.all(np.isfinite(true_pts[j])):
-                    err[k] = np.linalg.norm(rec.points[k] - true_pts[j]) * 1e3
-                    kind[k] = "3d"
-        except (OSError, ValueError, KeyError):  # no GT feature map / pattern: distances to the surface only
-            pass
-        out.update(centre_err_mm=err, centre_kind=kind)
+        out.update(centre_err_mm=per.centre_error_m * mm,
+                   centre_kind=np.where(per.centre_known, "3d", "surface").astype("<U7"))
     return ErrorMapData(**out)
+
+
+def scored_per_point(sample_dir, recon_dir, n_points: int, n_vertices: int):
+    """The per-point errors of a reconstruction (``evaluation.score.PerPointErrors``, metres) as
+    scored: read from its score.json (written by ``platebench evaluate`` and the sweep) when that
+    holds them for ``n_points`` centres and ``n_vertices`` surface vertices; otherwise (not evaluated
+    yet) the score of ``bench.run.score.score_files``. Raises what scoring raises (``DatasetError``,
+    a ``ValueError``, on files that cannot be read or a reconstruction not made from the sample)."""
+    from platebench.bench.io.records import score_record  # noqa: PLC0415
+    from platebench.bench.io.sample_files import read_json  # noqa: PLC0415
+    from platebench.evaluation.score import PerPointErrors  # noqa: PLC0415
+
+    def fits(per) -> bool:
+        surf = per.surface_distance_m
+        return len(per.centre_error_m) == n_points and (len(surf) if surf is not None else 0) == n_vertices
+
+    path = Path(recon_dir) / "score.json"
+    if path.is_file():
+        try:
+            per = score_record(read_json(path)).per_point
+        except ValueError:  # not the paper's score.json layout
+            per = None
+        if per is not None and fits(per):
+            return per
+    from platebench.bench.run.score import score_files  # noqa: PLC0415
+
+    per = score_files(Path(sample_dir), Path(recon_dir)).per_point
+    return per if per is not None else PerPointErrors(np.zeros(0), np.zeros(0, bool))
 
 
 def _outline(ax, d: ErrorMapData) -> None:
@@ -872,8 +885,8 @@ def _draw_surface_panel(fig, ax, d: ErrorMapData) -> None:
         im = ax.tripcolor(Triangulation(v[:, 0], v[:, 1], d.surface_faces), dist, shading="gouraud",
                           cmap="viridis", vmin=0.0, vmax=max(vmax, _MIN_COLOUR_RANGE_MM))
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="distance to true surface (mm)")
-        ax.set_title(f"surface: RMS {np.sqrt(np.mean(dist ** 2)):.3f} mm, max {dist.max():.3f} mm "
-                     f"({len(v)} vertices)", fontsize=9)
+        st = ErrorStats.from_abs(dist, name="surface distance")
+        ax.set_title(f"surface: RMS {st.rms:.3f} mm, max {st.max:.3f} mm ({len(v)} vertices)", fontsize=9)
     else:
         ax.set_title("no reconstructed surface", fontsize=9)
     _outline(ax, d)
@@ -906,7 +919,7 @@ def _draw_centres_panel(fig, ax, d: ErrorMapData) -> None:
     if len(p) <= 40:
         for (x, y, _), e in zip(p, err):
             ax.annotate(f"{e:.2f}", (x, y), xytext=(0, 7), textcoords="offset points", ha="center", fontsize=6)
-    rms = float(np.sqrt(np.mean(err[three] ** 2))) if three.any() else float("nan")
+    rms = ErrorStats.from_abs(err[three], name="centre error").rms if three.any() else float("nan")
     ax.set_title(f"square centres: {len(p)} points, 3D RMS {rms:.3f} mm", fontsize=9)
     ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.85)
 
@@ -987,7 +1000,7 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
     black. Files that cannot be read give a figure saying so."""
     from platebench.bench.io.field_truth import load_field_truth  # noqa: PLC0415
     from platebench.bench.io.method_outputs import read_depth, read_disparity, read_mesh, read_points  # noqa: PLC0415
-    from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
+    from platebench.evaluation.error_maps import depth_error_map, point_distance_map  # noqa: PLC0415
 
     fig = _figure(7.5, 5.4)
     ax = fig.add_subplot(111)
@@ -1008,8 +1021,8 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
                 raise ValueError(f"{file}: {z.shape[1]}x{z.shape[0]} px, the sample is "
                                  f"{truth.shape[1]}x{truth.shape[0]}")
             mask = truth.mask
-            with np.errstate(invalid="ignore"):  # inf - inf off the plate, masked out
-                err = np.where(mask & np.isfinite(z) & (z > 0), (z - truth.depth) * 1e3, np.nan)
+            scored = depth_error_map(z, truth.depth, mask)
+            err = scored.error_m * 1e3
             vs, us = np.nonzero(mask)
             v0, v1 = max(vs.min() - 5, 0), min(vs.max() + 6, mask.shape[0])
             u0, u1 = max(us.min() - 5, 0), min(us.max() + 6, mask.shape[1])
@@ -1018,18 +1031,16 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
             ax.imshow(np.where(mask, 0.45, 0.05)[v0:v1, u0:u1], cmap="gray", vmin=0, vmax=1, interpolation="nearest")
             im = ax.imshow(err[v0:v1, u0:u1], cmap="coolwarm", vmin=-lim, vmax=lim, interpolation="nearest")
             fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="Z_est - Z_gt (mm)")
-            rms = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
+            e = scored.errors
             ax.set_title(f"left view, {kind}: depth error over the plate's pixels, median "
-                         f"{np.median(a) if a.size else float('nan'):.3g} / RMS {rms:.3g} mm, coverage "
-                         f"{a.size / max(int(mask.sum()), 1):.3f}", fontsize=8)
+                         f"{e.median_m * 1e3:.3g} / RMS {e.rms_m * 1e3:.3g} mm, coverage "
+                         f"{scored.coverage_frac:.3f}", fontsize=8)
             ax.set_xticks([])
             ax.set_yticks([])
         elif kind in ("points", "mesh"):
-            P = np.asarray(read_points(file) if kind == "points" else read_mesh(file).vertices, np.float64)
-            P = P[np.all(np.isfinite(P), axis=1)]
-            if len(P) > _MAX_MAP_POINTS:
-                P = P[np.random.default_rng(0).choice(len(P), _MAX_MAP_POINTS, replace=False)]
-            dist = point_to_surface_distance(P, truth.mesh) * 1e3
+            scored = point_distance_map(read_points(file) if kind == "points" else read_mesh(file).vertices,
+                                        truth.mesh, _MAX_MAP_POINTS, seed=0)
+            P, dist = scored.points, scored.distance_m * 1e3
             boundary = Path(sample_dir) / "boundary.npy"
             if boundary.is_file():
                 b = np.load(boundary) * 1e3
@@ -1040,8 +1051,8 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
             ax.set_aspect("equal")
             ax.set_xlabel("world X (mm)")
             ax.set_ylabel("world Y (mm)")
-            ax.set_title(f"{kind} ({len(P)} shown): distance to the true surface, median {np.median(dist):.3g} / "
-                         f"RMS {np.sqrt(np.mean(dist * dist)):.3g} mm", fontsize=8)
+            ax.set_title(f"{kind} ({len(P)} shown): distance to the true surface, median "
+                         f"{scored.errors.median_m * 1e3:.3g} / RMS {scored.errors.rms_m * 1e3:.3g} mm", fontsize=8)
         else:
             raise ValueError(f"{file}: kind {kind!r} has no error map")
     except (OSError, ValueError) as e:  # missing or damaged files (DatasetError is a ValueError)

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from platebench.bench.config.axes import PARAMETERS, axis_column
+from platebench.bench.io.sweep_records import BEND_COLUMN, TRUTH_COLUMN
 from platebench.bench.report.inputs import FLAG_COLUMNS, NUMBER_COLUMNS, TEXT_COLUMNS
 from platebench.bench.report.values import flag
 from platebench.evaluation.detection import detection_score
@@ -144,7 +145,7 @@ def failure_table(frame: pd.DataFrame, keys) -> pd.DataFrame:
 def by_bend(frame: pd.DataFrame, metrics=(*DEPTH_METRICS, "boundary_mean_mm")) -> pd.DataFrame:
     """Per bend angle (deg, rounded to 1e-6) and method: the median of each metric over the ok rows,
     and the failure counts. Indexed by (bend_deg, method), bends ascending."""
-    bend = frame["bend_deg"].round(6).rename("bend_deg")
+    bend = frame[BEND_COLUMN].round(6).rename(BEND_COLUMN)
     ok = ok_mask(frame)
     metrics = [m for m in metrics if _has_values(frame, m)]
     med = frame[metrics].where(ok).groupby([bend, frame["method"]]).median()
@@ -257,7 +258,7 @@ def swept_axes(manifest: dict, frame: pd.DataFrame) -> tuple[list[str], dict]:
     return [c for c in chosen if c not in REPLICATE_AXES], varying
 
 
-def precision_recall(rows, verdict: str, truth: str = "false_boundary_gt") -> dict:
+def precision_recall(rows, verdict: str, truth: str = TRUTH_COLUMN) -> dict:
     """TP/FP/FN/TN, precision and recall of the flag ``verdict`` against ``truth`` over the rows
     (dicts or a frame) where both are flags; precision/recall None where undefined
     (``evaluation.detection.detection_score``)."""

@@ -27,9 +27,10 @@ trial here does the same under a realism preset (``bench.config.realism``):
 A draw whose estimates cannot be used (a calibration that fits a lens folding over inside the image,
 views that do not determine the mount) is recorded as failed with the reason, in every target.
 
-Statistics. Per trial: the worst corner (or centre) in depth and in x/y (the larger of |x| and |y|),
-because the paper's "within" is one trial's worst. Over the draws: the median of those worst values
-and its quantiles, and over all corners of all draws the RMS, the 95th percentile and the maximum.
+Scoring (``evaluation.accuracy``: the matching, the statistics and the paper's bound). Per trial: the
+worst corner (or centre) in depth and in x/y (the larger of |x| and |y|), because the paper's "within"
+is one trial's worst. Over the draws: the median of those worst values and its quantiles, and over all
+corners of all draws the RMS, the 95th percentile and the maximum.
 
 Error budget (``budget_configs``): no source, each source alone, every source, and every source but
 one, all on the same draws (each source draws the same numbers whichever others are on).
@@ -38,7 +39,7 @@ Cost: the calibration views are simulated (their corners projected, with the cor
 once on rendered target images: ``RealismSetup.prepare``), so a draw costs one IK per robot move and
 two (block) or four (plate) renders. The renders' Monte Carlo noise sits at the edges the block's
 corners are fitted to (pixel coverage sampled ``spp`` times): it is part of the "no source" row, the
-floor every other row stands on, and shrinks with ``spp`` (module ``bench.cli.study``: the measured
+floor every other row stands on, and shrinks with ``spp`` (docs/findings/real-rigs.md gives the
 floor at spp 4, 16, 64). Units: metres in code and JSON keys ending _m; millimetres only in
 keys ending _mm.
 """
@@ -69,6 +70,16 @@ from platebench.bench.io.accuracy_records import (
 )
 from platebench.bench.run.realism import RealismSetup, realise
 from platebench.bench.run.render import render_images
+from platebench.evaluation.accuracy import (
+    MATCH_SPACING_FRACTION,
+    PAPER_DEPTH_MM,
+    PAPER_XY_MM,
+    TrialScore,
+    identify_in_image,
+    nearest_order,
+    score_trial,
+    summarise_trials,
+)
 from platebench.evaluation.truth import true_feature_points
 from platebench.plates import build_plate
 from platebench.reconstruction.paper.pipeline import passive_stereo, square_stereo
@@ -83,18 +94,11 @@ from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.robot import invert_pose
 from platebench.scenes.scene_spec import RenderSettings
 
-__all__ = ["PAPER_DEPTH_MM", "PAPER_XY_MM", "TARGETS", "CORNER_METHODS", "block_corners", "AccuracySettings", "BudgetConfig", "budget_configs",
+__all__ = ["TARGETS", "CORNER_METHODS", "block_corners", "AccuracySettings", "BudgetConfig", "budget_configs",
            "run_accuracy_study", "SquareTarget", "summarise", "dominant_sources", "accuracy_csv"]
 
-PAPER_DEPTH_MM = 2.0  # paper V-D: "the error in depth ... is within 2 mm"
-PAPER_XY_MM = 1.0  # paper V-D: "the error in the x and y coordinates is within 1 mm"
 TARGETS = ("block", "plate")
 CORNER_METHODS = ("edges", "pixels")  # how the block's corners are located (``block_corners``)
-QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
-# a measured plate centre is the true one whose image (through the camera really posed) lies nearest its
-# pixel, within this fraction of the true centres' smallest spacing in that image: identified in the image,
-# where the robot's error does not move it, not in space, where it can move a centre past its neighbour
-MATCH_SPACING_FRACTION = 0.3
 
 
 @dataclass(frozen=True)
@@ -137,15 +141,6 @@ class SquareTarget:
 
 
 # -- one trial -------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class TrialErrors:
-    """What one trial measured: each point's error (measured minus true, metres, (N, 3): x, y, z in
-    the block's frame or the world's) and the points compared."""
-
-    errors_m: np.ndarray
-    points: int
-
-
 def block_corners(image: np.ndarray, name: str, method: str = "edges") -> np.ndarray:
     """(4,2) the square's corners (TL, TR, BR, BL) in ``image`` (pixels) by ``method``
     (``CORNER_METHODS``): "edges", the intersections of the lines fitted to its four edges
@@ -159,7 +154,7 @@ def block_corners(image: np.ndarray, name: str, method: str = "edges") -> np.nda
     return region.corners.astype(float) if method == "pixels" else outline_edges(image, region).corners
 
 
-def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int, corner_method: str = "edges") -> TrialErrors:
+def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int, corner_method: str = "edges") -> TrialScore:
     scene = cfg.scene.build().with_rig(acq.taken)
     square = SquareTarget.of(acq.T_world_block, TARGET.square_block())
     renderer.set_scene(scene)
@@ -177,11 +172,11 @@ def _block_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, seed: int, cor
     p_block = p_world @ T_block_world[:3, :3].T + T_block_world[:3, 3]
     # the true corners in the order the images give them (TL, TR, BR, BL in the true left image)
     true_uv = acq.taken.left.project(square.corners_world)
-    order = [int(np.argmin(np.linalg.norm(true_uv - c, axis=1))) for c in order_corners(true_uv)]
-    return TrialErrors(p_block - TARGET.square_block()[order], 4)
+    order = nearest_order(true_uv, order_corners(true_uv))
+    return score_trial(p_block - TARGET.square_block()[order], 4)
 
 
-def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: int) -> TrialErrors:
+def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: int) -> TrialScore:
     base = cfg.scene.build()
     scene = base.with_rig(acq.taken)
     proj = base.projector
@@ -200,61 +195,46 @@ def _plate_trial(cfg: SampleConfig, acq, renderer: PlateRenderer, plate, seed: i
     # the square's identity from where it appears: the true centres seen by the camera really posed, in the
     # pixels the method works in (undistorted with the told lens onto the told intrinsics' pinhole), against
     # the measured centres' left pixels; each true centre taken by its nearest measured one only
+    # (``evaluation.accuracy.identify_in_image``)
     seen = replace(acq.taken.left, K=acq.told.left.K).pinhole
-    true_uv = seen.project(truth)
-    gaps = np.linalg.norm(true_uv[:, None] - true_uv[None], axis=2)
-    spacing = float(np.min(gaps[~np.eye(len(truth), dtype=bool)]))
-    d = np.linalg.norm(np.asarray(rec.uv_left, float)[:, None] - true_uv[None], axis=2)
-    near = d.argmin(axis=1)
-    dist = d[np.arange(len(near)), near]
-    ok = dist <= MATCH_SPACING_FRACTION * spacing
-    for j in np.unique(near[ok]):  # two measured centres on one true one: the nearer stands for it
-        dup = np.flatnonzero(ok & (near == j))
-        ok[dup[np.argsort(dist[dup])[1:]]] = False
-    if not ok.any():
+    match = identify_in_image(rec.uv_left, seen.project(truth), MATCH_SPACING_FRACTION)
+    if not match.ok.any():
         raise ReconstructionError(f"no measured square centre appears within {MATCH_SPACING_FRACTION:g} of the "
-                                  f"centres' spacing ({spacing:.1f} px) of a true one in the left image")
-    errs = rec.points[ok] - truth[near[ok]]
-    return TrialErrors(errs, int(ok.sum()))
+                                  f"centres' spacing ({match.spacing_px:.1f} px) of a true one in the left image")
+    return score_trial(rec.points[match.ok] - truth[match.index[match.ok]], int(match.ok.sum()))
 
 
-def _trial_row(target: str, conf: BudgetConfig, seed: int, out: TrialErrors | None, error: str | None,
+def _trial_row(target: str, conf: BudgetConfig, seed: int, out: TrialScore | None, error: str | None,
                time_s: float | None, acquisition) -> AccuracyTrial:
     row = dict(target=target, config=conf.label, kind=conf.kind, realism=conf.realism.name,
                sources=" ".join(conf.realism.sources), seed=seed, time_s=time_s, acquisition=acquisition)
     if out is None:
         return AccuracyTrial(**row, status="failed", error=error)
-    e = np.asarray(out.errors_m, float)
+    mm = 1e3
     return AccuracyTrial(**row, status="ok", error=None, points=int(out.points),
-                         worst_depth_mm=float(np.max(np.abs(e[:, 2])) * 1e3),
-                         worst_xy_mm=float(np.max(np.abs(e[:, :2])) * 1e3),
-                         rms_depth_mm=float(np.sqrt(np.mean(e[:, 2] ** 2)) * 1e3),
-                         rms_xy_mm=float(np.sqrt(np.mean(e[:, :2] ** 2)) * 1e3),
-                         mean_depth_mm=float(np.mean(e[:, 2]) * 1e3),
-                         errors_mm=tuple(map(tuple, np.round(e * 1e3, 5).tolist())))
+                         worst_depth_mm=out.worst_depth_m * mm, worst_xy_mm=out.worst_xy_m * mm,
+                         rms_depth_mm=out.rms_depth_m * mm, rms_xy_mm=out.rms_xy_m * mm,
+                         mean_depth_mm=out.mean_depth_m * mm,
+                         errors_mm=tuple(map(tuple, np.round(out.errors_m * mm, 5).tolist())))
 
 
 # -- statistics ------------------------------------------------------------------------
+def _error_stats(s) -> ErrorStats:
+    """An ``evaluation.accuracy.WorstCaseStats`` (millimetres) as the study's record."""
+    return ErrorStats(worst_median_mm=s.worst_median, worst_quantiles_mm=dict(s.worst_quantiles), rms_mm=s.rms,
+                      p95_mm=s.p95, max_mm=s.max, within_paper_frac=s.within_bound_frac, mean_signed_mm=s.mean_signed)
+
+
 def summarise(rows: list[AccuracyTrial], kind: str = "", sources: tuple = ()) -> ConfigSummary:
-    """Statistics of one configuration's trials (see the module doc; millimetres), of a budget
-    row of ``kind`` with ``sources`` on."""
+    """Statistics of one configuration's trials (``evaluation.accuracy.summarise_trials``;
+    millimetres), of a budget row of ``kind`` with ``sources`` on."""
     ok = [r for r in rows if r.ok]
     if not ok:
         return ConfigSummary(kind, tuple(sources), len(rows), len(rows))
-    e = np.concatenate([np.asarray(r.errors_mm, float) for r in ok])
-    depth, xy = np.abs(e[:, 2]), np.abs(e[:, :2]).ravel()
-    stats = {}
-    for name, worst, pooled in (("depth", [r.worst_depth_mm for r in ok], depth),
-                                ("xy", [r.worst_xy_mm for r in ok], xy)):
-        w = np.asarray(worst)
-        stats[name] = ErrorStats(
-            worst_median_mm=float(np.median(w)),
-            worst_quantiles_mm={f"q{int(q * 100):02d}": float(np.quantile(w, q)) for q in QUANTILES},
-            rms_mm=float(np.sqrt(np.mean(pooled ** 2))), p95_mm=float(np.quantile(pooled, 0.95)),
-            max_mm=float(pooled.max()),
-            within_paper_frac=float(np.mean(w <= (PAPER_DEPTH_MM if name == "depth" else PAPER_XY_MM))),
-            mean_signed_mm=float(np.mean(e[:, 2])) if name == "depth" else None)
-    return ConfigSummary(kind, tuple(sources), len(rows), len(rows) - len(ok), **stats)
+    s = summarise_trials([r.worst_depth_mm for r in ok], [r.worst_xy_mm for r in ok], [r.errors_mm for r in ok],
+                         PAPER_DEPTH_MM, PAPER_XY_MM)
+    return ConfigSummary(kind, tuple(sources), len(rows), len(rows) - len(ok), depth=_error_stats(s.depth),
+                         xy=_error_stats(s.xy))
 
 
 # -- the study ---------------------------------------------------------------------------

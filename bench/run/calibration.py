@@ -61,9 +61,7 @@ from platebench.evaluation.score import Score, score_reconstruction
 from platebench.errors import UserValueError
 from platebench.reconstruction.calibration import (
     StereoCalibration,
-    StructuredLightCalibration,
     calibrate_camera,
-    calibrate_structured_light,
     detect_charuco,
     distortion_explained_px,
     distortion_is_needed,
@@ -76,6 +74,7 @@ from platebench.reconstruction.paper.pipeline import (
     projector_feature_rays,
     reconstruct,
 )
+from platebench.reconstruction.paper.structured_light import StructuredLightCalibration, calibrate_structured_light
 from platebench.scenes.naming import image_seed
 from platebench.scenes.render.board_renderer import (
     BoardRenderer,
@@ -413,3 +412,25 @@ def load_estimated_calibration(path: Path) -> tuple[StereoRig, FeatureRays]:
     except (KeyError, ValueError, TypeError, json.JSONDecodeError) as e:
         raise DatasetError(f"{path}: not a platebench calibration ({type(e).__name__}: {e})") from None
     return est.stereo.to_rig(), rays
+
+
+def progress_steps(cfg: SampleConfig, target_z_m, reconstruction: bool, board: BoardSpec = BoardSpec()) -> int:
+    """The steps ``run_calibration`` (and, with ``reconstruction``, ``compare_reconstruction``) report to
+    their ``progress`` callback: each camera's render of each board pose and of each target height, then
+    the reference sample's renders and its reconstructions."""
+    n_poses = len(calibration_poses(cfg.scene.build().rig, board))
+    return 2 * n_poses + 2 * len(target_z_m) + (6 + 3 if reconstruction else 0)
+
+
+def calibration_json(result: CalibrationResult, comparison: dict | None = None) -> dict:
+    """calibration.json: the report (``CalibrationReport.to_dict``), its units, and per calibration of
+    ``comparison`` (``compare_reconstruction``) the reference reconstruction's metrics row and score."""
+    from platebench.evaluation.metrics_row import MetricsRow  # noqa: PLC0415
+
+    out = result.report.to_dict()
+    out["units"] = ("metres, radians, pixels unless a key names another unit; camera dicts (K, R, t) in the "
+                    "OpenCV convention of calib.json (x_cam = R x_world + t, t in metres)")
+    if comparison is not None:
+        out["reconstruction"] = {name: {"metrics": MetricsRow.from_score(s).columns(), "score": s.to_dict()}
+                                 for name, s in comparison.items()}
+    return out

@@ -1,10 +1,12 @@
 """Peer methods side by side on one written sample (``platebench compare``).
 
-Re-creates the sample's plate and scene from ``SAMPLE_DIR/sample.json`` (its calibration
-must agree with ``calib.json``), renders the projector sequences the chosen methods need
-with one renderer (``bench.run.pattern_sequences``), runs each method
-(``reconstruction.peers``: pure functions of images and calibration) and scores it against
-the sample's ground truth with ``evaluation.dense``:
+Methods are listed and resolved through the registry ``reconstruction.methods`` (built-in peers of
+``reconstruction.peers``, plug-ins found by ``bench.run.plugins.find_method``). Re-creates the sample's
+plate and scene from ``SAMPLE_DIR/sample.json`` (its calibration must agree with ``calib.json``) when a
+method needs a projector sequence of its own (``MethodEntry.sequence``), renders each sequence once with
+one renderer (``bench.run.pattern_sequences``; a sequence whose frames all lie in another requested one
+of the same name is taken from it), runs each method on ``MethodInputs`` and scores its output by kind
+against the sample's ground truth with ``evaluation.dense``:
 
 * depth: |Z_est - Z_gt| (left camera z-depth, mm) over plate pixels with an estimate:
   mean, median, RMS, max, A50-A99, signed mean; ``coverage_frac`` = those pixels / plate pixels
@@ -28,12 +30,16 @@ surface, and its ``coverage_frac`` is the share of the left plate pixels whose t
 The stereo matchers that take a pair rather than a pattern sequence of their own ("sgbm") match
 the active pair (``left_active``/``right_active``: the projected grid gives them texture inside
 the plate) by default; "sgbm-passive" matches the passive pair.
+
+The paper row's reconstruction must have been made from the sample (``bench.run.score.check_made_from``):
+one made from other images is refused (``DatasetError``).
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,39 +52,26 @@ from platebench.bench.io.points import read_points_csv
 from platebench.bench.io.records import MethodFigures
 from platebench.bench.io.sample_files import load_ground_truth, load_inputs, load_true_cameras, read_mesh
 from platebench.bench.run.pattern_sequences import render_pattern_sequence
-from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
+from platebench.bench.run.outputs import jsonable, score_output
+from platebench.bench.run.plugins import find_method, plugin_names, run_plugin
+from platebench.bench.run.score import check_made_from
 from platebench.errors import UserValueError
 from platebench.evaluation.dense import SparseDepthScore, score_points_depth
-from platebench.evaluation.field_scores import DepthScore, DisparityScore, MeshScore, PointCloudScore, score_disparity
+from platebench.evaluation.field_scores import DepthScore, DisparityScore, MeshScore, PointCloudScore
 from platebench.evaluation.pixel_coverage import coverage_of_mesh
 from platebench.plates import build_plate
-from platebench.reconstruction.peers import graycode, phase_shift, sgbm
+from platebench.reconstruction.methods import MethodEntry, MethodInputs, builtin_names, check_output
+from platebench.reconstruction.peers.graycode import dense_result
 from platebench.scenes.naming import image_seed
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings
 from platebench.tolerances import tol
+from platebench.bench.io.report_records import RunTimings
 
-__all__ = ["METHODS", "ALL_METHODS", "DESCRIPTIONS", "PAIR_IMAGES", "MethodRow", "Comparison", "compare_sample",
-           "find_paper_reconstruction", "comparison_json"]
+__all__ = ["PAPER_ROW", "MethodRow", "Comparison", "compare_sample", "resolve_methods", "find_paper_reconstruction",
+           "comparison_json"]
 
-
-METHODS = ("paper", "graycode", "graycode-subpx", "phase", "sgbm")
-
-
-DESCRIPTIONS = {
-    "paper": "paper's projected squares (read from platebench reconstruct output)",
-    "graycode": "Gray code, OpenCV GrayCodePattern.decode",
-    "graycode-subpx": "Gray code, sub-pixel column matching along rows (numpy)",
-    "phase": "4-step phase shifting + Gray-code unwrapping (numpy)",
-    "phase-opencv": "3-step phase shifting, OpenCV SinusoidalPattern wrapped phase + Gray-code unwrapping",
-    "sgbm": "OpenCV StereoSGBM on the active pair (the projected grid; sgbm-passive: the passive pair)",
-    "sgbm-passive": "OpenCV StereoSGBM on the passive pair (nothing to match inside a plain plate)",
-}
-
-
-ALL_METHODS = METHODS + ("phase-opencv", "sgbm-passive")
-# the built-in stereo matchers of one pair: (left image, right image) of the sample they match
-PAIR_IMAGES = {"sgbm": ("left_active", "right_active"), "sgbm-passive": ("left_passive", "right_passive")}
+PAPER_ROW = "paper's projected squares (read from platebench reconstruct output)"  # the paper row's description
 
 
 def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
@@ -177,14 +170,15 @@ def _check_calibration(told, calib) -> None:
                                "the sample cannot be re-rendered for the peer methods")
 
 
-def _resolve_plugins(methods) -> dict:
-    """{name: plug-in function} of the methods that are not built in; UserValueError for an unknown one."""
-    plugins = {m: resolve_plugin(m) for m in methods if m not in ALL_METHODS}
-    unknown = [m for m, fn in plugins.items() if fn is None]
+def resolve_methods(methods) -> dict[str, MethodEntry]:
+    """{name: registry entry} of ``methods`` (``bench.run.plugins.find_method``); ``UserValueError`` naming an
+    unknown one and what is allowed."""
+    entries = {m: find_method(m) for m in methods}
+    unknown = [m for m, e in entries.items() if e is None]
     if unknown:
-        raise UserValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(ALL_METHODS)}, an installed "
+        raise UserValueError(f"unknown method {unknown[0]!r}: choose from {', '.join(builtin_names())}, an installed "
                              f"plug-in ({', '.join(plugin_names()) or 'none installed'}) or module:function")
-    return plugins
+    return entries
 
 
 def _recreate_scene(cfg: SampleConfig, inputs, gt, renderer):
@@ -209,27 +203,29 @@ def _recreate_scene(cfg: SampleConfig, inputs, gt, renderer):
     return renderer, want is None or hashlib.sha256(img.tobytes()).hexdigest() == want
 
 
-def _plugin_row(name: str, fn, sample_dir: Path, truth, time_limit_s: float | None = None) -> MethodRow:
-    """Run a plug-in on the sample's inputs and score its output for its kind; a row with status "failed"
-    and the one-line error when it fails (``bench.run.plugins``: whatever the plug-in does is its failure)."""
+def _plugin_row(entry: MethodEntry, sample_dir: Path, truth, time_limit_s: float | None = None) -> MethodRow:
+    """Run an isolated entry (a plug-in) on the sample's inputs in its own process and score its output for
+    its kind; a row with status "failed" and the one-line error when it fails (``bench.run.plugins``: whatever
+    the plug-in does is its failure)."""
+    name, fn = entry.name, entry.function
     try:
         run = run_plugin(fn, name, sample_dir, truth=truth, time_limit_s=time_limit_s)
     except Exception as e:  # noqa: BLE001  (recorded, as a sweep records it; interrupts go on up)
-        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        return MethodRow(name, describe(fn), 0, float("nan"), 0.0, kind=None, status="failed",
-                         error=f"{type(e).__name__}: {msg}"[:500])
+        return _failed_row(entry, e)
     view = None
     if run.output.kind in ("disparity", "depth"):
         z = _implied_depth(run.output, truth)
         view = DenseView(z, np.isfinite(z))
     n_images = run.output.metrics.get("n_images", 2)
     n_images = int(n_images) if isinstance(n_images, (int, float)) and np.isfinite(n_images) else 2
-    return MethodRow(name, describe(fn), n_images, run.time_recon_s, 0.0, run.score, (), view, run.output.kind)
+    return MethodRow(name, entry.description, n_images, run.time_recon_s, 0.0, run.score, tuple(run.output.notes),
+                     view, run.output.kind)
 
 
 def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
     """The paper's row from a ``platebench reconstruct`` output beside the sample (None, with a note,
-    when there is none); its coverage from ``surface.ply`` through the left camera really posed."""
+    when there is none); its coverage from ``surface.ply`` through the left camera really posed.
+    ``DatasetError`` when that reconstruction was not made from the sample (``check_made_from``)."""
     found = find_paper_reconstruction(sample_dir, recon_dir)
     if found is None:
         where = recon_dir if recon_dir is not None else f"{sample_dir.resolve().parent} or {sample_dir / 'recon'}"
@@ -237,14 +233,15 @@ def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow |
                      "(pass --recon DIR)")
         return None
     pts, meta, d = found
+    check_made_from(sample_dir, d, meta, gt.meta)
     sc = score_points_depth(pts, rig.left, gt.depth["left"], gt.mesh)
     surface = read_mesh(d / "surface.ply") if (d / "surface.ply").is_file() else None
     posed = load_true_cameras(sample_dir)
     eye = (rig if posed is None else posed).left.center
     sc = dataclasses.replace(sc, coverage=coverage_of_mesh(surface, eye, gt.points["left"], gt.mask["left"]))
-    t = meta.get("timings_s", meta.get("timings", {}))
-    t_total = t.get("total_s", float("nan")) if isinstance(t, dict) else float("nan")
-    return MethodRow("paper", DESCRIPTIONS["paper"], int(meta.get("n_images", 2)), t_total, 0.0, sc,
+    rt = RunTimings.of(meta) if "timings_s" in meta else RunTimings.from_dict(meta.get("timings"))
+    t_total = float("nan") if rt.total_s is None else float(rt.total_s)
+    return MethodRow("paper", PAPER_ROW, int(meta.get("n_images", 2)), t_total, 0.0, sc,
                      (f"read from {d}",), kind="paper")
 
 
@@ -252,10 +249,11 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
                    recon_dir: Path | None = None, spp: int | None = None, depth_range_m=None,
                    renderer=None, progress=None, method_time_limit_s: float | None = None) -> Comparison:
     """Run and score ``methods`` on a written sample (see module doc); ``method_time_limit_s``: the longest a
-    plug-in may run (default ``plugins.METHOD_TIME_LIMIT_S``)."""
+    plug-in may run (default ``plugins.METHOD_TIME_LIMIT_S``); ``depth_range_m``: (Z_min, Z_max) metres given
+    to the methods as ``MethodInputs.depth_range_m``."""
     say = progress or (lambda msg: None)
     sample_dir = Path(sample_dir)
-    plugins = _resolve_plugins(methods)
+    entries = resolve_methods(methods)
     inputs = load_inputs(sample_dir)
     gt = load_ground_truth(sample_dir)
     cfg = SampleConfig.from_dict(gt.meta["config"])
@@ -263,7 +261,8 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     notes, rows = [], []
     truth = load_field_truth(sample_dir) if any(m != "paper" for m in methods) else None
     scene_reproduced = None
-    if any(m not in ("paper", *PAIR_IMAGES) and m not in plugins for m in methods):
+    sequenced = {m: e for m, e in entries.items() if m != "paper" and not e.isolated and e.sequence is not None}
+    if sequenced:
         say("scene")
         renderer, scene_reproduced = _recreate_scene(cfg, inputs, gt, renderer)
         if not scene_reproduced:
@@ -281,26 +280,36 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
                 notes.append(f"{cfg.sensor.bit_depth}-bit captures reduced to 8-bit for the structured-light decoders")
         return cap
 
-    # Gray code: one 42-frame sequence serves both decoders (the sub-pixel one uses 22 of them).
-    gray_seq = gray_cap = None
-    if "graycode" in methods or "graycode-subpx" in methods:
-        gray_seq = graycode.graycode_sequence(pw, ph)
-        if "graycode" not in methods:
-            gray_seq = gray_seq.columns_only()
-        gray_cap = sequence(gray_seq.images, "graycode")
+    captures = _Captures({m: e.sequence for m, e in sequenced.items()}, pw, ph, sequence)
     for name in methods:
+        entry = entries[name]
         if name == "paper":
             continue
-        if name in plugins:
+        if entry.isolated:
             say(f"method {name} (plug-in)")
-            rows.append(_plugin_row(name, plugins[name], sample_dir, truth, method_time_limit_s))
+            rows.append(_plugin_row(entry, sample_dir, truth, method_time_limit_s))
             continue
-        if name not in ("phase", "phase-opencv"):
-            say(f"method {name}")
-        res, render_s = _run_peer(name, gray_seq, gray_cap, sequence, inputs, rig, pw, ph, depth_range_m, say)
-        score = score_disparity(np.where(res.valid, res.disparity, np.inf), truth, what=f"{name} disparity")
-        rows.append(MethodRow(name, DESCRIPTIONS[name], res.n_images, res.timings.get("total_s", float("nan")),
-                              render_s, score, tuple(res.notes), res, "disparity"))
+        _check_image_size(entry, inputs.images)
+        seq, caps, render_s = captures.of(name) if name in sequenced else (None, {}, 0.0)
+        say(f"method {name}")
+        given = MethodInputs(dict(inputs.images), inputs.calibration, inputs.pattern, seq, caps, depth_range_m)
+        t0 = time.perf_counter()
+        try:
+            out = check_output(entry.function(given), name)
+        except UserValueError:
+            raise
+        except Exception as e:  # noqa: BLE001  (a method that fails is recorded, as a plug-in's failure is)
+            rows.append(_failed_row(entry, e))
+            continue
+        time_s = time.perf_counter() - t0
+        if entry.output is not None and out.kind != entry.output:
+            raise UserValueError(f"method {name!r} returned a {out.kind} output: it is registered as {entry.output}")
+        score = score_output(out, truth, what=f"{name} {out.kind}")
+        n_images = entry.exposures(given)
+        view = (dense_result(name, out.disparity, rig, n_images, {"total_s": time_s}, out.notes)
+                if out.kind == "disparity" else _dense_view(out, truth))
+        rows.append(MethodRow(name, entry.description, n_images, time_s, render_s, score, tuple(out.notes), view,
+                              out.kind))
     if "paper" in methods:
         row = _paper_row(sample_dir, recon_dir, rig, gt, notes)
         if row is not None:
@@ -308,29 +317,67 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     return Comparison(sample_dir, rows, notes, scene_reproduced, gt.depth["left"], gt.mask["left"])
 
 
-def _run_peer(name, gray_seq, gray_cap, sequence, inputs, rig, pw, ph, depth_range_m, say):
-    """(the peer's dense result, seconds of extra rendering it needed) for a built-in peer ``name``."""
-    if name == "graycode":
-        return graycode.decode_opencv(gray_cap["left"], gray_cap["right"], gray_seq, rig), \
-            gray_cap.timings_s["render_s"]
-    if name == "graycode-subpx":
-        cols = gray_seq.columns_only()
-        if gray_seq.row_pairs:
-            idx = [i for p in gray_seq.col_pairs for i in p] + [gray_seq.black, gray_seq.white]
-            L, R = gray_cap["left"][idx], gray_cap["right"][idx]
-        else:
-            L, R = gray_cap["left"], gray_cap["right"]
-        return graycode.decode_subpixel(L, R, cols, rig), \
-            gray_cap.timings_s["render_s"] * cols.n_images / gray_seq.n_images
-    if name in ("phase", "phase-opencv"):
-        seq = phase_shift.phase_shift_sequence(pw, ph, backend="numpy" if name == "phase" else "opencv")
-        cap = sequence(seq.images, name)
-        say(f"method {name}")
-        return phase_shift.decode_phase_shift(cap["left"], cap["right"], seq, rig), cap.timings_s["render_s"]
-    if name in PAIR_IMAGES:
-        left, right = PAIR_IMAGES[name]
-        return sgbm.sgbm(inputs.images[left], inputs.images[right], rig, depth_range_m=depth_range_m), 0.0
-    raise ValueError(f"not a built-in peer: {name!r}")
+def _failed_row(entry: MethodEntry, e: Exception) -> MethodRow:
+    """The row of a method that raised: status "failed" and its one-line error (type and first line)."""
+    msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    return MethodRow(entry.name, entry.description, 0, float("nan"), 0.0, kind=None, status="failed",
+                     error=f"{type(e).__name__}: {msg}"[:500])
+
+
+def _check_image_size(entry: MethodEntry, images) -> None:
+    """Refuse (``UserValueError``) images smaller than the method's ``min_image_px``."""
+    h, w = np.asarray(images["left_passive"]).shape[:2]
+    if min(h, w) < entry.min_image_px:
+        raise UserValueError(f"method {entry.name!r} needs images of at least {entry.min_image_px} px a side: the "
+                             f"sample's are {w}x{h}")
+
+
+class _Captures:
+    """The captures of the methods' projector sequences, each sequence rendered once (module doc): a method's
+    sequence whose frames all lie in a larger requested sequence of the same name is cut from its captures,
+    with that share of its render time."""
+
+    def __init__(self, projections: dict, pw: int, ph: int, render):
+        self._made = {m: p.make(pw, ph) for m, p in projections.items()}
+        self._names = {m: p.name for m, p in projections.items()}
+        self._render = render
+        self._done: dict = {}
+
+    def _host(self, method: str):
+        """(the method whose sequence is rendered for ``method``, frame indices in it or None)."""
+        own = np.asarray(self._made[method].images)
+        best = (method, None)
+        for other, seq in self._made.items():
+            frames = np.asarray(seq.images)
+            if other == method or self._names[other] != self._names[method] or len(frames) <= len(own):
+                continue
+            at = {}
+            for i, f in enumerate(frames):
+                at.setdefault(f.tobytes(), i)
+            idx = [at.get(f.tobytes()) for f in own]
+            if None not in idx and (best[1] is None or len(frames) > len(self._made[best[0]].images)):
+                best = (other, idx)
+        return best
+
+    def of(self, method: str):
+        """(the method's sequence, camera -> (N, H, W) captures, seconds of rendering they took)."""
+        host, idx = self._host(method)
+        if host not in self._done:
+            self._done[host] = self._render(self._made[host].images, self._names[host])
+        cap = self._done[host]
+        if idx is None:
+            return self._made[method], dict(cap.images), cap.render_s
+        n_host = len(self._made[host].images)
+        return (self._made[method], {c: a[idx] for c, a in cap.images.items()},
+                cap.render_s * len(idx) / n_host)
+
+
+def _dense_view(out, truth) -> DenseView | None:
+    """What the error figure reads of a depth output (None for points and meshes)."""
+    if out.kind != "depth":
+        return None
+    z = _implied_depth(out, truth)
+    return DenseView(z, np.isfinite(z))
 
 
 def _implied_depth(out, truth) -> np.ndarray:

@@ -1,19 +1,21 @@
-"""The registry of reconstruction methods a sweep (or ``compare``) can run on a written sample.
+"""How the bench runs a registered method on a written sample (a sweep, the benchmark's score).
 
-A method is a function ``run(ctx: MethodContext) -> MethodOutput``: it reads the sample's
-images and calibration (``ctx.sample_dir``; never its ground truth), writes what it made to
-``ctx.recon_dir`` and returns its ``MetricsRow`` (scored against the truth by the bench) with
-its timings. Built in: "paper" (the paper's pipeline) and the peers of ``platebench compare``
-(Gray code, phase shifting, SGBM on the active pair, "sgbm-passive" on the passive one).
+The methods are those of the registry ``reconstruction.methods`` (built-in methods and peers, plug-ins
+found by name: ``bench.run.plugins.find_method``). ``get_method(name)`` gives the runner of a name: a
+function ``run(ctx: MethodContext) -> MethodOutput`` that reads the sample's images and calibration
+(``ctx.sample_dir``; never its ground truth), writes what it made to ``ctx.recon_dir`` and returns its
+``MetricsRow`` (scored against the truth by the bench) with its timings. How it runs follows the entry:
 
-Plug-ins (``bench.run.plugins``: one function from a sample's inputs to a disparity, depth,
-point or mesh output) are found by ``get_method`` on first use, in any process: an entry point
-of the group ``platebench.methods``, or a name written ``module:function``. They are then
-registered like the built-ins, so a sweep's spec validation, ``compare`` and every worker
-(local or Dask) resolve the same name the same way. Finding one imports nothing of it (its
-module is looked up, its description read from its source: ``plugins.resolve_plugin``); its
-code, its import included, runs only in a process of its own, with a time limit
-(``bench.run.plugin_host``): whatever it does is that method's failure on that sample.
+* "paper": the paper's pipeline, its reconstruction written as ``platebench reconstruct`` writes it and
+  scored with ``bench.run.score.score_files``;
+* an isolated entry (a plug-in): in a process of its own with a time limit (``bench.run.plugin_host``;
+  whatever it does is that method's failure on that sample), its output and ``score.json`` written;
+* any other entry: in this process through ``compare`` (its projector sequence rendered with the worker's
+  renderer), its ``score.json`` and, for a disparity, ``disparity.pfm`` written.
+
+A plug-in found by name is registered once, so a sweep's spec validation, ``compare`` and every worker
+(local or Dask) resolve the same name the same way. Finding one imports nothing of it
+(``plugins.resolve_plugin``).
 """
 from __future__ import annotations
 
@@ -27,14 +29,17 @@ import numpy as np
 from platebench.bench.io.atomic import staged_directory, write_json
 from platebench.bench.io.images import write_pfm
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
-from platebench.bench.run.compare import ALL_METHODS, DESCRIPTIONS, PAIR_IMAGES, compare_sample
+from platebench.bench.run.compare import compare_sample
 from platebench.bench.run.paper_method import reconstruct_dir
-from platebench.bench.run.plugins import describe, jsonable, plugin_names, resolve_plugin, run_plugin
+from platebench.bench.run.outputs import jsonable
+from platebench.bench.run.plugins import find_method, plugin_names, run_plugin
 from platebench.bench.run.score import score_files
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import MetricsRow
+from platebench.reconstruction import methods as registry
+from platebench.reconstruction.methods import MethodEntry
 
-__all__ = ["MethodContext", "MethodOutput", "Method", "METHODS", "register_method", "get_method", "method_names"]
+__all__ = ["MethodContext", "MethodOutput", "Method", "get_method", "method_names"]
 
 
 @dataclass(frozen=True)
@@ -60,49 +65,54 @@ class MethodOutput:
 
 @dataclass(frozen=True)
 class Method:
-    name: str
-    description: str
+    """The runner of one registry entry (module doc)."""
+
+    entry: MethodEntry
     run: Callable[[MethodContext], MethodOutput]
-    rerenders_from_config: bool = False  # re-creates the scene from sample.json (which holds no pose)
+
+    @property
+    def name(self) -> str:
+        return self.entry.name
+
+    @property
+    def description(self) -> str:
+        return self.entry.description
+
+    @property
+    def rerenders_from_config(self) -> bool:
+        """True when it re-creates the scene from sample.json (which holds no pose) to render its own sequence."""
+        return self.entry.sequence is not None and not self.entry.isolated
 
 
-METHODS: dict[str, Method] = {}
-
-
-def register_method(name: str, description: str, run: Callable[[MethodContext], MethodOutput],
-                    rerenders_from_config: bool = False) -> Method:
-    """Add a method to the registry (a name may be registered once)."""
-    if not isinstance(name, str) or not name or name in METHODS:
-        raise UserValueError(f"method name {name!r} is empty or already registered")
-    METHODS[name] = Method(name, description, run, rerenders_from_config)
-    return METHODS[name]
+_RUNNERS: dict[str, Method] = {}
 
 
 def method_names() -> tuple[str, ...]:
-    """The built-in methods and the installed plug-ins (entry points), by name."""
-    return tuple(dict.fromkeys((*METHODS, *plugin_names())))
+    """The registered methods and the installed plug-ins (entry points), by name."""
+    return tuple(dict.fromkeys((*registry.method_names(), *plugin_names())))
 
 
 def get_method(name: str) -> Method:
-    """The method called ``name``: a registered one, else an installed plug-in (entry point of
+    """The runner of the method called ``name``: a registered one, else an installed plug-in (entry point of
     ``platebench.methods``) or ``module:function``, found now without importing it and registered (see
     module doc). ``UserValueError`` for an unknown name, ``PluginError`` for a plug-in name that is not
     ``module:function`` or whose module is not on the Python path."""
     if not isinstance(name, str) or not name:
         raise UserValueError(f"method name {name!r} is empty: allowed {', '.join(method_names())}")
-    method = METHODS.get(name)
-    if method is not None:
-        return method
-    fn = resolve_plugin(name)
-    if fn is None:
+    entry = find_method(name)
+    if entry is None:
         raise UserValueError(f"method {name!r} is not known: allowed {', '.join(method_names())}, or a plug-in "
                              "written as module:function")
-    return register_method(name, describe(fn), _plugin_runner(fn, name))
+    method = _RUNNERS.get(name)
+    if method is None or method.entry is not entry:
+        run = _run_paper if name == "paper" else _plugin_runner(entry) if entry.isolated else _peer_runner(name)
+        method = _RUNNERS[name] = Method(entry, run)
+    return method
 
 
-def _plugin_runner(fn, name: str) -> Callable[[MethodContext], MethodOutput]:
+def _plugin_runner(entry: MethodEntry) -> Callable[[MethodContext], MethodOutput]:
     def run(ctx: MethodContext) -> MethodOutput:
-        r = run_plugin(fn, name, ctx.sample_dir, ctx.recon_dir, time_limit_s=ctx.time_limit_s)
+        r = run_plugin(entry.function, entry.name, ctx.sample_dir, ctx.recon_dir, time_limit_s=ctx.time_limit_s)
         return MethodOutput(r.row, r.time_recon_s, r.time_eval_s)
     return run
 
@@ -145,9 +155,3 @@ def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
                             recon_s if recon_s is not None else wall - render_s,
                             max(wall - render_s - (recon_s or 0.0), 0.0), render_s)
     return run
-
-
-register_method("paper", "the paper's pipeline: projected squares + passive boundary (Chen & Zheng 1995)", _run_paper)
-for _name in ALL_METHODS:
-    if _name != "paper":
-        register_method(_name, DESCRIPTIONS[_name], _peer_runner(_name), rerenders_from_config=_name not in PAIR_IMAGES)

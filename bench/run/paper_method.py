@@ -17,7 +17,7 @@ from platebench.reconstruction.paper.pipeline import (
 from platebench.reconstruction.paper.plate_region import ReconstructionError
 from platebench.scenes.naming import IMAGE_NAMES
 
-__all__ = ["reconstruct_sample", "reconstruct_dir", "name_the_file"]
+__all__ = ["PipelineOptions", "reconstruct_sample", "reconstruct_dir", "reconstruct_inputs", "name_the_file"]
 
 
 def reconstruct_sample(sample, options: PipelineOptions | None = None) -> Reconstruction:
@@ -36,15 +36,21 @@ def reconstruct_dir(sample_dir: Path, options: PipelineOptions | None = None, ca
     ``platebench calibrate`` instead of the sample's calib.json. Returns (reconstruction, inputs).
     Image errors name the image file."""
     inputs = load_inputs(sample_dir)
+    return reconstruct_inputs(inputs, sample_dir, options, calibration), inputs
+
+
+def reconstruct_inputs(inputs, sample_dir: Path, options: PipelineOptions | None = None,
+                       calibration=None) -> Reconstruction:
+    """The pipeline on the inputs read from ``sample_dir`` (``bench.io.sample_files.load_inputs``);
+    ``calibration`` as ``reconstruct_dir``'s. Image errors name the image file."""
     rig = inputs.calibration.rig
     rays = projector_feature_rays(inputs.calibration.projector_camera, inputs.pattern)
     if calibration is not None:
         rig, rays = calibration
     try:
-        rec = reconstruct(inputs.images, rig, rays, inputs.pattern, options or PipelineOptions())
+        return reconstruct(inputs.images, rig, rays, inputs.pattern, options or PipelineOptions())
     except ReconstructionError as e:
         raise ReconstructionError(name_the_file(str(e), sample_dir)) from None
-    return rec, inputs
 
 
 def name_the_file(message: str, sample_dir: Path) -> str:

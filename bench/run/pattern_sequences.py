@@ -54,14 +54,21 @@ def frame_seed(base_seed: int, index: int) -> int:
 
 @dataclass(frozen=True)
 class RenderedSequence:
-    """Digitized captures of a pattern sequence: camera -> (N, H, W) uint8/uint16, plus timings and
-    ``launches`` (renders per camera the sequence took)."""
+    """Digitized captures of a pattern sequence: camera -> (N, H, W) uint8/uint16, the seconds its
+    renders and its derivation and digitization took, and ``launches`` (renders per camera the sequence
+    took)."""
 
     name: str
     images: dict
     n_frames: int
-    timings_s: dict
+    render_s: float
+    derive_and_digitize_s: float
     launches: int = 0
+
+    @property
+    def timings_s(self) -> dict:
+        """The timings as written to files: {"render_s", "derive_and_digitize_s"} in seconds."""
+        return {"render_s": self.render_s, "derive_and_digitize_s": self.derive_and_digitize_s}
 
     def __getitem__(self, camera: str) -> np.ndarray:
         return self.images[camera]
@@ -180,4 +187,4 @@ def render_pattern_sequence(renderer: PlateRenderer, frames, settings: RenderSet
         raise RuntimeError("swapping the projector pattern rebuilt the Mitsuba scene (structure changed)")
     for a in out.values():
         a.setflags(write=False)
-    return RenderedSequence(name, out, n, {"render_s": t_render, "derive_and_digitize_s": t_derive}, len(groups))
+    return RenderedSequence(name, out, n, t_render, t_derive, len(groups))

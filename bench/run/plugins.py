@@ -1,32 +1,20 @@
-"""Plug-in methods: any function from a sample's inputs to one of four kinds of output.
+"""Plug-in methods: discovery by name and process isolation.
 
-The interface
--------------
-A plug-in is one function ``method(inputs: MethodInputs) -> Disparity | Depth | Points | Mesh``.
-``MethodInputs`` holds what a camera system would give it (never the ground truth): the four
-camera images (``left_passive``, ``right_passive``: plate under ambient light; ``left_active``,
-``right_active``: the projected square grid), the calibration (stereo rig: OpenCV K, R, t per
-camera, baseline; the projector's model) and the projected pattern. It returns, in the left
-camera's image or the world frame:
-
-* ``Disparity(disparity)``: (H, W) px, d = u_left - u_right; +inf or NaN = no estimate;
-* ``Depth(depth)``: (H, W) z-depth in metres along the left optical axis;
-* ``Points(points)``: (N, 3) world frame, metres;
-* ``Mesh(mesh)``: a ``trimesh.Trimesh`` in the world frame, metres.
-
-Each may carry ``metrics``: the method's own figures (name -> number, units in the names, e.g.
-``matched_count``), which go to the results table prefixed ``method_``. The bench scores the
-output against the truth with the metrics of its kind (``evaluation.field_scores``), writes it
-to the method's reconstruction directory (``bench.io.method_outputs.OUTPUT_FILES``) with
-``score.json``, and adds a row to the results table.
+A plug-in is a method of the contract ``reconstruction.methods`` (one function ``MethodInputs ->
+Disparity | Depth | Points | Mesh``; those types and the output checks live there and are re-exported
+here) that PlateBench finds by name instead of by import. Its output is checked where it arrives
+(``reconstruction.methods.check_output``), then scored, written and recorded as any method's is
+(``bench.run.outputs``, re-exported here).
 
 Discovery
 ---------
-``bench.run.methods.get_method(name)`` finds a plug-in, in this order: the built-in methods;
+``find_method(name)`` finds a method, in this order: the registry (``reconstruction.methods``);
 an entry point ``name`` in the group ``platebench.methods`` of any installed distribution
 (``[project.entry-points."platebench.methods"] my-method = "my_package.module:function"``);
 or ``name`` written as ``module:function`` (importable from the Python path). Resolution is
-lazy: a Dask worker that receives only the name resolves it the same way.
+lazy: a Dask worker that receives only the name resolves it the same way. A plug-in found is added to
+the registry as an isolated ``MethodEntry`` (its function a ``Plugin`` reference), so ``compare``, a
+sweep and the benchmark's score resolve the name the same way afterwards.
 
 Finding a plug-in runs none of its code (``resolve_plugin``): the calling process (``compare``, a
 sweep's main process and its workers, a Dask worker) reads the entry points' metadata, checks the
@@ -63,41 +51,42 @@ import os
 import pickle
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import Any, Callable
 
 import numpy as np
 
 from platebench.bench.io.atomic import staged_directory, write_json
 from platebench.bench.io.field_truth import load_field_truth
-from platebench.bench.io.method_outputs import (
-    OUTPUT_FILES,
-    write_depth,
-    write_disparity,
-    write_mesh,
-    write_points,
-)
-from platebench.bench.io.sample_files import Calibration, load_inputs
+from platebench.bench.io.sample_files import load_inputs
+from platebench.bench.run.outputs import jsonable, metrics_row, score_document, score_output, write_output
 from platebench.errors import UserValueError
-from platebench.evaluation.field_scores import (
-    FieldTruth,
-    score_depth,
-    score_disparity,
-    score_mesh,
-    score_point_cloud,
-)
+from platebench.evaluation.field_scores import FieldTruth
 from platebench.evaluation.metrics_row import MetricsRow
-from platebench.scenes.pattern import Pattern
-
-if TYPE_CHECKING:
-    import trimesh  # annotations only: importing trimesh takes a second
+from platebench.reconstruction import peers as _builtin_peers  # noqa: F401  (importing it registers them)
+from platebench.reconstruction.methods import (
+    OUTPUT_KINDS,
+    Depth,
+    Disparity,
+    Mesh,
+    MethodEntry,
+    MethodInputs,
+    MethodOutputError,
+    Points,
+    add_method,
+    check_output,
+    checked_metrics,
+    checked_notes,
+    method_entry,
+    output_noun,
+)
 
 __all__ = ["ENTRY_POINT_GROUP", "MethodInputs", "Disparity", "Depth", "Points", "Mesh", "OUTPUT_KINDS",
-           "PluginError", "Plugin", "method_inputs", "resolve_plugin", "load_plugin", "plugin_names", "score_output",
-           "run_plugin", "call_plugin", "write_output", "jsonable", "METHOD_TIME_LIMIT_S", "check_time_limit",
-           "find_module"]
+           "PluginError", "Plugin", "method_inputs", "find_method", "resolve_plugin", "load_plugin", "plugin_names",
+           "score_output", "run_plugin", "call_plugin", "write_output", "jsonable", "METHOD_TIME_LIMIT_S",
+           "check_time_limit", "find_module", "check_output", "score_document", "metrics_row"]
 
 ENTRY_POINT_GROUP = "platebench.methods"
 METHOD_TIME_LIMIT_S = 600.0  # default: the longest one plug-in may take on one sample (import included), seconds
@@ -107,62 +96,6 @@ TIME_LIMIT_RANGE_S = (1.0, 86400.0)
 
 class PluginError(UserValueError):
     """A plug-in cannot be found, imported, or returned something else than an output kind."""
-
-
-@dataclass(frozen=True)
-class MethodInputs:
-    """What a method may see of a sample: ``images`` name -> (H, W) uint8/uint16 camera output
-    (``left_passive``, ``right_passive``, ``left_active``, ``right_active``); ``calibration``
-    (``.rig``: the stereo pair, ``.projector_camera``: the projector); ``pattern``: the projected
-    image and its features (projector pixels)."""
-
-    images: Mapping[str, np.ndarray]
-    calibration: Calibration
-    pattern: Pattern
-
-    @property
-    def rig(self):
-        return self.calibration.rig
-
-
-@dataclass(frozen=True)
-class Disparity:
-    """(H, W) left-view disparity, px (d = u_left - u_right; +inf or NaN: no estimate; the Middlebury metrics
-    clip any other value to [0, ndisp], as the Middlebury SDK does; ETH3D's and the implied depth skip <= 0)."""
-
-    disparity: np.ndarray
-    metrics: Mapping[str, float] = field(default_factory=dict)
-    kind = "disparity"
-
-
-@dataclass(frozen=True)
-class Depth:
-    """(H, W) left-view z-depth, metres (non-finite or <= 0: no estimate)."""
-
-    depth: np.ndarray
-    metrics: Mapping[str, float] = field(default_factory=dict)
-    kind = "depth"
-
-
-@dataclass(frozen=True)
-class Points:
-    """(N, 3) world points, metres."""
-
-    points: np.ndarray
-    metrics: Mapping[str, float] = field(default_factory=dict)
-    kind = "points"
-
-
-@dataclass(frozen=True)
-class Mesh:
-    """A surface mesh (``trimesh.Trimesh``), world frame, metres."""
-
-    mesh: trimesh.Trimesh
-    metrics: Mapping[str, float] = field(default_factory=dict)
-    kind = "mesh"
-
-
-OUTPUT_KINDS = (Disparity, Depth, Points, Mesh)
 
 
 def method_inputs(sample_dir: Path) -> MethodInputs:
@@ -341,6 +274,19 @@ def resolve_plugin(name: str) -> Plugin | None:
     return Plugin(name, doc or f"plug-in {target}")
 
 
+def find_method(name: str) -> MethodEntry | None:
+    """The registry's entry ``name`` (``reconstruction.methods``), else the plug-in of that name found now
+    without importing it (``resolve_plugin``) and added to the registry as an isolated entry; None when
+    ``name`` is neither. Raises ``PluginError`` as ``resolve_plugin`` does."""
+    entry = method_entry(name)
+    if entry is not None:
+        return entry
+    plugin = resolve_plugin(name)
+    if plugin is None:
+        return None
+    return add_method(MethodEntry(name, plugin.description, plugin, isolated=True))
+
+
 def describe(fn) -> str:
     """A method's description: a ``Plugin``'s own (never imported for it), else the first line of the
     function's docstring (or its qualified name)."""
@@ -362,99 +308,14 @@ def check_time_limit(seconds, what: str = "--method-time-limit-s") -> float:
 
 
 # ----------------------------------------------------------------------------- running and scoring
-_DTYPE_WORDS = {"b": "bool (true/false, not numbers)", "c": "complex numbers", "U": "text", "S": "bytes",
-                "O": "Python objects", "M": "dates", "m": "time spans", "V": "records"}
-
-
-_NOUNS = {"disparity": "a disparity map", "depth": "a depth map", "points": "points"}
-
-
-def _real(a: np.ndarray, name: str, what: str) -> np.ndarray:
-    """``a`` if it holds real numbers (integer or float), else ``PluginError`` naming its dtype."""
-    if a.dtype.kind not in "iuf":
-        words = _DTYPE_WORDS.get(a.dtype.kind, "not numbers")
-        raise PluginError(f"method {name!r} returned {_NOUNS.get(what, what)} of dtype {a.dtype} ({words}): give "
-                          "real numbers (float or integer)")
-    return a
-
-
-def check_output(out: Any, name: str):
-    """``out`` if it is an output kind holding what its kind needs (real-valued arrays of the right rank,
-    a mesh with in-range faces, numeric metrics), else ``PluginError`` (one line)."""
-    if not isinstance(out, OUTPUT_KINDS):
-        raise PluginError(f"method {name!r} returned {type(out).__name__}: return one of "
-                          "platebench.bench.run.plugins.Disparity, Depth, Points or Mesh")
-    _metrics(out.metrics, name)
-    if isinstance(out, Mesh):
-        v, f = (np.asarray(getattr(out.mesh, k, None)) for k in ("vertices", "faces"))
-        _real(v, name, "mesh vertices")
-        if f.dtype.kind not in "iu":
-            raise PluginError(f"method {name!r} returned a mesh whose faces are of dtype {f.dtype}: give integer "
-                              "vertex indices")
-        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
-            raise PluginError(f"method {name!r} returned a mesh with vertices {v.shape} and faces {f.shape}: give "
-                              "(N, 3) vertices and (M, 3) triangles")
-        if f.size and (f.min() < 0 or f.max() >= len(v)):
-            raise PluginError(f"method {name!r} returned a mesh whose faces index vertices {f.min()} to {f.max()} "
-                              f"of {len(v)}")
-        return out
-    a = _real(np.asarray(getattr(out, out.kind)), name, out.kind)
-    if isinstance(out, Points):
-        if a.ndim != 2 or a.shape[1] != 3:
-            raise PluginError(f"method {name!r} returned points of shape {a.shape}: give (N, 3) world points")
-    elif not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] == 1)):
-        raise PluginError(f"method {name!r} returned {_NOUNS[out.kind]} of shape {a.shape}: give an (H, W) map of the "
-                          "left view")
-    return out
-
-
-def _metrics(metrics, name: str) -> dict:
-    """The plug-in's own metrics as {str: bool | int | float}, or ``PluginError``."""
-    if metrics is None:
-        return {}
-    if not isinstance(metrics, Mapping):
-        raise PluginError(f"method {name!r} returned metrics of type {type(metrics).__name__}: give a mapping "
-                          "name -> number")
-    out = {}
-    for k, v in metrics.items():
-        if isinstance(v, np.generic):
-            v = v.item()
-        if not isinstance(k, str) or not k or not isinstance(v, (bool, int, float)):
-            raise PluginError(f"method {name!r} returned metric {str(k)[:60]!r} = {str(v)[:60]!r} "
-                              f"({type(v).__name__}): give names (text) and numbers")
-        out[k] = v
-    return out
-
-
-def score_output(out, truth: FieldTruth, what: str | None = None):
-    """Score an output kind against the truth (``evaluation.field_scores``)."""
-    what = what or f"{out.kind} output"
-    if isinstance(out, Disparity):
-        return score_disparity(out.disparity, truth, what=what)
-    if isinstance(out, Depth):
-        return score_depth(out.depth, truth, what=what)
-    if isinstance(out, Points):
-        return score_point_cloud(out.points, truth, what=what)
-    return score_mesh(out.mesh, truth, what=what)
-
-
-def write_output(directory: Path, out) -> Path:
-    """Write an output kind into ``directory`` under ``OUTPUT_FILES[kind]``; returns the path."""
-    path = Path(directory) / OUTPUT_FILES[out.kind]
-    {"disparity": lambda: write_disparity(path, out.disparity), "depth": lambda: write_depth(path, out.depth),
-     "points": lambda: write_points(path, out.points), "mesh": lambda: write_mesh(path, out.mesh)}[out.kind]()
-    return path
-
-
-def metrics_row(score, out) -> MetricsRow:
-    """The score's row, with the method's own figures as ``method_<name>`` columns."""
-    row = score.metrics_row()
-    own = {f"method_{k}": v for k, v in dict(out.metrics or {}).items()}
-    if not own:
-        return row
-    cols = row.columns()
-    base = {k: cols[k] for k in cols if k not in row.extra}
-    return MetricsRow(**base, extra={**row.extra, **own})
+# ----------------------------------------------------------------------------- running in a process of its own
+def _checked(check, *args):
+    """``check(*args)`` (an output check of ``reconstruction.methods``), its ``MethodOutputError`` as a
+    ``PluginError`` (one line)."""
+    try:
+        return check(*args)
+    except MethodOutputError as e:
+        raise PluginError(str(e)) from None
 
 
 @dataclass(frozen=True)
@@ -517,7 +378,7 @@ def call_plugin(fn, name: str, sample_dir: Path, time_limit_s: float | None = No
         raise PluginError(str(e)) from None
     if not head.get("ok"):
         raise PluginError(head.get("error") or f"method {name!r} failed")
-    return check_output(_decode(head, arrays, name), name), float(head.get("seconds", float("nan")))
+    return _checked(check_output, _decode(head, arrays, name), name), float(head.get("seconds", float("nan")))
 
 
 def _decode(head: dict, arrays: list, name: str):
@@ -527,12 +388,13 @@ def _decode(head: dict, arrays: list, name: str):
         raise PluginError(f"method {name!r}: its process sent an answer of kind {head.get('kind')!r} with "
                           f"{len(arrays)} arrays")
     metrics = head.get("metrics") or {}
+    notes = _checked(checked_notes, head.get("notes") or [], name)
     if kind is not Mesh:
-        return kind(arrays[0], metrics=metrics)
+        return kind(arrays[0], metrics=metrics, notes=notes)
     v, f = arrays
-    check_output(Mesh(_Faces(v, f), metrics=metrics), name)
+    _checked(check_output, Mesh(_Faces(v, f), metrics=metrics), name)
     import trimesh  # noqa: PLC0415
-    return Mesh(trimesh.Trimesh(vertices=v, faces=f, process=False), metrics=metrics)
+    return Mesh(trimesh.Trimesh(vertices=v, faces=f, process=False), metrics=metrics, notes=notes)
 
 
 @dataclass(frozen=True)
@@ -582,7 +444,7 @@ def serve_request(req: dict) -> tuple[dict, list]:
 def _encode(out, name: str) -> tuple[dict, list]:
     """(header, arrays) of an output kind, for the answer (checked again where it arrives)."""
     if not isinstance(out, OUTPUT_KINDS):
-        check_output(out, name)
+        _checked(check_output, out, name)
     if isinstance(out, Mesh):
         parts = [(f"mesh {k}", getattr(out.mesh, k, None)) for k in ("vertices", "faces")]
         if any(x is None for _, x in parts):
@@ -595,38 +457,11 @@ def _encode(out, name: str) -> tuple[dict, list]:
         try:
             a = np.asarray(x)
         except Exception as e:  # noqa: BLE001  (a ragged list, an object numpy cannot read)
-            raise PluginError(f"method {name!r} returned {_NOUNS.get(what, what)} that are not an array "
+            raise PluginError(f"method {name!r} returned {output_noun(what)} that are not an array "
                               f"({_raised(e)})") from None
         if a.dtype.kind == "O":
-            raise PluginError(f"method {name!r} returned {_NOUNS.get(what, what)} of dtype object (Python objects): "
+            raise PluginError(f"method {name!r} returned {output_noun(what)} of dtype object (Python objects): "
                               "give real numbers (float or integer)")
         arrays.append(a)
-    return {"kind": out.kind, "metrics": _metrics(out.metrics, name)}, arrays
-
-
-def score_document(name: str, kind: str, score, sample_dir: Path, timings: dict | None = None,
-                   own: Mapping | None = None) -> dict:
-    """score.json of a scored output: method, kind, sample, units, the score (units in every key)."""
-    doc = {"method": name, "kind": kind, "sample": str(Path(sample_dir)),
-           "units": "mm for lengths, px for disparities, pct = percent, frac = fraction, count = number",
-           "score": score.to_dict()}
-    if own:
-        doc["method_metrics"] = dict(own)
-    if timings:
-        doc["timings_s"] = timings
-    return jsonable(doc)
-
-
-def jsonable(o):
-    """``o`` with numpy scalars as Python numbers and NaN/inf as None (strict JSON)."""
-    if isinstance(o, Mapping):
-        return {str(k): jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [jsonable(v) for v in o]
-    if isinstance(o, (bool, np.bool_)):
-        return bool(o)
-    if isinstance(o, (float, np.floating)):
-        return float(o) if np.isfinite(o) else None
-    if isinstance(o, np.integer):
-        return int(o)
-    return o
+    own = _checked(checked_metrics, out.metrics, name)
+    return {"kind": out.kind, "metrics": own, "notes": list(_checked(checked_notes, out.notes, name))}, arrays

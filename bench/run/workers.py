@@ -1,5 +1,5 @@
 """Worker processes that share this machine's cores: the render threads each may use, and dying
-with the parent. Used by the study's process pool (``bench.run.study``) and the sweep's
+with the parent. Used by the study's process pool (``bench.run.sensing.study``) and the sweep's
 (``bench.sweep``)."""
 from __future__ import annotations
 

@@ -47,10 +47,11 @@ import math
 import os
 import secrets
 import shutil
+from dataclasses import replace
 from importlib import metadata
 from pathlib import Path
 
-from platebench.bench.config.axes import PARAMETERS, parameter_columns
+from platebench.bench.config.axes import PARAMETERS
 from platebench.bench.io.atomic import (
     HOST,
     OutputLock,
@@ -63,11 +64,13 @@ from platebench.bench.io.atomic import (
     write_json,
     write_text,
 )
+from platebench.bench.io.table_checksums import write_table_checksums
 from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the dataset's names)
     FORMAT,
     MANIFEST,
     RESULT,
     RESULT_FORMAT,
+    RESULTS_CHECKSUMS,
     RESULTS_CSV,
     RESULTS_PARQUET,
     SAMPLES,
@@ -75,6 +78,7 @@ from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the datase
     VERSION,
 )
 from platebench.bench.io.dataset_state import dataset_lock, live_state  # noqa: F401  (re-exported)
+from platebench.bench.io.sweep_records import SampleResult, table_rows
 from platebench.bench.io.outputs import file_sha256, foreign_entries, guard_output
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS, METRIC_NAMES
@@ -145,43 +149,36 @@ def tree_checksums(root: Path) -> dict:
     return out
 
 
-def _result_doc(res: dict) -> dict:
-    return {k: v for k, v in res.items() if not k.startswith("_") and k not in ("cached", "stage")}
-
-
 class CommitError(RuntimeError):
     """A worker's attempt directory does not hold what its result lists (lost or corrupt in transit)."""
 
 
-def commit_sample(dataset: Path, res: dict) -> dict:
+def commit_sample(dataset: Path, res: SampleResult) -> SampleResult:
     """Commit one sample (sweep process only): verify the attempt's files against the checksums its
     result lists, write ``result.json`` into it and rename it to ``samples/<id>`` (replacing an older
     attempt). A result without files (the task never ran) gets a directory with ``result.json`` only.
-    Returns the result with ``_result_sha256``. Raises ``CommitError`` if a file is missing or differs."""
+    Returns the result with ``result_sha256``. Raises ``CommitError`` if a file is missing or differs."""
     dataset = Path(dataset)
-    sid = res["sample_id"]
-    stage = Path(res["stage"]) if res.get("stage") else None
+    sid = res.sample_id
+    stage = Path(res.stage) if res.stage else None
     if stage is None or not stage.is_dir():
-        if res.get("files"):
+        if res.files:
             raise CommitError(f"sample {sid}: its attempt directory {stage} is gone")
         stage = make_attempt_dir(dataset, sid)
     if stage.parent.resolve() != (dataset / SAMPLES).resolve():
         raise CommitError(f"sample {sid}: attempt directory {stage} is outside {dataset / SAMPLES}")
     found = tree_checksums(stage)
-    bad = sorted(k for k in set(res.get("files") or {}) | set(found) if found.get(k) != res["files"].get(k))
+    bad = sorted(k for k in set(res.files) | set(found) if found.get(k) != res.files.get(k))
     if bad:
         raise CommitError(f"sample {sid}: {stage.name}/{bad[0]} does not match its checksum "
                           f"({len(bad)} file(s) differ)")
-    doc = _result_doc(res)
-    write_json(stage / RESULT, doc)
+    write_json(stage / RESULT, res.to_dict())
     swap_in(stage, sample_dir(dataset, sid))
     if stage.is_symlink():  # what stood at samples/<id> was a link: remove the link, never what it points to
         stage.unlink()
     elif stage.exists():  # the replaced older attempt
         shutil.rmtree(stage, ignore_errors=True)
-    out = dict(doc)
-    out["_result_sha256"] = file_sha256(sample_dir(dataset, sid) / RESULT)
-    return out
+    return replace(res, stage=None, result_sha256=file_sha256(sample_dir(dataset, sid) / RESULT))
 
 
 def sweep_attempts(dataset: Path, force: bool = False) -> int:
@@ -208,8 +205,8 @@ def package_versions() -> dict:
 
 # ----------------------------------------------------------------------------- per-sample result
 def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = None,
-                    manifest_files: dict | None = None) -> dict | None:
-    """The sample's result.json if it exists and is valid (see module doc), else None.
+                    manifest_files: dict | None = None) -> SampleResult | None:
+    """The sample's result.json (a ``SampleResult``) if it exists and is valid (see module doc), else None.
 
     ``manifest_files``: the checksums the manifest lists for the sample; they must agree too."""
     d = sample_dir(dataset, sample_id)
@@ -240,50 +237,10 @@ def validate_result(dataset: Path, sample_id: str, config_sha256: str | None = N
                 return None
         except OSError:
             return None
-    return res
+    return SampleResult.from_dict(res)
 
 
 # ----------------------------------------------------------------------------- table rows
-def sample_columns(config: dict, pose: dict | None, params: dict) -> dict:
-    """The parameter columns of a sample, from its full configuration (what was rendered)."""
-    out = parameter_columns(config, pose)
-    out["params_json"] = json.dumps(params, sort_keys=True, default=str)
-    return out
-
-
-def rows_of_result(res: dict) -> list[dict]:
-    """Table rows (one per method) of a sample's result.json."""
-    base = {"sample_id": res["sample_id"], "index": res.get("index")}
-    base.update(sample_columns(res["config"], res.get("pose"), res.get("params", {})))
-    w = res.get("worker") or {}
-    t = res.get("timings_s") or {}
-    out = []
-    for row in res["rows"]:
-        r = dict(base)
-        r.update({"method": row.get("method"), "status": row.get("status"), "error": row.get("error")})
-        metrics = row.get("metrics") or {}
-        for k in METRIC_COLUMNS:
-            r[k] = metrics.get(k)
-        r.update({k: v for k, v in metrics.items() if k not in METRIC_FIELDS})  # a method's own metrics
-        if r.get("false_boundary_gt") is None:
-            r["false_boundary_gt"] = res.get("false_boundary_gt")
-        r["time_render_s"] = _sum(t.get("render_s"), row.get("time_render_extra_s"))
-        r["time_recon_s"] = row.get("time_recon_s")
-        r["time_eval_s"] = row.get("time_eval_s")
-        r["time_total_s"] = t.get("total_s")
-        r["variant"] = res.get("variant")
-        r["worker"] = f"{w.get('host')}:{w.get('pid')}" if w else None
-        r["worker_maxrss_mb"] = w.get("maxrss_mb")
-        out.append(r)
-    return out
-
-
-def _sum(a, b):
-    if a is None:
-        return None
-    return float(a) + float(b or 0.0)
-
-
 def _cell(v, kind: str):
     if v is None:
         return None
@@ -346,11 +303,13 @@ def parquet_bytes(rows: list[dict]) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
-def write_results(dataset: Path, results: list[dict]) -> list[dict]:
-    """Write results.csv and results.parquet (atomically) from result.json dicts; returns the rows."""
-    rows = [r for res in sorted(results, key=lambda x: x.get("index", 0)) for r in rows_of_result(res)]
+def write_results(dataset: Path, results: list[SampleResult]) -> list[dict]:
+    """Write results.csv and results.parquet (atomically) from the samples' results, then their sha256
+    (``bench.io.table_checksums``); returns the rows."""
+    rows = [r for res in sorted(results, key=lambda x: x.index or 0) for r in table_rows(res)]
     write_text(Path(dataset) / RESULTS_CSV, csv_text(rows))
     write_bytes(Path(dataset) / RESULTS_PARQUET, parquet_bytes(rows))
+    write_table_checksums(Path(dataset), (RESULTS_CSV, RESULTS_PARQUET))
     return rows
 
 
@@ -363,7 +322,7 @@ def read_results(dataset: Path):
 # ----------------------------------------------------------------------------- manifest
 def manifest_dict(spec, results: dict, executor: dict | None, started: str, state: str,
                   packages: dict | None = None) -> dict:
-    """The manifest: ``results`` maps sample id -> result.json dict (completed samples only)."""
+    """The manifest: ``results`` maps sample id -> ``SampleResult`` (completed samples only)."""
     samples = []
     counts = {"total": len(spec.samples), "ok": 0, "failed": 0, "pending": 0}
     for plan in spec.samples:
@@ -374,14 +333,14 @@ def manifest_dict(spec, results: dict, executor: dict | None, started: str, stat
             entry["status"] = "pending"
             counts["pending"] += 1
         else:
-            entry["status"] = res["status"]
-            counts[res["status"]] += 1
-            entry["error"] = res.get("error")
-            entry["methods"] = {r["method"]: {"status": r["status"], "error": r.get("error")} for r in res["rows"]}
-            entry["result_sha256"] = res.get("_result_sha256")
-            entry["files_sha256"] = res.get("files", {})
-            entry["images_sha256"] = res.get("images", {})
-            w = res.get("worker") or {}
+            entry["status"] = res.status
+            counts[res.status] += 1
+            entry["error"] = res.error
+            entry["methods"] = {r.method: {"status": r.status, "error": r.error} for r in res.rows}
+            entry["result_sha256"] = res.result_sha256
+            entry["files_sha256"] = res.files
+            entry["images_sha256"] = res.images
+            w = res.worker or {}
             entry["worker"] = f"{w.get('host')}:{w.get('pid')}" if w else None
         samples.append(entry)
     return {"format": FORMAT, "version": VERSION, "state": state, "writer": {"host": HOST, "pid": os.getpid()},
@@ -448,7 +407,7 @@ def check_dataset(out: Path, spec, resume: bool, overwrite: bool) -> dict | None
     raise DatasetLayoutError(f"{out} already exists (use --resume to continue it or --overwrite to replace it)")
 
 
-_DATASET_NAMES = (MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET, SAMPLES, "report")
+_DATASET_NAMES = (MANIFEST, SPEC_COPY, RESULTS_CSV, RESULTS_PARQUET, RESULTS_CHECKSUMS, SAMPLES, "report")
 
 
 def _result_doc_of(d: Path) -> dict | None:
@@ -514,7 +473,7 @@ def _started_skeleton(out: Path, spec) -> bool:
         elif p.name == SAMPLES and p.is_dir():
             if any(not is_temp_name(q.name) for q in p.iterdir()):
                 return False
-        elif p.name not in (RESULTS_CSV, RESULTS_PARQUET, MANIFEST):  # tables of no committed sample, a damaged
+        elif p.name not in (RESULTS_CSV, RESULTS_PARQUET, RESULTS_CHECKSUMS, MANIFEST):  # tables of no sample, a damaged
             return False                                                 # manifest (read_manifest said so)
     return True
 

@@ -45,7 +45,7 @@ import time
 from collections import Counter
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from platebench.bench import interrupts
@@ -668,7 +668,7 @@ class SweepSummary:
     ok: int
     failed: int
     wall_s: float
-    results: dict  # sample id -> result dict
+    results: dict  # sample id -> SampleResult (bench.io.sweep_records)
     executor: dict
     interrupted: bool = False
     worker_stats: dict = field(default_factory=dict)  # "host:pid" -> {"samples", "maxrss_mb"}
@@ -681,8 +681,8 @@ class SweepSummary:
 def worker_stats(results) -> dict:
     out: dict = {}
     for res in results:
-        w = res.get("worker") or {}
-        if not w or res.get("cached"):
+        w = res.worker or {}
+        if not w:
             continue
         k = f"{w.get('host')}:{w.get('pid')}"
         e = out.setdefault(k, {"samples": 0, "maxrss_mb": 0.0})
@@ -728,7 +728,7 @@ def run_sweep(spec, out: Path, executor=None, resume: bool = False, overwrite: b
     "complete" (every sample committed), "interrupted" (Ctrl-C, SIGTERM, or the executor lost:
     ``ExecutorLost`` is raised after the manifest is written) or "incomplete".
 
-    ``on_result(result_dict)`` is called as each sample is committed (in this process).
+    ``on_result(result)`` is called with each sample's ``SampleResult`` as it is committed (in this process).
     ``method_time_limit_s``: the longest a plug-in may run on one sample (default: the spec's
     ``sweep.method_time_limit_s``, else ``plugins.METHOD_TIME_LIMIT_S``)."""
     from platebench.bench.progress import bar  # noqa: PLC0415
@@ -788,9 +788,9 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
             res = ds.validate_result(out, task.sample_id, task.config_sha256, listed.get(task.sample_id))
             if res is None and (ds.sample_dir(out, task.sample_id) / ds.RESULT).exists():
                 redo += 1  # committed once, but its files no longer match: made again
-        if res is not None and (res["status"] == "ok" or not retry_failed):
-            res["_result_sha256"] = ds.file_sha256(ds.sample_dir(out, task.sample_id) / ds.RESULT)
-            results[task.sample_id] = res
+        if res is not None and (res.ok or not retry_failed):
+            results[task.sample_id] = replace(
+                res, result_sha256=ds.file_sha256(ds.sample_dir(out, task.sample_id) / ds.RESULT))
         else:
             todo.append(task)
     skipped = len(results)
@@ -822,7 +822,7 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
         say(f"resume: {skipped} of {len(spec.samples)} samples already done, {len(todo)} to run"
             + (f" ({redo} whose files no longer match their checksums)" if redo else ""))
     t0 = time.perf_counter()
-    counts = Counter(r["status"] for r in results.values())
+    counts = Counter(r.status for r in results.values())
     pbar = bar(len(spec.samples), f"sweep {spec.name}", unit="sample", enabled=progress)
     pbar.n = pbar.last_print_n = pbar.initial = skipped
     pbar.set_postfix_str(f"failed {counts['failed']}")
@@ -846,7 +846,7 @@ def _run(spec, out: Path, executor, old_manifest, retry_failed, progress, flush_
                         res = ds.commit_sample(out, failed_result(task, f"CommitError: {e}"))
                 results[task.sample_id] = res
                 ran.append(res)
-                counts[res["status"]] += 1
+                counts[res.status] += 1
                 pbar.update(1)
                 pbar.set_postfix_str(f"failed {counts['failed']}")
                 if time.monotonic() - last_flush >= min(flush_every_s, 20.0 * flush_cost):

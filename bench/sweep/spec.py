@@ -30,7 +30,7 @@ from platebench.bench.config.presets import with_realism
 from platebench.bench.config.realism import CAMERA_SOURCES, MAX_SCALE, REALISM_PRESETS, Realism, RealismError, realism_preset
 from platebench.bench.config.realism import SOURCES as _SOURCES
 from platebench.bench.config.ranges import RangeError, expand_range
-from platebench.bench.run.methods import METHODS, get_method
+from platebench.bench.run.methods import get_method, method_names
 from platebench.bench.run.plugins import check_time_limit
 from platebench.errors import UserValueError
 from platebench.plates.spec import FAMILIES, family_sweep_keys
@@ -44,8 +44,12 @@ _SWEEP_KEYS = ("name", "description", "mode", "methods", "seed", "count", "seed_
 _GRID_FORMS = ("start", "stop", "step", "num", "values")
 _RANDOM_FORMS = ("min", "max", "int", "values")
 
-# fields each family takes, read from the deformation dataclasses of plates.spec (one source)
-_DEFORMATION_FIELDS = {family: tuple(f.name for f in dataclasses.fields(cls)) for family, cls in FAMILIES.items()}
+
+def _deformation_fields(family) -> tuple[str, ...]:
+    """The fields ``family`` takes, read from its registered dataclass (plates.spec.FAMILIES, one source,
+    asked when a spec is read: a family registered later counts); () for an unknown family."""
+    cls = FAMILIES.get(family)
+    return tuple(f.name for f in dataclasses.fields(cls)) if cls is not None else ()
 
 
 class SpecError(ConfigError):
@@ -107,7 +111,7 @@ def _deformation(d: dict) -> dict:
 def _set_deformation_field(name: str, convert=lambda x: x):
     def apply(d: dict, v, state: dict) -> None:
         dfm = _deformation(d)
-        if name not in _DEFORMATION_FIELDS.get(dfm.get("family"), ()):
+        if name not in _deformation_fields(dfm.get("family")):
             raise _NotApplicable
         dfm[name] = convert(v)
     return apply
@@ -240,13 +244,12 @@ class Axis:
         return AXIS_INFO[self.name].help if self.name in AXIS_INFO else "configuration path"
 
 
-_CHOICES = {"family": tuple(_DEFORMATION_FIELDS), "direction": ("up", "down"), "metal": ("Al", "Fe"),
-            "projector_kind": ("pinhole", "spot")}
+_CHOICES = {"direction": ("up", "down"), "metal": ("Al", "Fe"), "projector_kind": ("pinhole", "spot")}
 _INTEGER_AXES = {"width_px", "height_px", "spp", "seed", "bit_depth", "realism_seed"}
 # spec values in degrees, the configuration in radians (the shared bend axes, and any family's own in degrees)
 _DEGREE_AXES = {"bend_deg", "axis_deg"} | {k.name for _, k in family_sweep_keys() if k.degrees}
 _SPECIAL_AXES = {  # axes whose value is a table or sets several keys
-    "family": Axis("family", lambda k, v: _str(k, v, _CHOICES["family"]), _apply_family),
+    "family": Axis("family", lambda k, v: _str(k, v, tuple(FAMILIES)), _apply_family),
     "material": Axis("material", _parse_material, _apply_material, table_valued=True),
     "pattern": Axis("pattern", _table, _set_path("scene", "pattern"), table_valued=True),
     "resolution": Axis("resolution", _parse_resolution, _apply_resolution, table_valued=True),
@@ -554,7 +557,7 @@ def _methods(sweep: dict, methods) -> tuple[tuple[str, ...], str]:
     if isinstance(methods, str):
         methods = [methods]
     if not isinstance(methods, (list, tuple)) or not methods:
-        raise SpecError(f"{where} = {methods!r}: give a non-empty list from {', '.join(METHODS)}")
+        raise SpecError(f"{where} = {methods!r}: give a non-empty list from {', '.join(method_names())}")
     for m in methods:
         try:
             get_method(m)

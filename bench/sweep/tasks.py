@@ -2,8 +2,8 @@
 
 ``run_sample(task)`` is what every executor runs (local process pool, in-process, or a
 Dask worker). It writes only into a private attempt directory
-(``samples/.tmp-<id>~HOST~PID~R``, see ``dataset.make_attempt_dir``) and returns the result
-dict (status, rows, checksums of every file it wrote, the attempt directory): one writer
+(``samples/.tmp-<id>~HOST~PID~R``, see ``dataset.make_attempt_dir``) and returns the sample's
+``SampleResult`` (status, rows, checksums of every file it wrote, the attempt directory): one writer
 per sample, since only the sweep process commits a result (``dataset.commit_sample``:
 checksums verified, ``result.json`` written, the directory renamed to ``samples/<id>``).
 A worker that outlives its scheduler, or a second attempt of the same sample, writes into
@@ -17,7 +17,7 @@ Each worker process keeps one ``PlateRenderer`` (module global) and passes it ba
 ``render_sample`` for its next sample, so compiled kernels are reused. A lock makes
 samples of one process run one at a time (run Dask workers with ``--nthreads 1``).
 
-The methods a sample runs come from the registry ``bench.run.methods.METHODS``.
+The methods a sample runs come from the registry ``reconstruction.methods`` (``bench.run.methods.get_method``).
 """
 from __future__ import annotations
 
@@ -28,23 +28,18 @@ import shutil
 import socket
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.fs_errors import environmental
 from platebench.bench.io.layout import RECON, SAMPLE, method_folder
 from platebench.bench.io.sample_files import write_sample
+from platebench.bench.io.sweep_records import MethodRun, SampleResult, SampleTimings
 from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
 from platebench.bench.run.workers import die_with_parent, set_render_threads
-from platebench.bench.sweep.dataset import (
-    RESULT_FORMAT,
-    VERSION,
-    make_attempt_dir,
-    now_utc,
-    tree_checksums,
-)
+from platebench.bench.sweep.dataset import make_attempt_dir, now_utc, tree_checksums
 
 
 # ----------------------------------------------------------------------------- tasks
@@ -103,14 +98,11 @@ def _error_text(e: BaseException) -> str:
     return text[:500]
 
 
-def failed_result(task: SampleTask, error: str | None, phase: str | None = "executor") -> dict:
+def failed_result(task: SampleTask, error: str | None, phase: str | None = "executor") -> SampleResult:
     """A result for a sample whose task could not run at all (e.g. its worker kept dying)."""
-    return {"format": RESULT_FORMAT, "version": VERSION, "sample_id": task.sample_id, "index": task.index,
-            "config_sha256": task.config_sha256, "status": "failed", "error": error, "phase": phase,
-            "params": task.params, "config": task.config, "pose": task.pose, "methods": list(task.methods),
-            "variant": None, "false_boundary_gt": None,
-            "rows": [{"method": m, "status": "failed", "error": error, "metrics": {}} for m in task.methods],
-            "timings_s": {}, "files": {}, "images": {}, "worker": None, "finished_utc": now_utc()}
+    return SampleResult(task.sample_id, task.index, task.config_sha256, "failed", error, phase, task.params,
+                        task.config, task.pose, tuple(task.methods),
+                        rows=tuple(MethodRun.failed(m, error) for m in task.methods), finished_utc=now_utc())
 
 
 def pose_supported() -> str | None:
@@ -118,13 +110,13 @@ def pose_supported() -> str | None:
     return None
 
 
-def run_sample(task: SampleTask) -> dict:
-    """Make one sample into a private staging directory and return its result dict (see module doc)."""
+def run_sample(task: SampleTask) -> SampleResult:
+    """Make one sample into a private staging directory and return its result (see module doc)."""
     with _LOCK:
         return _run_sample(task)
 
 
-def _run_sample(task: SampleTask) -> dict:
+def _run_sample(task: SampleTask) -> SampleResult:
     stage = make_attempt_dir(Path(task.dataset), task.sample_id)
     try:
         return _make_sample(task, stage)
@@ -157,36 +149,35 @@ def _render(task: SampleTask) -> tuple:
         return None, _error_text(e), time.perf_counter() - t
 
 
-def _make_sample(task: SampleTask, stage: Path) -> dict:
+def _make_sample(task: SampleTask, stage: Path) -> SampleResult:
     t0 = time.perf_counter()
     sample, error, render_s = _render(task)
     return _complete(task, stage, sample, error, render_s, t0)
 
 
-def _complete(task: SampleTask, stage: Path, sample, error: str | None, render_s: float, t0: float) -> dict:
+def _complete(task: SampleTask, stage: Path, sample, error: str | None, render_s: float, t0: float) -> SampleResult:
     """Write the rendered ``sample`` (or record ``error``) into ``stage``, run the methods on it, and
-    return the result dict."""
-    res = failed_result(task, None, None)
-    res.update(status="ok", error=None, phase=None, rows=[], stage=str(stage))
-    timings = res["timings_s"]
-    timings["render_s"] = render_s
+    return the sample's result."""
+    status, phase, rows, write_s = "ok", None, [], None
+    variant = false_boundary_gt = None
+    images: dict = {}
     written = False
     try:
         if error is not None:
             raise _RenderFailed(error)
         t = time.perf_counter()
         write_sample(stage / SAMPLE, sample, overwrite=False)
-        timings["write_s"] = time.perf_counter() - t
-        res["variant"] = sample.variant
-        res["false_boundary_gt"] = bool(any(v.false_boundary for v in sample.visibility.values()))
-        res["images"] = json.loads((stage / SAMPLE / "sample.json").read_text()).get("images", {})
+        write_s = time.perf_counter() - t
+        variant = sample.variant
+        false_boundary_gt = bool(any(v.false_boundary for v in sample.visibility.values()))
+        images = json.loads((stage / SAMPLE / "sample.json").read_text()).get("images", {})
         written = True
     except Exception as e:  # noqa: BLE001  (recorded, the sweep goes on)
         if environmental(e, Path(task.dataset)):
             raise  # the output's fault, not the sample's: the run stops (bench.io.fs_errors)
-        err = str(e) if isinstance(e, _RenderFailed) else _error_text(e)
-        res.update(status="failed", error=err, phase="render",
-                   rows=[{"method": m, "status": "failed", "error": err, "metrics": {}} for m in task.methods])
+        error = str(e) if isinstance(e, _RenderFailed) else _error_text(e)
+        status, phase = "failed", "render"
+        rows = [MethodRun.failed(m, error) for m in task.methods]
     del sample
     if written:  # methods run only on a sample that was rendered AND written: one row per method, always
         for name in task.methods:
@@ -194,24 +185,24 @@ def _complete(task: SampleTask, stage: Path, sample, error: str | None, render_s
                                 task.method_time_limit_s)
             try:
                 out = get_method(name).run(ctx)
-                row = {"method": name, "status": "ok", "error": None, "metrics": out.metrics.columns(),
-                       "time_recon_s": out.time_recon_s, "time_eval_s": out.time_eval_s,
-                       "time_render_extra_s": out.time_render_extra_s}
+                row = MethodRun(name, "ok", None, out.metrics.columns(), out.time_recon_s, out.time_eval_s,
+                                out.time_render_extra_s)
             except Exception as e:  # noqa: BLE001
                 if environmental(e, Path(task.dataset)):
                     raise
-                row = {"method": name, "status": "failed", "error": _error_text(e), "metrics": {}}
-            res["rows"].append(row)
-        failed = [r for r in res["rows"] if r["status"] != "ok"]
+                row = MethodRun.failed(name, _error_text(e))
+            rows.append(row)
+        failed = [r for r in rows if r.status != "ok"]
         if failed:
-            res.update(status="failed", phase="method",
-                       error="; ".join(f"{r['method']}: {r['error']}" for r in failed)[:1000])
-    res["files"] = tree_checksums(stage)  # every file of the sample; --resume checks them all
+            status, phase = "failed", "method"
+            error = "; ".join(f"{r.method}: {r.error}" for r in failed)[:1000]
+    files = tree_checksums(stage)  # every file of the sample; --resume checks them all
     _STATE["samples"] += 1
-    timings["total_s"] = time.perf_counter() - t0
-    res["worker"] = worker_info()
-    res["finished_utc"] = now_utc()
-    return res  # the sweep process verifies the files and commits the sample (dataset.commit_sample)
+    timings = SampleTimings(render_s, write_s, time.perf_counter() - t0)
+    # the sweep process verifies the files and commits the sample (dataset.commit_sample)
+    return SampleResult(task.sample_id, task.index, task.config_sha256, status, error, phase, task.params,
+                        task.config, task.pose, tuple(task.methods), variant, false_boundary_gt, tuple(rows), timings,
+                        files, images, worker_info(), now_utc(), stage=str(stage))
 
 
 class _RenderFailed(Exception):
@@ -228,7 +219,7 @@ class RenderedTask:
     sample: object  # bench.run.render.RenderedSample, or None
     error: str | None
     render_s: float
-    result: dict | None = None
+    result: SampleResult | None = None
     render_worker: dict | None = None
 
 
@@ -247,9 +238,9 @@ def render_stage(task: SampleTask) -> RenderedTask:
         return RenderedTask(sample, error, render_s, None, worker_info())
 
 
-def finish_stage(task: SampleTask, rendered: RenderedTask) -> dict:
+def finish_stage(task: SampleTask, rendered: RenderedTask) -> SampleResult:
     """The second stage, on any CPU worker: write the rendered sample into a private attempt directory,
-    run the methods, return the result dict (as ``run_sample`` does)."""
+    run the methods, return the sample's result (as ``run_sample`` does)."""
     if rendered.result is not None:
         return rendered.result
     with _LOCK:
@@ -260,5 +251,4 @@ def finish_stage(task: SampleTask, rendered: RenderedTask) -> dict:
         except BaseException:
             shutil.rmtree(stage, ignore_errors=True)
             raise
-        res["render_worker"] = rendered.render_worker
-        return res
+        return replace(res, render_worker=rendered.render_worker)

@@ -2,7 +2,7 @@
 
 A plug-in is one function of a sample's inputs (``MethodInputs``: the four camera images, the
 calibration and the projected pattern; never the ground truth) returning one output kind of
-``platebench.bench.run.plugins``: ``Disparity``, ``Depth``, ``Points`` or ``Mesh``. PlateBench
+``platebench.reconstruction.methods``: ``Disparity``, ``Depth``, ``Points`` or ``Mesh``. PlateBench
 scores it against the exact ground truth with the metrics of that kind and puts every figure in
 the results table. This module offers two, registered as entry points in ``pyproject.toml``:
 
@@ -23,7 +23,7 @@ import math
 import cv2
 import numpy as np
 
-from platebench.bench.run.plugins import Disparity, MethodInputs, Points
+from platebench.reconstruction.methods import Disparity, MethodInputs, Points
 
 BLOCK_SIZE = 11  # odd, >= 5 (StereoBM)
 DEPTH_MARGIN = 0.15

@@ -1,7 +1,8 @@
-"""Calibration from images (paper IV-A): stereo cameras (ChArUco) and the structured light's rays."""
+"""Calibration from images (paper IV-A): the stereo cameras (ChArUco, ``stereo``), the hand/eye
+transform (``hand_eye``) and the undistortion of a calibrated pair's images (``undistort``). The
+structured light's rays are calibrated with the paper's own square detection:
+``reconstruction.paper.structured_light``."""
 from platebench.reconstruction.calibration.stereo import *  # noqa: F401,F403
 from platebench.reconstruction.calibration.stereo import __all__ as _stereo
-from platebench.reconstruction.calibration.structured_light import *  # noqa: F401,F403
-from platebench.reconstruction.calibration.structured_light import __all__ as _sl
 
-__all__ = [*_stereo, *_sl]
+__all__ = [*_stereo]

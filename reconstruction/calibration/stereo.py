@@ -17,7 +17,7 @@ images alone (the free model must explain ``DISTORTION_EXPLAINED_PX`` of the cor
 displacement), and a calibration with distortion hands it to the pipeline (``to_rig``), which
 undistorts the images.
 
-The structured light's rays: ``reconstruction.calibration.structured_light``.
+The structured light's rays: ``reconstruction.paper.structured_light``.
 """
 from __future__ import annotations
 
@@ -44,9 +44,8 @@ REFINE_SIGMA_PX = 1.5
 FIXED_DISTORTION_FLAGS = cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
 FREE_DISTORTION_FLAGS = cv2.CALIB_FIX_K3
 # The free model is kept when its four coefficients explain at least this much of the board corners'
-# RMS displacement, sqrt(rms_pinhole^2 - rms_free^2) (px): measured 0.18-0.20 px with the 1995
-# camera's lens (with or without its noise, line jitter and defocus, which raise both RMS to 0.15-0.25
-# px), 0.001-0.006 px without a lens distortion (noise-free or not): the extra terms then fit noise.
+# RMS displacement, sqrt(rms_pinhole^2 - rms_free^2) (px): a real lens distortion explains several times
+# this, none explains a small fraction of it (the extra terms then fit noise; docs/findings/design-record.md).
 DISTORTION_EXPLAINED_PX = 0.05
 _CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, tol.solver_eps)
 # cv2.undistortPoints' fixed-point iteration run to convergence (its default stops after 5 steps)
@@ -79,10 +78,9 @@ def detect_charuco(image: np.ndarray, board, refine: bool = True) -> BoardDetect
 
     ``refine``: re-locate each corner with ``cornerSubPix`` on the image blurred by a
     Gaussian of REFINE_SIGMA_PX, window max(3, imaged square / 12) px. On noise-free
-    renders (sharp, area-sampled edges) OpenCV's own ChArUco refinement is off by
-    ~0.1 px RMS on boards tilted 20-30 degrees (0.004 px on a fronto-parallel board);
-    cornerSubPix is biased on edges one pixel wide, and the blur removes most of it:
-    measured 0.10 -> 0.015 px RMS at 75 px squares, 0.16 -> 0.04 px at 37 px squares.
+    renders (sharp, area-sampled edges) OpenCV's own ChArUco refinement is biased on
+    tilted boards, and so is cornerSubPix on edges one pixel wide; the blur removes most
+    of that bias (figures in docs/findings/design-record.md).
     """
     img = np.asarray(image)
     full = img.astype(np.float32)  # refinement works on all the bits
@@ -325,9 +323,8 @@ def stereo_calibrate(det_left, det_right, cal_left: CameraCalibration, cal_right
     that view's corners are triangulated for the alignment (``triangulate_camera``). The
     default "conventional" registers the rig the pipeline will use (``to_rig``) with that
     rig's own triangulation, so the world pose absorbs what the conventional model
-    ignores at the registration depth (measured on the reference rig: an estimated
-    0.004 degree rotation between the cameras, left out by ``to_rig``, is a 0.14 px
-    disparity offset, 0.1 mm of depth, when registered with the general model).
+    ignores at the registration depth (a small estimated rotation between the cameras,
+    left out by ``to_rig``, is a disparity offset when registered with the general model).
     """
     if cal_left.fix_distortion != cal_right.fix_distortion:
         raise CalibrationError("stereo_calibrate: both cameras must use the same distortion model")

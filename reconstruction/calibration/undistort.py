@@ -43,7 +43,7 @@ def undistort_image(image: np.ndarray, cam: Camera, maps=None) -> np.ndarray:
         raise ValueError(f"undistort: image size {img.shape[::-1]} differs from the camera's "
                          f"{cam.width}x{cam.height}")
     mu, mv = maps if maps is not None else undistortion_map(cam)
-    from scipy.ndimage import map_coordinates  # noqa: PLC0415  (scipy.ndimage takes 0.25 s to import)
+    from scipy.ndimage import map_coordinates  # noqa: PLC0415  (scipy.ndimage is slow to import: loaded when needed)
 
     out = map_coordinates(img.astype(np.float64), [mv.astype(np.float64), mu.astype(np.float64)], order=1,
                           mode="constant", cval=0.0)

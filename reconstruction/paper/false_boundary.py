@@ -12,10 +12,8 @@ projector's K, R, t, or rays fitted by the structured-light calibration) counts 
 passes inside the reconstructed boundary *as seen from the projector*: the boundary and
 the rays are put in a gnomonic (pinhole) projection about the rays' common point, and
 the ray's image must fall inside the boundary's image. This is exact for any surface
-shape. The first version cut the rays with the boundary plane instead; that undercounts
-on strongly bent plates (at 150 degrees across the width it expected 8 of 16 squares
-that were all visible), so it is kept only as ``expected_features_inside_plane`` for
-comparison. Units: metres.
+shape. ``expected_features_inside_plane`` cuts the rays with the boundary plane instead,
+for comparison: it undercounts on strongly bent plates. Units: metres.
 """
 from __future__ import annotations
 

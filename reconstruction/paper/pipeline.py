@@ -65,7 +65,7 @@ PLANE_SAMPLE_M = 1e-3
 
 @dataclass(frozen=True)
 class PipelineOptions:
-    grid_step_m: float = 2e-3  # surface grid spacing (1 mm changes the surface by < 1 um, 4x slower)
+    grid_step_m: float = 2e-3  # surface grid spacing (m)
     boundary_in_surface: bool = True  # use the 3D boundary as data for the surface, besides the squares
     boundary_sample_m: float = 4e-3  # spacing of boundary samples used as surface data
     surface_data_weight: float | None = 1e3  # penalty weight of the data (None: exact interpolation)

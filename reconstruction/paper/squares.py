@@ -25,12 +25,8 @@ A blob is not always a whole square, and the centroid of a part is not the squar
   quarter of the threshold's contrast joined to the blob within ``DIM_RING_PX`` beyond the
   centroid's window, away from other blobs).
 
-``Square.cut`` names either, from the image alone. Measured at 640 x 480 on 120 oblique bends
-(40-120 degrees, convex and concave, axes 20-75 degrees, 0.40-0.50 m, spp 4; 1894 matched centres,
-370 of them outside the paper's bound of 2 mm depth and 1 mm x/y or on no square at all): every
-one of the 370 came from a square flagged in one image or the other, and 242 of the 612 flagged
-centres still met the bound; on 36 other bends (50-150 degrees, axes 25-85, 0.42 and 0.48 m,
-spp 2: noisier) 104 of 556 centres broke the bound, all flagged, and 99 of the 203 flagged met it.
+``Square.cut`` names either, from the image alone. How well the flags find the centres outside
+the paper's bound: docs/findings/design-record.md.
 """
 from __future__ import annotations
 

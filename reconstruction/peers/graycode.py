@@ -51,12 +51,14 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from platebench.reconstruction.methods import Disparity, MethodInputs, Projection, register_method
 from platebench.scenes.camera import triangulate_rectified
 from platebench.scenes.rig import StereoRig
 
 __all__ = ["DenseResult", "GrayCodeSequence", "ColumnDecode", "RowProfile", "graycode_sequence",
            "decode_columns", "decode_opencv", "decode_subpixel", "dense_result", "profile_from_column_map",
-           "match_columns_along_rows", "consistent_columns", "column_knots", "column_map_from_knots"]
+           "match_columns_along_rows", "consistent_columns", "column_knots", "column_map_from_knots", "as_disparity",
+           "graycode_opencv", "graycode_subpixel"]
 
 
 EDGE_MODELS = ("area", "linear", "midpoint")
@@ -473,3 +475,24 @@ def decode_subpixel(left, right, seq: GrayCodeSequence, rig: StereoRig, min_plan
     timings = {"decode_s": t_dec - t0, "match_s": t_match - t_dec}
     res = dense_result("graycode-subpx", disp, rig, n_images, timings, notes)
     return replace(res, timings={**timings, "total_s": time.perf_counter() - t0})
+
+
+# ----------------------------------------------------------------------------- registered methods
+def as_disparity(res: DenseResult) -> Disparity:
+    """A ``DenseResult`` as the method contract's output: its disparity, +inf where it has no estimate."""
+    return Disparity(np.where(res.valid, res.disparity, np.inf), notes=tuple(res.notes))
+
+
+@register_method("graycode", "Gray code, OpenCV GrayCodePattern.decode", "disparity",
+                 sequence=Projection("graycode", graycode_sequence), default=True)
+def graycode_opencv(inputs: MethodInputs) -> Disparity:
+    """OpenCV's decode of the full Gray-code sequence (``decode_opencv``)."""
+    return as_disparity(decode_opencv(inputs.captures["left"], inputs.captures["right"], inputs.sequence, inputs.rig))
+
+
+@register_method("graycode-subpx", "Gray code, sub-pixel column matching along rows (numpy)", "disparity",
+                 sequence=Projection("graycode", lambda w, h: graycode_sequence(w, h).columns_only()), default=True)
+def graycode_subpixel(inputs: MethodInputs) -> Disparity:
+    """Sub-pixel Gray-code stereo from the column planes (``decode_subpixel``)."""
+    return as_disparity(decode_subpixel(inputs.captures["left"], inputs.captures["right"], inputs.sequence,
+                                        inputs.rig))

@@ -21,7 +21,7 @@ the right image by linear interpolation between neighbouring right pixels
 (``peer_graycode.match_columns_along_rows``), giving a sub-pixel disparity.
 
 What OpenCV 5.0's ``cv2.structured_light.SinusoidalPattern`` does from Python
-(measured here; ``OPENCV_FINDINGS``):
+(``OPENCV_FINDINGS``; ``tests/test_peers.py`` checks that they hold):
 
 * ``generate`` works (3 frames for PSP/FAPS/FTP; sin fringes; period = width // nbrOfPeriods).
 * ``computePhaseMap`` works (returns the wrapped phase and a shadow mask) for PSP, FTP
@@ -46,8 +46,10 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from platebench.reconstruction.methods import Disparity, MethodInputs, Projection, register_method
 from platebench.reconstruction.peers.graycode import (
     DenseResult,
+    as_disparity,
     consistent_columns,
     dense_result,
     graycode_sequence,
@@ -57,7 +59,8 @@ from platebench.reconstruction.peers.graycode import (
 from platebench.scenes.rig import StereoRig
 
 __all__ = ["OPENCV_FINDINGS", "PhaseShiftSequence", "phase_shift_sequence", "decode_phase_columns",
-           "decode_phase_shift", "BACKENDS"]
+           "decode_phase_shift", "BACKENDS", "phase_numpy",
+           "phase_opencv"]
 
 BACKENDS = ("numpy", "opencv")
 
@@ -151,7 +154,12 @@ def _wrapped_numpy(fr: np.ndarray, steps: int):
 def _wrapped_opencv(fr: np.ndarray, seq: PhaseShiftSequence):
     sp = cv2.structured_light.SinusoidalPattern.create(_opencv_params(seq.proj_width, seq.proj_height, seq.period_px))
     imgs = [np.ascontiguousarray(f.astype(np.uint8)) for f in fr]
-    wrapped, _ = sp.computePhaseMap(imgs)
+    try:
+        wrapped, _ = sp.computePhaseMap(imgs)
+    except cv2.error as e:
+        line = next((x for x in str(e).strip().splitlines() if "error:" in x), str(e).strip()[:200])
+        raise ValueError(f"OpenCV's SinusoidalPattern.computePhaseMap refused the {imgs[0].shape[1]}x"
+                         f"{imgs[0].shape[0]} fringe captures ({line.strip()})") from None
     return np.asarray(wrapped, np.float64)
 
 
@@ -206,3 +214,21 @@ def decode_phase_shift(left, right, seq: PhaseShiftSequence, rig: StereoRig, min
                        {}, notes)
     return replace(res, timings={"decode_s": t_dec - t0, "match_s": t_match - t_dec,
                                  "total_s": time.perf_counter() - t0})
+
+
+# ----------------------------------------------------------------------------- registered methods
+@register_method("phase", "4-step phase shifting + Gray-code unwrapping (numpy)", "disparity",
+                 sequence=Projection("phase", lambda w, h: phase_shift_sequence(w, h, backend="numpy")), default=True)
+def phase_numpy(inputs: MethodInputs) -> Disparity:
+    """Phase shifting, numpy wrapped phase (``decode_phase_shift``)."""
+    return as_disparity(decode_phase_shift(inputs.captures["left"], inputs.captures["right"], inputs.sequence,
+                                           inputs.rig))
+
+
+@register_method("phase-opencv", "3-step phase shifting, OpenCV SinusoidalPattern wrapped phase + Gray-code "
+                 "unwrapping", "disparity",
+                 sequence=Projection("phase-opencv", lambda w, h: phase_shift_sequence(w, h, backend="opencv")))
+def phase_opencv(inputs: MethodInputs) -> Disparity:
+    """Phase shifting, OpenCV's wrapped phase (``decode_phase_shift``)."""
+    return as_disparity(decode_phase_shift(inputs.captures["left"], inputs.captures["right"], inputs.sequence,
+                                           inputs.rig))

@@ -23,10 +23,16 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
-from platebench.reconstruction.peers.graycode import DenseResult, dense_result
+from platebench.reconstruction.methods import Disparity, MethodInputs, register_method
+from platebench.reconstruction.peers.graycode import DenseResult, as_disparity, dense_result
 from platebench.scenes.rig import StereoRig
 
-__all__ = ["disparity_range", "default_depth_range", "sgbm"]
+__all__ = ["disparity_range", "default_depth_range", "sgbm", "sgbm_active", "sgbm_passive",
+           "BLOCK_SIZE", "MIN_IMAGE_PX"]
+
+BLOCK_SIZE = 5  # StereoSGBM's matched block, px (odd)
+# the smallest image the registered SGBM methods accept, px: numDisparities is at least 16, plus one block
+MIN_IMAGE_PX = 16 + BLOCK_SIZE
 
 
 def default_depth_range(rig: StereoRig, depth_margin: float = 0.15) -> tuple[float, float]:
@@ -60,9 +66,9 @@ def _to_8bit(img) -> np.ndarray:
     raise TypeError(f"SGBM needs 8- or 16-bit camera images, got {a.dtype} (float images are not camera output)")
 
 
-def sgbm(left, right, rig: StereoRig, depth_range_m: tuple[float, float] | None = None, block_size: int = 5,
-         uniqueness_ratio: int = 10, speckle_window: int = 100, speckle_range: int = 2, disp12_max_diff: int = 1,
-         mode: int = cv2.STEREO_SGBM_MODE_SGBM) -> DenseResult:
+def sgbm(left, right, rig: StereoRig, depth_range_m: tuple[float, float] | None = None,
+         block_size: int = BLOCK_SIZE, uniqueness_ratio: int = 10, speckle_window: int = 100, speckle_range: int = 2,
+         disp12_max_diff: int = 1, mode: int = cv2.STEREO_SGBM_MODE_SGBM) -> DenseResult:
     """SGBM on the passive left/right images -> left disparity (float px, NaN where none)."""
     t0 = time.perf_counter()
     L, R = _to_8bit(left), _to_8bit(right)
@@ -85,3 +91,20 @@ def sgbm(left, right, rig: StereoRig, depth_range_m: tuple[float, float] | None 
              f"blockSize {block_size}, P1 {8 * cn * block_size ** 2}, P2 {32 * cn * block_size ** 2}",)
     res = dense_result("sgbm", d, rig, 1, {"match_s": t_match}, notes)
     return replace(res, timings={"match_s": t_match, "total_s": time.perf_counter() - t0})
+
+
+# ----------------------------------------------------------------------------- registered methods
+@register_method("sgbm", "OpenCV StereoSGBM on the active pair (the projected grid; sgbm-passive: the passive pair)",
+                 "disparity", ("left_active", "right_active"), min_image_px=MIN_IMAGE_PX, default=True)
+def sgbm_active(inputs: MethodInputs) -> Disparity:
+    """SGBM on the active pair: the projected grid gives it texture inside the plate."""
+    return as_disparity(sgbm(inputs.images["left_active"], inputs.images["right_active"], inputs.rig,
+                             depth_range_m=inputs.depth_range_m))
+
+
+@register_method("sgbm-passive", "OpenCV StereoSGBM on the passive pair (nothing to match inside a plain plate)",
+                 "disparity", ("left_passive", "right_passive"), min_image_px=MIN_IMAGE_PX)
+def sgbm_passive(inputs: MethodInputs) -> Disparity:
+    """SGBM on the passive pair."""
+    return as_disparity(sgbm(inputs.images["left_passive"], inputs.images["right_passive"], inputs.rig,
+                             depth_range_m=inputs.depth_range_m))

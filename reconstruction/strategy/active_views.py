@@ -19,13 +19,10 @@ feature, and each matched array must pass whole, on one pattern row with its col
 (``on_feature_rays``). A centre triangulated at a disparity k squares wrong lies on the left
 camera's ray, off its true place; seen from the projector, it has moved along the left camera's
 epipolar line by k times the projector's share of the parallax. From the mid-baseline point that
-share is one half, so every even k lands exactly on a feature of the row: on a 320 x 240 study
-plate (240 degrees) whole arrays 31 mm deep passed. ``PROJECTOR_OFFSET_M`` (30 mm) across the
-100 mm baseline slants that line across the grid's rows. Measured on a flat plate at 0.4 m with the
-study's grid (6 x 12 squares, columns 4.5 mm apart; ``tests/test_active_views.py``): centres
-matched k = 1..8 positions off lie at least 2.5 mm from every feature ray, against 0.00 mm for even
-k from the mid-point and 1.6 mm for k = 2 at 20 mm; the accepted centres of a convex 240-degree
-plate's 13 later poses (640 x 480) lie up to 1.1 mm from their rays and 0.53 mm from the plate. ``ActivePoints.rejected`` counts what the check drops.
+share is one half, so every even k would land exactly on a feature of the row.
+``PROJECTOR_OFFSET_M`` (30 mm) across the 100 mm baseline slants that line across the grid's rows,
+so that a centre matched k positions off lies off every feature ray (``tests/test_active_views.py``;
+figures in docs/findings/design-record.md). ``ActivePoints.rejected`` counts what the check drops.
 
 ``merge`` puts every pose's measurements in one world-frame reconstruction: the merged boundary
 of the verdict (``multiview.verify``), the checked square centres of all poses, and the surface as

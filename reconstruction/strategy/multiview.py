@@ -2,123 +2,40 @@
 
 Each pose measures the plate's outline by passive stereo (``ViewOutline``). A point of that outline
 is either a true edge of the plate or an occluding contour (where the surface turns away from the
-cameras and hides what lies beyond). The two behave differently when the viewpoint moves:
+cameras and hides what lies beyond). A true edge stays where it is when the viewpoint moves; an
+occluding contour slides over the surface, by about ``R dtheta`` for a rotation ``dtheta`` about
+the contour's direction (``R``: the surface's radius of curvature across the contour).
 
-* a true edge stays where it is: every pose that sees it puts it on its outline, at the same 3D
-  place;
-* an occluding contour slides over the surface, by about ``R dtheta`` for a rotation ``dtheta``
-  about the contour's direction (``R``: the surface's radius of curvature across the contour).
-
-So a measured outline point is *confirmed* when another pose, whose viewing ray at that point is
-turned by at least ``CONFIRM_ANGLE_RAD``, and whose camera lies at least
+So a measured outline point is *confirmed* (``confirm``) when another pose, whose viewing ray at
+that point is turned by at least ``CONFIRM_ANGLE_RAD`` and whose camera lies at least
 ``CONFIRM_SLIDE_ANGLE_RAD`` out of the first pose's *contour plane* there (and the first's out of
-the second's), has a measured outline point within ``CONFIRM_TOL_M`` of it. The contour plane
-(``contour_planes``) is the plane through the camera and the outline's tangent line in the image:
-at an occluding contour it is the surface's tangent plane, so a camera that stays in it sees the
-same contour (two poses whose contours cross or coincide both lie in it), and one that leaves it by
-an angle sees the contour slid by about R times that angle. It is measured in the image, to a
-degree or two. (Until this rule, the turn was taken about the outline's 3D direction, which
-carries the triangulated depth noise: on the study's views 10 to 15 degrees off, enough to confirm
-stretches of contour where the poses' contours coincided, such as a 240-degree curl's equator seen
-from every pose above it. Measured on the final poses of the 61 study plates, confirm alone: stray
-confirmed points more than 2 mm off the true boundary 2531 of 227,165 -> 1285 of 216,738, on that
-curl 105 -> 5; the true boundary within 2 mm of a confirmed point 97.0 -> 95.6 % on average.)
-Both points are compared as averages along their own outlines (``smoothed_points``:
-the row-matched points within ``SMOOTH_HALF_M`` of measured arc either side; the depth noise is
-independent from point to point, an occluding contour's slide is not). Measured on the study's
-renders: with the averages, cured 14/23 and false alarms 1/31, perturbed (axes -1
-degree, distances -5 mm) 11/26 and 0/32; comparing single points, 15/23 and 1/31, perturbed 10/25
-and 2/32. Averaging the pieces' points as well (links and gaps on the averaged outline) gave 11/24
-and 0/31: the arc-length thresholds below were set on the measured, unaveraged arcs. The study itself
-(``platebench study false-boundary``, fresh machine, with the averages): cured 15/23, false alarms
-0/31, perturbed 14/25 and 0/32; a run on renders cached from an earlier commit differed from it
-by 1-3 outcomes, a difference not traced. Only points whose disparity was measured on the row
-(not interpolated, ``ViewOutline.matched``) confirm or are confirmed: an interpolated stretch
-agrees with anything its ends agree with. And the two poses must see the edge from the same side
-of the sheet (``outline_sense``): walked with the same orientation in each left image, their
-outlines run the same way along it (local directions less than 120 degrees apart). A real plate has a
-thickness, so its front and back edges are two curves; the bench's plate is a two-sided sheet of
-no thickness, whose edge seen from behind agrees with the front view to the measurement noise, and
-ground truth counts a back-facing boundary point as hidden. Without the rule, a cure seeing a
-300-degree curl's corner from behind confirmed a pose that saw it at grazing incidence (its right
-camera 0-7 degrees behind the sheet), closing the loop over 17 boundary points no camera saw
-from the front: a silent wrong verdict in the study.
+the second's; ``contour_planes``: the plane through the camera and the outline's image tangent, the
+surface's tangent plane at an occluding contour), has a measured outline point within
+``CONFIRM_TOL_M`` of it. Points are compared as averages along their own outlines
+(``smoothed_points``); only row-matched points (``ViewOutline.matched``) confirm or are confirmed,
+and both poses must see the edge from the same side of the sheet (``outline_sense``): the plate is
+a two-sided sheet, and ground truth counts a back-facing boundary point as hidden.
 
 The verdict (``verify``) asks whether the confirmed pieces of all poses close into one loop, as a
-plate's boundary does. Pieces are grouped where one leads on from another's end (it has points
-past that end, off the end piece and nearest to that very end or beside it, not behind it: not
-along the piece's side or past its other end), or where they run along the same edge. (Measured
-with "nearest to that very end" alone: 3 study plates kept a gap at a right-angled corner whose
-last confirmed point lay after a bridged jump of about 5 mm, so the next edge's points were
-nearest to the point before the jump; with "or beside it", cured 18 -> 19 of 28, false alarms on
-the moved plates 2 -> 0 of 32, silent 0.) A piece that stops where no other confirmed piece leads on is a *gap*:
-part of the boundary that no pose has shown to be a true edge. ``BoundaryVerdict.verified`` is
-true when a group is at least ``LOOP_MIN_FRACTION`` of the first pose's measured outline long
-(lengths over 5 mm chords), goes round (no gap of more than ``LOOP_MAX_ANGLE_GAP_RAD`` in its
-directions from its centroid, seen from the first pose), and no piece anywhere has a loose end:
-a plate's boundary is one closed curve, so a closed loop of its pieces is all of it, but a loop
-that leaves loose ends elsewhere may be a short-cut (on a 300-degree curl one covered 43 % of
-the boundary), and no other group stands apart (two groups closed on themselves: one of them is
-not the boundary; on a 300-degree curl such a pair covered 44 % of it).
+plate's boundary does. Pieces are grouped where one leads on from another's end (``_leads_on``) or
+where they run along the same edge (``OVERLAP_POINTS``). A piece bridges unconfirmed stretches up to
+``BRIDGE_M`` of its own outline, and an end links along any pose's outline up to
+``OUTLINE_BRIDGE_M``, never across a point that pose sees from behind the sheet; a piece shorter
+than ``LINK_M`` walks the outlines only away from itself (``_linked``, ``_leaving_step``). A piece
+that stops where no other confirmed piece leads on is a *gap*. ``BoundaryVerdict.verified`` is
+true when a group is at least ``LOOP_MIN_FRACTION`` of the first pose's outline long (lengths over
+5 mm chords), goes round its centroid (no gap over ``LOOP_MAX_ANGLE_GAP_RAD``, seen from the first
+pose), no piece anywhere has a loose end, and no other group stands apart.
+
+Real rigs: the loop measures through the commanded poses, registers them on their common edges
+(``registration``, ``PoseSpread``) and confirms with ``CONFIRM_SLIDE_ANGLE_RIG_RAD``.
 
 Limits: a contour turned ``CONFIRM_SLIDE_ANGLE_RAD`` (20 degrees) about its own direction slides
 ``R * 0.35``, less than ``CONFIRM_TOL_M`` when ``R`` is under about 2.9 mm (a crease): such a
-contour cannot be told from an edge this way. With 12 degrees (R under 4.8 mm, and within noise up
-to about 7 mm), the crease contour of a 170-degree fold over a 20 mm band (R = 6.7 mm) and the
-fjord of a 300-degree curl were confirmed as edges: two silent wrong verdicts in the study.
+contour cannot be told from an edge this way.
 
-Short pieces. A piece shorter than ``LINK_M`` has no "behind" of its own (every point of another
-piece is off its ends by ``_leads_on``'s test), so its end walks the outlines (``_linked``) only
-*away* from it: along its own pose's outline on past that end, and along another pose's outline
-the same way (the two outlines' orientations, ``outline_sense``). Walked both ways, two short
-islands inside an uncovered stretch each linked back to the piece behind them and closed the loop
-over the stretch (``tests/test_verdict_links.py``; in a study run with other gap directions,
-cylinder 300 down axis 60 closed over a 32 mm stretch that way: a silent verdict). Measured on the
-study's renders (outcome for outcome equal to the study): cured 15/23, false alarms
-1/31, silent 0, against 12/23, 1/31, 0 with both ways walked. Dropping pieces under ``LINK_M``
-instead cured 10/23 with 3/31 false alarms, and walking only the piece's own outline 10/23 with
-3/31: short pieces carry true links, mostly through other poses' outlines. The senses fail on a
-curled plate (one edge seen from outside the curl by one pose and from inside by another: the images
-keep their orientation while the 3D walks run opposite ways; a 300-degree curl under the 1995 rig
-closed its loop over a hidden corner that way, a silent verdict), so another pose's outline is walked
-only where its own points do not leave the piece the other way (``_leaving_step``).
-
-Bridges. A piece bridges unconfirmed stretches up to ``BRIDGE_M`` of its own outline, and an end
-links along any pose's outline up to ``OUTLINE_BRIDGE_M`` (corners no pair confirms), but never
-across a point that pose sees from behind the sheet (``verify``'s ``behind``, from the measured
-front): there its outline is the edge seen from the back, which ground truth counts as hidden. A
-piece's stretch seen from behind is still bridged where another pose's pieces run along all of it
-(that pose saw it from the front). Without the rule, a 300-degree curl about axis 60 under the 1995
-rig (draw 1782163077) closed its loop over 4.5 mm of its tip's corner that no final pose saw from
-the front (14 of the 17 poses whose outlines passed it saw it from behind by the measured front,
-and none confirmed a point of it): a silent verdict; with it, the loop says the boundary is not
-verified.
-
-Real rigs. On a robot every pose stands where the arm put it, not where it was told, and the loop
-measures through the commanded poses: two poses' points of one true edge then differ by their
-relative pose error, a rigid offset of a millimetre or two on a PUMA-class arm at 0.4 m, beside the
-0.3 mm point noise ``CONFIRM_TOL_M`` allows for. The rig's hand/eye calibration measures that error
-itself (``PoseSpread``: its residuals, commanded relative motions against the motions the camera
-saw). The loop brings its poses back into one frame on their common edges first
-(``registration``), and ``confirm`` keeps its 1 mm. Widening the distance by the spread instead
-(1.5 RMS, 2.6 mm at 0.4 m on the 1995 rig) took the 61 plates' false alarms under the 1995 rig from
-5 to 1 of 32, but confirmed an S-curve's occluding contour (170 degrees, its radius a few mm) as an
-edge: a silent verdict. A contour turned ``CONFIRM_SLIDE_ANGLE_RAD`` slides ``R * 0.35``: any
-distance beyond 1 mm lets a wider radius pass (see Limits). Registered, two poses of the 1995 rig still
-disagree about a common edge by about 1 mm (the median over pose pairs of their median distance across
-the edge: 1.01 mm on a 170-degree fold, 1.23 mm before registration), as much again as the tolerance:
-a contour slid 2-3 mm then comes within it often enough to close a loop. Measured on the 61 plates
-under the 1995 rig (``--perturb=1,-5 --seed 11``): the 170-degree fold folded down was called
-verified over its crease contour (radius 6.7 mm, slid R * 0.34 = 2.3 mm at 20 degrees), a silent
-verdict, with 9.5 % of its confirmed points more than 2 mm off the true boundary. So under a real rig
-the slide angle is ``CONFIRM_SLIDE_ANGLE_RIG_RAD``: 27 degrees (R * 0.45, 3.0 mm on that crease),
-below the verification views' 30-degree turns by more than the slide angle's own error (a degree or
-two). At 30 degrees, the turns themselves, those pairs sit on the limit: the same 61 plates lost 6
-verified boundaries of 24 and gained 4 false alarms (27 degrees: lost 2 of 24, with one more
-verifiable, and gained 2). A threshold set on these study runs, as the ideal ones above were, not a
-property of the rig. Ideal runs keep
-``CONFIRM_SLIDE_ANGLE_RAD``.
-World frame, metres, radians.
+World frame, metres, radians. The measurements behind these rules and thresholds:
+docs/findings/design-record.md.
 """
 from __future__ import annotations
 
@@ -137,7 +54,7 @@ CONFIRM_TOL_M = 1.0e-3  # two poses' points of a true edge agree within this (ro
 CONFIRM_ANGLE_RAD = float(np.radians(25.0))  # ... when their rays differ by this much
 CONFIRM_SLIDE_ANGLE_RAD = float(np.radians(20.0))  # ... of which this much about the edge's own direction
 # ... and under a real rig (a ``PoseSpread``), whose registered poses still disagree by about 1 mm: this much,
-# below the verification views' 30-degree turns (module doc, Real rigs)
+# below the verification views' 30-degree turns (docs/findings/design-record.md, Real rigs)
 CONFIRM_SLIDE_ANGLE_RIG_RAD = float(np.radians(27.0))
 SAME_SIDE_MIN_COS = -0.5  # ... and walk it the same way: directions at most 120 degrees apart (corners, noise)
 TANGENT_HALF_POINTS = 4  # outline points on either side for the local 3D direction
@@ -148,8 +65,7 @@ BRIDGE_M = 6e-3  # unconfirmed runs this short inside one pose's outline are bri
 LINK_M = 4e-3  # a piece's end links to another piece within this distance ...
 LEAD_M = 12e-3  # ... that leads on: has a point within this of the end, farther than LINK_M from the piece
 END_SPAN_M = 8e-3  # a piece's direction out of an end: the chord from its points within this of the end
-# or to one reached along some pose's measured outline within this arc length (16 mm, measured on the
-# study with the off-the-end lead rule: 1 more plate cured, and a silent verdict on cylinder 300 up axis 30)
+# or to one reached along some pose's measured outline within this arc length
 OUTLINE_BRIDGE_M = 12e-3
 # the radius about an end within which a piece is tested again when a walk asks past what was tested
 # (``_Leads``): every link sought along a walk of OUTLINE_BRIDGE_M lies within it; a larger one asked
@@ -314,10 +230,8 @@ def outline_sense(view: ViewOutline) -> float:
 def smoothed_points(view: ViewOutline, half_m: float = SMOOTH_HALF_M) -> np.ndarray:
     """(N,3) the outline with each row-matched point replaced by the mean of the row-matched points
     within ``half_m`` of arc length either side of it (cyclic); other points as they are. A
-    row-matched point's depth noise is independent from point to point: on the study's views
-    (stage 2 and verification, 246,000 points) the median distance to the true boundary is
-    0.61 mm raw and 0.33 mm averaged over +-2.5 mm, while the occluding contours' points stay where
-    they are (90th percentile 8.0 mm either way)."""
+    row-matched point's depth noise is independent from point to point, so the average lowers it,
+    while an occluding contour's points slide together and stay where they are."""
     P = np.asarray(view.points, float)
     idx = np.nonzero(view.matched)[0]
     if len(idx) < 3:
@@ -361,8 +275,8 @@ def contour_planes(view: ViewOutline) -> np.ndarray:
     point (the viewing ray grazes the surface along the contour's direction); where it is a true
     edge, the plane contains the edge's 3D direction. It is measured in the image alone, to a
     degree or two (the outline's pixels), whereas the 3D direction of a triangulated outline
-    carries its depth noise (on the study's views 10-15 degrees off, enough to pass two poses
-    whose contours cross or coincide as "turned about the edge"). Without a camera: the plane
+    carries its depth noise (off by more than a contour's slide angle, so that two poses whose
+    contours cross or coincide would pass as "turned about the edge"). Without a camera: the plane
     through the mid-baseline point containing the 3D direction."""
     P = np.asarray(view.points, float)
     if view.left is not None and len(P) >= 3:
@@ -700,11 +614,9 @@ def _leads_on(candidates, near_to: np.ndarray, leads: _Leads) -> list[int]:
     (``leads.end``; plus the distance from ``near_to`` to it) that is farther than LINK_M from the
     piece ``leads.own`` the end belongs to, and off *this* end: the nearest point of ``own`` to it
     lies within LINK_M of ``end``, or it lies ahead of the end (at most LINK_M behind it along
-    ``_outward``; at a right-angled corner the nearest point of a zigzag piece can lie 4 to 8 mm
-    back, measured on the study's plates moved by 1 degree). A piece that runs alongside ``own``
-    and on past its other end leads on from that end, not from this one: its points off ``own`` lie
-    behind this end (counting it here closed a 300-degree curl's loop over a 35 mm stretch no piece
-    covered: a silent wrong verdict)."""
+    ``_outward``: at a right-angled corner the nearest point of a zigzag piece can lie several
+    millimetres back). A piece that runs alongside ``own`` and on past its other end leads on from
+    that end, not from this one: its points off ``own`` lie behind this end."""
     radius = LEAD_M + float(np.linalg.norm(near_to - leads.end))
     return leads.within(sorted(candidates), radius)
 
@@ -782,9 +694,8 @@ def _leaving_step(view: ViewOutline, k: int, piece_tree: cKDTree) -> int | None:
     way does (the outline's points do not tell; ``outline_sense`` then decides alone).
     ``outline_sense`` tells the same from the images' orientations, which a curled plate breaks:
     seen from inside and outside the curl, one edge is walked the same way in 3D by outlines of
-    opposite senses, and where the points say the other way, the outline is not walked. (Walking
-    only where the points also say the same way, a cylinder bent 240 degrees down at 0.5 m lost its
-    cure: its short pieces' links ran through outlines whose points did not tell.)"""
+    opposite senses, and where the points say the other way, the outline is not walked (where they
+    do not tell, it is: short pieces' links run through such outlines)."""
     far = {}
     for step in (1, -1):
         j = k
@@ -823,8 +734,7 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
     "Bridges").
     ``model`` (a ``surface_model.SurfaceModel``) is accepted for the facing shortcut of ``confirm``
     but not used: the outline membranes cut chords under a bend, so their normals near an
-    occluding contour are wrong, and the shortcut confirmed contours of a 300-degree curl as edges
-    (a silent wrong verdict). Every confirmation needs the turn about the edge's own direction."""
+    occluding contour are wrong. Every confirmation needs the turn about the edge's own direction."""
     names = [v.name for v in views]
     if len(set(names)) != len(names):  # pieces, the unconfirmed runs and refutation are keyed by name
         raise ValueError(f"verify: every view needs its own name; repeated: {sorted({n for n in names if names.count(n) > 1})}")

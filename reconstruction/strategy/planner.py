@@ -1,115 +1,40 @@
 """Where to look next: the verification views every plate gets, and the cure chosen from measured
 geometry when the boundary is not verified (``decide``, a pure function).
 
-Verification views (not cures: every plate gets them). The stage-2 pose turned about the boundary
-centre by +-30 and +-60 degrees about the ruling direction ``g`` (the boundary plane's direction
-across the most-bent direction ``e``: a bend's occluding contours run along ``g`` and slide under
-these turns), by +-30 and +-60 degrees about ``e`` (for edges running along ``e``; a bend
-about an oblique axis needs the 60-degree turns to confirm them) and by +-45 degrees about the
-diagonals ``g+e`` and ``g-e`` (they turn about both at once, and confirm the corners and the
-oblique edges the others leave as loose ends: without them, 6 of 31 study plates with nothing
-hidden got a cure, a false alarm; with them, none). Their baselines lie at 45 degrees between the
-stage-2 outline's two main directions (``outline_axes``: a rectangle's sides, which a bend about
-an oblique axis leaves oblique to ``g`` and ``e``), so that edges along either cross the image
-rows and are matched on the rows, not interpolated. (Measured on the study: a baseline chosen per
-view for the whole outline, or one across each diagonal turn's axis, gave 4 to 6 false alarms of
-31 against 0 to 1; so did one chosen per view to keep both sides of the outline steepest in that
-view's own perspective, 4 of 31, the flat plate among them, although it row-matched the long edges
-of the S-curve bent 120 degrees about axis 90 that the diagonal leaves 28 degrees from the rows.)
-A turn that would tilt the view past the robot's reach (``Reach.max_tilt_rad``) is taken as far as
-the robot reaches, where that still turns the view direction by ``CONFIRM_ANGLE_RAD`` or more and
-no other verification view lies there (``reachable_turn_deg``; the view is named by the turn
-taken). A stage-2 pose low over a steep plate otherwise loses the very turns that would confirm the
-edges it sees: the S-curve bent 120 degrees down about axis 90 at aspect 1.3, its stage-2 pose 47
-degrees from the vertical, lost its turns +30 about g and +45 about both diagonals, and no pair of
-the poses left could confirm its long edges (18 loose ends after the verification views; held at
-+28, +35 and +37 degrees: 2; at aspect 2.2 the long edges confirm too, but the loose ends go from
-13 to 23, all at its corners: more views end more pieces there). Measured with ``platebench study
-false-boundary``: on the 61 plates 3 stage-2 poses held a turn and no outcome moved (the 120-degree
-fold up: 3 cures, was 7); moved +1 degree and +5 mm, the same rates; on the 63 plates of two
-outside sets (README) no outcome class moved, the 120-degree fold up at aspect 1.3 took 1 cure (was
-12) and the 120-degree S-curves 4 and 18 (were 14 and 18). Their last loose ends sat at corners
-where the front was not known; with the front read there from the centres beside the corner
-(``sides.SIDE_RADIUS_M``) both are verified by the verification views alone, with no cure. So
-is the convex 135-degree cylinder about axis 40 at aspect 1.8 (two cures before), whose steep
-corner lay 21-25 mm from the nearest centre and off every tangent plane, once the front is read
-off the centres' osculating quadrics there (``sides.JET_RADIUS_M``).
+Verification views (every plate gets them; they are not cures): the stage-2 pose turned about the
+boundary centre by +-30 and +-60 degrees about the ruling direction ``g`` (the boundary plane's
+direction across the most-bent direction ``e``: a bend's occluding contours run along ``g`` and
+slide under these turns), by +-30 and +-60 degrees about ``e``, and by +-45 degrees about the
+diagonals ``g+e`` and ``g-e`` (corners and oblique edges). Their baselines lie at 45 degrees
+between the stage-2 outline's two main directions (``outline_axes``), so that edges along either
+cross the image rows and are row-matched. A turn past the robot's reach (``Reach.max_tilt_rad``)
+is taken as far as the robot reaches, where that still turns the view by ``CONFIRM_ANGLE_RAD`` or
+more and no other verification view lies there (``reachable_turn_deg``; named by the turn taken).
 
-Cures. A gap is where a confirmed piece stops; what lies beyond it has mostly been measured
-already (``beyond_gap``: the row-matched outline points of the poses so far, 1.5 to 15 mm past the
-end), but no pair of poses turned far enough about that stretch. So the first candidates are aimed
-at it (``targeted_views``): the pose that measured most of the stretch, turned by 35 and 50 degrees
-either way about the stretch's direction, the turn that slides an occluding contour and leaves an
-edge in place. Then the paper's cure 1 and cure 2 (from the stage-3 reconstruction's most bending
-curve, when it has one), further turns of the stage-2 pose (about ``g``, ``e`` and the two
-diagonals) and poses on a dome over the boundary centre (``dome_views``: every 30 degrees of
-azimuth at 20, 40, 50, 60 and 75 degrees from the vertical). Each candidate is checked against the
-reconstructed surface model (``_Targets.check``), before anything is rendered:
-
-* which gaps' stretches it would *confirm* (``_predict``): at least half of the measured points
-  beyond the gap are seen by both of its cameras from the plate's front (``sides``; the measured
-  surface's side facing the pose that saw the gap's end where the front is unknown) by at least
-  ``FRONT_MARGIN_RAD``, not blocked by the measured plate (ray casting), *on its outline* (its rays
-  just past the edge, through ``Beyond.outside``, meet no measured surface: an edge seen in front
-  of the plate's own surface is on no outline), crossing its image rows at ``STEEP_RAD`` or more
-  with the best of ``BASELINE_STEPS`` baselines (only such crossings are row-matched), and turned
-  from the measuring pose by the thresholds of ``multiview.confirm`` (contour planes both ways,
-  at the slide angle the loop confirms with: 27 degrees under a real rig, 20 on the ideal one)
-  plus ``PREDICT_MARGIN_RAD``;
-* which gaps it *sees past*: the points 3 and 8 mm beyond the end, seen and not blocked the same
-  way, from a direction turned ``CONFIRM_ANGLE_RAD`` from the pose that saw the end.
-
-The candidate predicted to confirm most stretches wins, then the one reaching most gaps; on a tie
-the earlier one (aimed views, then the paper's cures). Where no candidate is predicted to confirm
-anything, those that would see the stretch from only ``GRAZING_FRONT_MARGIN_RAD`` (5 degrees) above
-the measured surface are asked next (a *grazing view*, so named in its reason), before any view
-that only sees past a gap (on the study's renders: the concave 120-degree fold went
-from "unconfirmed" to "cured", no other outcome moved, false alarms 0, silent 0). Taking grazing
-views on a par with the others (a margin of 5 degrees everywhere) cured the convex fold too, but
-on the first 39 plates (a run not taken further) it lost 2 cures and made 2 plates "honest"; 5
-degrees for the confirmations alone lost both folds: grazing views see less of the plate, so they
-come last. (On the convex fold, the pairs ground truth finds for the middle of the flap's tip
-include a dome pose 4 degrees above the flap, measured against the true normals: under even this
-margin.) A turn that is to confirm takes the baseline
-the prediction chose; one that only sees past takes a baseline across the gaps' directions; the
-paper's cures keep theirs. No candidate confirming or seeing past any gap: stop, naming the gaps.
-
-Measured on the study's renders (outcome for outcome as the study): before the
-silhouette and row checks, 1 in 3 of the points a chosen cure was predicted to confirm were
-confirmed (the rest mostly lay on no outline of the new pose: inner edges and other poses'
-contours). With them, on the study's first 26 plates (to 240 degrees), 107 of 274 (4 in 10): the
-prediction ranks views usefully but is no promise, and the chosen views confirm about as many
-points again that were not predicted. With the dome poses and ``MAX_CURE_VIEWS`` 12 (8 before),
-the study's figures are in README. 18 (on the study's 300-degree curls and folds): the
-concave 300-degree curls about axes 0 and 60 went from part of the boundary seen by no pose (76
-and 99 %) to all of it seen, using 15 and 17 cures; no other outcome moved (the study runs two
-plates at a time since, which pays for it). 24 (on plates outside the study, curls of 250 to 290
-degrees, and the study's concave 300-degree curl about axis 30, each stopped at 18 cures, all
-verifiable by pairs of reachable poses): 4 of 7 of them verified, after 19 or 20 cures; the study's
-figures in README, on this budget.
-
-The surface model is the poses' measured surfaces without chords (row-matched outline points and
-checked square centres, ``loop.Measurements``). It was the whole outline of each pose triangulated
-in its image: chords across a curl's opening lay where no plate is and blocked, in the model, the
-rays to gap ends the poses had measured (on the convex 300-degree curl about axis 0, moved +1
-degree and +5 mm, every end of every gap from every pose, those that saw them included), so that
-nothing was predicted to see past them and the loop stopped with 15 cures to spare. Measured with
-the chord-free model (on the study's renders, outcome for outcome as the study): verified
-cures 20 -> 21 of 28 (of the 22 that pairs of reachable poses can verify, 19 -> 21), moved plates
-(axes -1 degree, distances -5 mm) 18 -> 21 of 27 (of the 21 verifiable, 18 -> 21); the study with
-axes +1 degree and distances +5 mm: verified 15 -> 19 of 27, the final poses seeing it all 24 -> 25;
-false alarms 0 and silent 0 throughout. (A fallback tried first, exploring when nothing is
-predicted, a pose seeing the gaps' ends from a new direction, cured two plates of each set, and on
-the convex 170-degree fold moved -5 mm closed the loop over the flap's edges seen only from behind
-the sheet, whose front the loop could not tell there: a silent verdict. Left out.)
+Cures. A gap is where a confirmed piece stops (``multiview.verify``). The candidates, in order:
+views aimed at the stretch beyond each gap (``beyond_gap``: the row-matched outline points 1.5 to
+15 mm past the end; ``targeted_views``: the pose that measured most of it, turned by 35 and 50
+degrees either way about the stretch's direction), the cure rules' views, the paper's cure 1
+and cure 2 first (``cures.CURE_RULES``, asked in order by ``cure_views``), further turns of the stage-2 pose about ``g``, ``e`` and the diagonals, and
+poses on a dome over the boundary centre (``dome_views``). Each is checked against the surface
+model (``_Targets.check``) before anything is rendered: which gaps' stretches it would *confirm*
+(``_predict``: both cameras see the points from the plate's front by ``FRONT_MARGIN_RAD``, unblocked,
+on its outline, crossing its rows at ``STEEP_RAD`` or more with the best of ``BASELINE_STEPS``
+baselines, turned by ``multiview.confirm``'s thresholds plus ``PREDICT_MARGIN_RAD``) and which it
+*sees past* (the points 3 and 8 mm beyond the end). The candidate predicted to confirm most
+stretches wins, then the one reaching most gaps, then the earlier one; where none confirms
+anything, *grazing views* (``GRAZING_FRONT_MARGIN_RAD``) come before views that only see past a gap.
+No candidate confirming or seeing past any gap: stop, naming the gaps. At most ``MAX_CURE_VIEWS``
+cures by default (``budget``). The surface model is the poses' measured surfaces without chords
+(``loop.Measurements``).
 
 Known limits: a gap at a corner sharper than about 45 degrees in 3D cannot be linked
-(``multiview._leads_on`` asks that the next edge's points lie off the end, which the wedge of an
-acute corner does not give), and the planner, which aims at stretches beyond gaps, spends views
-seeing past it; beyond a gap where the front is not known the normals face the pose that saw the
-end; a corner's next edge is not counted as lying beyond the gap; refuted points may be aimed at.
+(``multiview._leads_on``), and the planner spends views seeing past it; beyond a gap where the
+front is not known the normals face the pose that saw the end; a corner's next edge is not counted
+as lying beyond the gap; refuted points may be aimed at.
 
-World frame, metres, radians. Nothing here renders or reads ground truth.
+World frame, metres, radians. Nothing here renders or reads ground truth. The measurements behind
+these rules: docs/findings/design-record.md.
 """
 from __future__ import annotations
 
@@ -121,7 +46,7 @@ from platebench.reconstruction.paper.outline_stereo import MATCH_STEEP_DEG
 from platebench.reconstruction.paper.surface_interpolation import points_in_polygon
 from platebench.reconstruction.strategy.bending import measured_bending_curves, tangent_intersection_distance
 from platebench.reconstruction.strategy.budget import MAX_CURE_VIEWS, MAX_CURES_ALLOWED  # noqa: F401 (re-exported)
-from platebench.reconstruction.strategy.cures import cure_move_back, cure_orient
+from platebench.reconstruction.strategy.cures import CURE_PARAMETERS, CureContext, CureParameters, CureRule, cure_rules
 from platebench.reconstruction.strategy.multiview import (
     CONFIRM_ANGLE_RAD,
     CONFIRM_SLIDE_ANGLE_RAD,
@@ -181,8 +106,8 @@ MAX_VIEWS = 1 + len(VERIFY_TURNS_DEG) + MAX_CURE_VIEWS  # measuring poses at mos
 @dataclass(frozen=True)
 class PlannedView:
     """A pose to measure from, and why: ``purpose`` "verification" or "cure"; ``method``
-    "verification", "cure 1", "cure 2" (the paper's) or "multi-view" (a turn of the stage-2 pose, or
-    of a pose aimed at a gap: ``targeted_views``)."""
+    "verification", a cure rule's name ("cure 1", "cure 2": the paper's; ``cures.CURE_RULES``) or
+    "multi-view" (a turn of the stage-2 pose, or of a pose aimed at a gap: ``targeted_views``)."""
 
     name: str
     pose: SensorPose
@@ -671,34 +596,46 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
     return Decision("view", view, view.reason, len(gaps), len(best_seen))
 
 
-def paper_cure_views(rec, first: SensorPose, reach: Reach, measured: np.ndarray, camera: Camera,
-                     baseline_m: float) -> tuple[list[PlannedView], str]:
-    """The paper's cure 1 (re-orient onto the chord AB of the most bending curve) and cure 2 (move
-    back beyond C) from the stage-3 reconstruction, as candidates; and a note when they cannot be
-    formed (no most bending curve, L infinite or not positive, unreachable)."""
-    try:
-        bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
-        curves, _ = measured_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent,
-                                            rec.surface_vertices)
-    except ValueError as e:
-        return [], f"paper's cures not formed: no most bending curve ({e})"
+def cure_context(rec, first: SensorPose) -> CureContext:
+    """What the cure rules read (``cures.CureContext``) from the stage-3 reconstruction ``rec`` and the
+    stage-2 pose ``first``; ValueError when ``rec`` has no most bending curve."""
+    bent = most_bent_direction(rec.boundary, rec.boundary_plane, rec.points)
+    curves, _ = measured_bending_curves(rec.boundary, rec.boundary_source, rec.boundary_plane, bent,
+                                        rec.surface_vertices)
     curve = max(curves, key=tangent_intersection_distance)
-    L = tangent_intersection_distance(curve)
     fb = rec.false_boundary
     missing = fb.expected - min(fb.detected.values()) if fb.detected else 0
+    return CureContext(curve, first, missing, fb.expected)
+
+
+def paper_cure_views(rec, first: SensorPose, reach: Reach, measured: np.ndarray, camera: Camera,
+                     baseline_m: float, rules: tuple[CureRule, ...] | None = None,
+                     params: CureParameters = CURE_PARAMETERS) -> tuple[list[PlannedView], str]:
+    """The cure rules' views from the stage-3 reconstruction (``cure_context``, ``cure_views``): the
+    paper's cure 1 (re-orient onto the chord AB of the most bending curve) and cure 2 (move back
+    beyond C) and any rule registered after them, as candidates; and a note when they cannot be
+    formed (no most bending curve, a rule proposing nothing, unreachable)."""
+    try:
+        ctx = cure_context(rec, first)
+    except ValueError as e:
+        return [], f"paper's cures not formed: no most bending curve ({e})"
+    return cure_views(ctx, reach, measured, camera, baseline_m, rules, params)
+
+
+def cure_views(ctx: CureContext, reach: Reach, measured: np.ndarray, camera: Camera, baseline_m: float,
+               rules: tuple[CureRule, ...] | None = None,
+               params: CureParameters = CURE_PARAMETERS) -> tuple[list[PlannedView], str]:
+    """Each cure rule's proposal for ``ctx`` under ``params`` (``rules``: default the registered ones,
+    ``cures.cure_rules()``, in their order), kept in view of the ``measured`` points (N,3) and
+    reachable, as a cure candidate named and typed by the rule's name; and the rules' notes (why a
+    rule proposed nothing, or its pose is unreachable), joined by "; "."""
     out, notes = [], []
-    c1 = cure_orient(curve, first)
-    off = np.degrees(np.arccos(np.clip(c1.view_dir @ first.view_dir, -1, 1)))
-    turn = np.degrees(np.arccos(np.clip(abs(c1.baseline_dir @ first.baseline_dir), -1, 1)))
-    if off > 2.0 or turn > 10.0:
-        out.append(("cure 1", c1))
-    else:
-        notes.append(f"cure 1 would not move the sensor ({off:.1f} deg, baseline {turn:.0f} deg)")
-    if np.isfinite(L) and L > 0:
-        out.append(("cure 2", cure_move_back(curve, first, missing, max(fb.expected, 1))))
-    else:
-        notes.append(f"cure 2 has no distance to reach: L = {L * 1e3:.0f} mm "
-                     f"(a = {np.degrees(curve.a_rad):.0f}, b = {np.degrees(curve.b_rad):.0f} deg)")
+    for rule in cure_rules() if rules is None else rules:
+        proposal = rule.propose(ctx, params)
+        if proposal.pose is not None:
+            out.append((rule.name, proposal.pose))
+        elif proposal.note:
+            notes.append(proposal.note)
     views = []
     for method, p in out:
         p, why = _placed(p, reach, measured, camera, baseline_m)

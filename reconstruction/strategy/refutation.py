@@ -2,9 +2,9 @@
 
 ``multiview.confirm`` accepts an outline point when a second pose, turned enough about the edge,
 puts its own outline within ``CONFIRM_TOL_M`` of it. Where the occluding contours of two poses
-*cross* on the surface, they agree over a few millimetres and pass that test: the study found
-such confirmed pieces 2-35 mm off the true boundary (cylinders of 240-300 degrees, folds), which
-either left loose ends (a loop that could not be verified) or glued a short-cut loop.
+*cross* on the surface, they agree over a few millimetres and pass that test, off the true
+boundary; such pieces either leave loose ends (a loop that cannot be verified) or glue a
+short-cut loop.
 
 A third pose tells them apart. A true edge point that a pose sees lies on that pose's outline
 (or, on a concave plate, in front of the plate's far side, off its surface). A point on the
@@ -18,23 +18,12 @@ pose ``m`` when
 
 The measured surface is the pose's chord-free one (``surface_model.view_membrane`` of its
 row-matched outline points and checked square centres, no triangle longer than 1.5 grid rows;
-the loop's ``Measurements.surfaces``). Until the later poses measured squares it was the whole
-outline triangulated in the image, which cuts chords under a bend: across a concave U it ran
-past the rims, so that other poses refuted true rim points seen in front of the far wall (a
-false alarm in the study). Measured on the final poses of the 61 study plates (confirmations by
-``multiview.confirm``): true-edge points (within 1.5 mm of the true boundary) refuted 0.23 % with
-the outline membranes, 0.12 % with the chord-free surfaces; stray points (over 4 mm off) 87.5 %
-and 70.5 % (of 224). ``REFUTE_POSES`` poses must agree. The earlier measurement, with the
-outline membranes, on the final poses of the 57 distinct plates of the study at the commit that
-added the rule: of the confirmed points within 1.5 mm of the true boundary 0.18 % are refuted, of those more
-than 4 mm off it 70 %; by pieces, 10 of 7315 pieces on the true boundary and 32 of the 42 stray
-pieces (median distance over 4 mm) have at least half their points refuted. The thresholds were
-chosen on a prototype of the same rule (depth 2 mm caught 7 % of the stray points; 15 mm refuted
-4 % of the true ones). A refuted point counts as unconfirmed
-(``BoundaryVerdict.refuted`` lists them). Refuting only removes evidence: it can break a loop, and
-it removes a loose end only where the end's piece lies on the inside of the plate.
+the loop's ``Measurements.surfaces``). ``REFUTE_POSES`` poses must agree. A refuted point counts
+as unconfirmed (``BoundaryVerdict.refuted`` lists them). Refuting only removes evidence: it can
+break a loop, and it removes a loose end only where the end's piece lies on the inside of the plate.
 
-World frame, metres; pixels of each pose's left image.
+World frame, metres; pixels of each pose's left image. The measurements behind the thresholds:
+docs/findings/design-record.md.
 """
 from __future__ import annotations
 
@@ -115,13 +104,8 @@ def free_space_faces(membranes: list, views: list[ViewOutline], poses_needed: in
     """Per pose, (F,) bool: the faces of its membrane (``surface_model.Membrane``) to keep in the
     merged surface: those none of whose vertices at least ``poses_needed`` other poses saw as
     background (``seen_outside``). A row-matched stretch of outline that stereo put off the plate
-    (a 6-pixel spike of a concave trough's outline matched 65 mm off it, in the study) lies
-    outside the other poses' outlines. Measured on the study's 61 plates: merged surface RMS
-    median 0.65 -> 0.58 mm, worst 4.53 -> 1.47 mm, coverage median unchanged (1.00; one plate
-    0.912 -> 0.863). A test along the rays as well (a vertex inside another pose's outline with
-    that pose's measured surface 10 mm or more behind it) lowered the RMS of a few more plates by
-    up to 0.15 mm (worst 1.43 mm, median unchanged) for 37 s more over the study, which runs close
-    to its 15-minute budget: left out. Same order for both lists."""
+    (a spike of a concave trough's outline matched centimetres off it) lies outside the other
+    poses' outlines. Same order for both lists; figures in docs/findings/design-record.md."""
     keep = []
     for k, mb in enumerate(membranes):
         count = np.zeros(len(mb.vertices), int)

@@ -4,8 +4,7 @@ On a robot each pose stands where the arm put it, not where it was told, and the
 the commanded poses: the outlines of two poses then disagree about a true edge by their relative pose
 error, a millimetre or two on a PUMA-class arm at 0.4 m, while ``multiview.confirm`` tells an edge from
 an occluding contour by agreement within ``CONFIRM_TOL_M`` (1 mm). Widening that distance by the rig's
-spread lets contours of radius up to a few millimetres pass as edges (an S-curve of 170 degrees was
-confirmed over a contour that way: a silent verdict). Instead the poses are brought back into one
+spread lets contours of radius up to a few millimetres pass as edges. Instead the poses are brought back into one
 frame, and confirmation keeps its distance.
 
 The error is close to a translation of the whole outline: a rotation error of a few milliradians

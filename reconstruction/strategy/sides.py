@@ -16,9 +16,8 @@ from the vertical; the middle of the plate, level, wins. The stage-2 sensor is n
 curl its centre line passes between the tips, whose backs it sees.) The plate's middle rests on
 the table, at the world frame's height 0: the level points within ``SEED_TABLE_M`` of it vote, and
 the part that holds most of them is the plate's middle. (A flap folded over the plate is level
-too, but faces down, 13 mm or more above the table; at aspect 2.2 the poses see more of a
-170-degree fold's flap than of the plate beneath it, and with the largest part as the middle the
-whole front came out reversed.) The orientation is carried
+too, but faces down, 13 mm or more above the table, and the poses may see more of a fold's
+flap than of the plate beneath it: the largest part is not the middle.) The orientation is carried
 over the surface, not taken from any one pose: a pose can see the front of one part of a curl and
 the back of another.
 
@@ -44,40 +43,33 @@ TANGENTIAL_RAD = float(np.radians(30.0))  # neighbours joined only along the she
 SEED_VERTICAL_COS = 0.95
 # A point whose neighbours fit no plane (the smallest spread of the fit over this share of the
 # next) takes no part in the orientation: its neighbours lie on two layers (a fold's flap 13 mm
-# above the plate seen past its edge, whose fitted normals came out horizontal and carried the
-# orientation across). Measured on the centres of a 170-degree fold at aspect 2.2 (13 poses): the
-# ratio's median 0.003, 95th percentile 0.047; at the two points of the link that reversed the
-# flap 0.21 and 0.30.
+# above the plate seen past its edge, whose fitted normals come out horizontal and would carry the
+# orientation across). The ratio's figures on a fold: docs/findings/design-record.md.
 PLANAR_MAX_RATIO = 0.15
 TABLE_Z_M = 0.0  # the table's height in the world frame, where the plate's middle rests
-# Level points this near the table vote: above the world registration's error (under the 1995 rig,
-# `sense --realism 1995`, the estimated hand/eye transform misses by 1.0-2.5 mm) and below the height
-# of a flap folded over the plate (13 mm for the study's 170-degree fold over a 20 mm band).
+# Level points this near the table vote: above the world registration's error (an estimated hand/eye
+# transform, ``sense --realism 1995``) and below the height of a flap folded over the plate
+# (docs/findings/design-record.md gives both).
 SEED_TABLE_M = 5e-3
 # A part of the surface not joined to the plate's middle within JOIN_M (one pose's row of squares
 # near a steep corner, 18-24 mm from the nearest other centre: the squares between them are cut by
 # the outline or stretched apart by the slope) is joined to an oriented part by its best link of at
 # most BRIDGE_JOIN_M that lies along both sheets within BRIDGE_TANGENTIAL_RAD: a link across two
 # layers runs along their normals (a flap folded over the plate lies 13 mm or more above it, a
-# link to it at least 36 mm long to pass 20 degrees). Without the bridge, the stage-2 outline
-# beside such a row had no known front, no pair could confirm it, and the loop took cures on
-# plates where nothing was hidden (concave cylinders of 120 degrees about axes 60 and 90).
+# link to it at least 36 mm long to pass 20 degrees). Without the bridge the stage-2 outline beside
+# such a row has no known front and no pair can confirm it.
 BRIDGE_JOIN_M = 25e-3
 BRIDGE_TANGENTIAL_RAD = float(np.radians(20.0))
 GRAZING_RAD = float(np.radians(10.0))  # a side is called only this far from grazing
 GRAZING_SIN = float(np.sin(GRAZING_RAD))  # normals this near the vertical vote on which way is up
 # A point's side is read from the nearest measured surface point this close whose tangent plane passes
-# within SAME_SHEET_M of it. At a plate's corner the squares are cut by both edges: on the 120-degree
-# S-curve about axis 90 (aspects 1.3-2.2) the nearest centre lay 15 mm (median) from the corner's
-# outline, and with 15 mm no pair could confirm the corner (false alarms at every aspect but the
-# paper's). The tangent-plane test, not this reach, bounds the normal's error on a curved sheet (about
+# within SAME_SHEET_M of it. At a plate's corner the squares are cut by both edges, so the nearest
+# centre may lie well over a grid spacing from the corner's outline. The tangent-plane test, not this reach, bounds the normal's error on a curved sheet (about
 # sqrt(2 SAME_SHEET_M / R)) and keeps another layer out (a flap 13 mm over the plate).
 SIDE_RADIUS_M = 25e-3
 # Where no tangent plane within SIDE_RADIUS_M passes SAME_SHEET_M from a point, its side is read off
 # the nearest oriented centre's osculating quadric (``jets``): a curved sheet leaves its tangent plane
-# by d^2 / 2R, 5.8 mm at 22 mm from a centre on a 42 mm radius (the corners of the 135-degree cylinder
-# about axis 40 at aspect 1.8, whose nearest centres lay 21-25 mm away: no pose knew their front and
-# the loop took cures where nothing was hidden). The quadric z = c + g.t + t^T A t / 2 in the centre's
+# by d^2 / 2R, 5.8 mm at 22 mm from a centre on a 42 mm radius. The quadric z = c + g.t + t^T A t / 2 in the centre's
 # tangent frame is fitted to the oriented centres within JET_RADIUS_M whose normals agree with its
 # own within JET_AGREE_RAD (another layer faces the other way), at least JET_MIN_POINTS of them, spread
 # JET_MIN_SPREAD_M or more each way across the plane (a row of centres fixes no curvature), fitting it
@@ -88,12 +80,11 @@ JET_RADIUS_M = 15e-3
 JET_AGREE_RAD = float(np.radians(60.0))
 JET_MIN_POINTS = 8
 JET_MIN_SPREAD_M = 3e-3
-JET_MAX_RMS_M = 0.5e-3  # above the centres' own depth noise (0.15-0.30 mm RMS on the study's renders)
+JET_MAX_RMS_M = 0.5e-3  # above the centres' own depth noise (RMS)
 JET_MAX_TURN_RAD = float(np.radians(45.0))
 # A quadric is read up to JET_REACH_M from its centre (a tangent plane up to SIDE_RADIUS_M): its own
-# sheet test and turn limit, not the reach, bound where it holds. The steep ends of a 160-degree curl
-# at aspect 3 (radius 57 mm) lay 25-35 mm from the nearest centre in most verification views: with a
-# 25 mm reach no pair knew their front and the loop took cures where nothing was hidden.
+# sheet test and turn limit, not the reach, bound where it holds (the steep ends of a tight curl lie
+# farther than SIDE_RADIUS_M from the nearest centre).
 JET_REACH_M = 35e-3
 SPARSE_GRID_MAX_SQUARES = 24  # a projected grid of at most this many squares is sparse (the paper's: 16; the bench's: 72)
 SPARSE_FIT_M = 20e-3  # ``sparse_front_side``: normals fitted over this radius; sides read ...

@@ -34,17 +34,10 @@ BLOCK_SLACK_M = 3e-3  # a segment is blocked only by surface farther than this f
 # points and checked square centres; no triangle with a 3D edge over SURFACE_EDGE_ROWS times the
 # projected grid's row spacing at the pose (``active_views.row_spacing``; SURFACE_MAX_EDGE_M where
 # the pose measured no square): such a triangle spans more than the rows of squares next to it,
-# surface nobody measured (the study's grid, rows 15 mm apart at 0.4 m, gives 22 mm: a 22 mm chord
-# of a 28 mm radius curl lies up to 2.2 mm off it); and none stretched over SURFACE_MAX_STRETCH
-# times its image length (a depth step between two layers of a curl). Measured on 3 study plates
-# (240 and 180 degrees concave, a 120-degree fold at aspect 3) with a 20 mm cap: surface RMS
-# 0.85-1.40 mm at coverage 0.88-0.99; with no cap and no stretch rule 3.4-7.2 mm (chords across a
-# concave curl's opening); with the cap alone, 1.03-1.95 mm. With these values, on the study's 61
-# plates (``platebench study false-boundary``): RMS 0.34-1.80 mm (median 0.67), coverage 0.68-1.00
-# (median 0.99); with the verification views' diagonal baselines and the dome poses, 0.42-4.53 mm
-# (median 0.65), coverage 0.74-1.00 (median 1.00): the worst two on the concave 180-degree trough
-# about axis 90, whose 60-degree turns row-match a spike of the outline 65 mm off the plate. The
-# merged surface drops such faces (``refutation.free_space_faces``): 0.40-1.47 mm (median 0.58).
+# surface nobody measured (a grid with rows 15 mm apart at 0.4 m gives 22 mm: a 22 mm chord of a
+# 28 mm radius curl lies up to 2.2 mm off it); and none stretched over SURFACE_MAX_STRETCH times its
+# image length (a depth step between two layers of a curl). The merged surface also drops faces other
+# poses see as background (``refutation.free_space_faces``). Figures: docs/findings/design-record.md.
 SURFACE_EDGE_ROWS = 1.5
 SURFACE_MAX_EDGE_M = 22e-3
 SURFACE_MAX_STRETCH = 3.0
@@ -67,8 +60,8 @@ def view_membrane(view: ViewOutline, extra_uv=None, extra_points=None,
     image; keep the triangles inside the outline; lift them to 3D.
 
     ``matched_only``: of the outline, only the points whose disparity was measured on the row
-    (``ViewOutline.matched``) become vertices; an interpolated stretch of outline lies up to 30 mm
-    off the plate on a 240-degree curl, a row-matched point 0.2 mm (median) and 2 mm at most.
+    (``ViewOutline.matched``) become vertices: an interpolated stretch of outline can lie centimetres
+    off a curled plate, a row-matched point close to it.
     ``max_edge_m``: triangles with a longer 3D edge are dropped (a chord over unmeasured surface).
     ``max_stretch``: triangles with an edge longer in 3D than this many times its image length
     times the metres per pixel at its range (``view.left``) are dropped (a depth step: the edge

@@ -186,7 +186,7 @@ class PlateRenderer:
         else:
             p["projector.to_world"] = mi.Transform4f(perspective_to_world(proj.camera).tolist())
         # The area light rides with the rig. Mitsuba's rectangle would bake a literal transform into
-        # the render kernel, so every new pose would compile it again (0.5-0.7 s of LLVM time);
+        # the render kernel, so every new pose would compile it again;
         # opaque, the transform is a kernel input and one kernel serves every pose.
         light = mi.Transform4f(area_light_to_world(spec).tolist())
         dr.make_opaque(light)

@@ -105,6 +105,7 @@ from platebench.reconstruction.strategy.multiview import (
     verify,
 )
 from platebench.reconstruction.strategy.budget import FRUITLESS_CURES
+from platebench.reconstruction.strategy.cures import cure_rules
 from platebench.reconstruction.strategy.registration import PoseShifts, register_translations
 from platebench.reconstruction.strategy.planner import (
     FRONT_MARGIN_RAD,
@@ -302,15 +303,13 @@ class Measurements:
     One membrane per pose, ``surfaces``: its row-matched outline points and checked square centres
     triangulated in its image, without chords or depth steps (``_membrane``). They are the merged
     reconstruction's surface, what refutation casts against, and the planner's surface model
-    (``model``). The planner's model once had a membrane of its own per pose, the whole outline
-    triangulated in the image: its chords ran through the inside of a curl and hid, in the model,
-    the very gap ends the poses had measured, so that no candidate was predicted to see past them
-    and the loop stopped with cures to spare (``planner`` module doc, measured). The
+    (``model``): without chords, no triangle through the inside of a curl hides, in the model, the
+    gap ends the poses measured (docs/findings/design-record.md). The
     square centres also tell the plate's front (``front``, ``sides``): a point a pose sees from behind
     the sheet neither confirms nor is confirmed."""
 
     spread: PoseSpread | None = None  # a real rig's spread (``__init__``); None: ideal, nothing registered
-    _registered: tuple = ()  # the registered outlines of the last ``update`` (none before)
+    _registered: tuple = ()  # the registered outlines of the last ``update`` (empty until the first)
 
     def __init__(self, first: FirstStages, rays_for, active_views: bool = True, verify_squares: int | None = None,
                  spread: PoseSpread | None = None):
@@ -394,8 +393,8 @@ class Measurements:
         squares are cut by the outline or stretched apart), the same centres' sparse front is read (``sparse_front_side``:
         normals fitted over 20 mm, read within 40 mm), unless its joined normals turn by more than
         ``SPARSE_MAX_TURN_RAD`` (a crease or a tight curl, which it may orient the wrong way).
-        With the dense front alone, no pair could confirm those edges (a confirmation needs one
-        pose seeing the known front), and the loop took cures on plates where nothing was hidden."""
+        Without it no pair could confirm those edges (a confirmation needs one pose seeing the
+        known front)."""
         centres = np.vstack([a.points for a in self.actives])
         dense, sparse = front_side(centres), sparse_front_side(centres)
         return replace(dense, fallback=sparse) if sparse.max_turn_rad <= SPARSE_MAX_TURN_RAD else dense
@@ -429,8 +428,8 @@ class Measurements:
         orient the front over the plate (``update`` already leaves out points seen from behind).
         With fewer (the paper's 4x4, ``--verify-grid stage3`` or ``4x4@40``), the centres are too
         sparse for that, and two poses that both see a sheet from behind where its front is
-        unknown confirm its edge as two that see its front do (a fold's flap: the study with the
-        paper's grid at every pose was silent on 3 plates of 61). So the front is oriented again
+        unknown confirm its edge as two that see its front do (a fold's flap seen from behind: a
+        silent verdict). So the front is oriented again
         from the centres at their own spacing (``sparse_front_side``); where their normals turn by
         more than ``SPARSE_MAX_TURN_RAD`` between neighbours (a crease, a tight curl) it is not
         trusted and the boundary is not verified; otherwise the boundary is confirmed again, now
@@ -476,10 +475,8 @@ SPARSE_FRONT_NOTE = "when the front is not asked for"  # in a verdict the sparse
 # One pose of each confirming pair must see the point from the plate's known front with both of its
 # cameras at least this far above the measured sheet: the angle the planner asks of a confirming view
 # (``planner.FRONT_MARGIN_RAD``). At a tight curl's tip the measured normal is read a few millimetres
-# away and was 10-12 degrees off (the concave 300-degree curl about axis 60 of the false-boundary study
-# at 640 x 480): two poses whose right cameras saw the tip from behind the sheet (by 0-4 degrees; one
-# of them, by the measured normal, 9-10 degrees in front) confirmed 3 mm of edge no pair saw whole,
-# and the boundary was called verified while ground truth held 0.8 % of it hidden.
+# away and may be off by several degrees, so that two poses seeing the tip from just behind the sheet
+# would pass as seeing it from the front (docs/findings/design-record.md).
 KNOWN_FRONT_RAD = FRONT_MARGIN_RAD
 
 
@@ -577,7 +574,9 @@ def cure_stage(sensor: SimulatedSensor, first: FirstStages, m: Measurements, opt
     cam, B = sensor.camera, sensor.baseline_m
     measured = m.points
     rec = first.planning_rec
-    paper, note = paper_cure_views(rec, first.pose2, options.reach, measured, cam, B) if rec is not None else ([], "")
+    # every registered cure rule (``cures.CURE_RULES``: the paper's cures 1 and 2 first) proposes its view
+    paper, note = paper_cure_views(rec, first.pose2, options.reach, measured, cam, B, cure_rules()) \
+        if rec is not None else ([], "")
     if note:
         notes.append(note)
     cands = candidate_views(first.pose2, g, e, options.reach, measured, cam, B, paper)

@@ -5,14 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
-from trimesh.path.traversal import resample_path
 
 from platebench.bench.io.records import MergedFigures, Stage3Accuracy
 from platebench.bench.run.score import score_in_memory
-from platebench.evaluation.boundary_metrics import points_to_polyline_distance
+from platebench.evaluation.merged import SURFACE_SAMPLE_M, score_merged
 from platebench.evaluation.metrics_row import MetricsRow
-from platebench.evaluation.point_metrics import closest_point_on_mesh
-from platebench.evaluation.surface_metrics import score_surface
 from platebench.reconstruction.strategy.active_views import MergedReconstruction
 from platebench.reconstruction.strategy.multiview import CONFIRM_ANGLE_RAD, CONFIRM_SLIDE_ANGLE_RAD
 from platebench.reconstruction.strategy.surface_model import sample_triangles
@@ -20,8 +17,6 @@ from platebench.scenes.render.ground_truth import BoundaryVisibility, combined_v
 from platebench.tolerances import tol
 
 TRIANGULATED_PX = 3.0  # a true boundary point lies on a pose's measured outline within this (left image)
-TRUE_BOUNDARY_STEP_M = 0.5e-3  # the true boundary is sampled this finely (by arc length) for the merged scores
-SURFACE_SAMPLE_M = 2e-3  # the merged surface is sampled this finely for its scores (under the 2 mm coverage radius)
 
 
 def stage3_accuracy(sample, rec) -> Stage3Accuracy:
@@ -37,35 +32,22 @@ def stage3_accuracy(sample, rec) -> Stage3Accuracy:
 
 def merged_accuracy(plate, merged: MergedReconstruction, poses: int = 0) -> MergedFigures:
     """The merged multi-view reconstruction (``active_views.MergedReconstruction``) against ground
-    truth (millimetres):
-
-    * its boundary: mean (symmetric) distance to the true boundary, the one-way distance, and the
-      fraction of the true boundary's length within 2 mm of it (the true side sampled uniformly by
-      arc length every ``TRUE_BOUNDARY_STEP_M``: the plate's boundary vertices are dense on bends
-      and up to 30 mm apart on flat stretches, so a mean over vertices would weigh the bends only);
-    * its square centres (every pose's, checked): RMS and maximum distance to the true surface;
-    * its surface (the poses' visible surfaces, sampled every ``SURFACE_SAMPLE_M``): RMS distance to the true
-      surface and coverage (the fraction of the true surface within 2 mm of it).
-
-    ``poses``: the measuring poses merged (recorded beside the figures)."""
-    out = {"poses": int(poses), "boundary_points": int(len(merged.boundary)), "points": int(len(merged.points))}
-    B = np.asarray(plate.boundary, float)
-    if len(merged.boundary):
-        est_gt = points_to_polyline_distance(merged.boundary, B)
-        dense = resample_path(np.vstack([B, B[:1]]), step=TRUE_BOUNDARY_STEP_M)[:-1]  # closed: drop the repeat
-        gt_est = cKDTree(merged.boundary).query(dense)[0]
-        out.update(boundary_mean_mm=float(0.5 * (est_gt.mean() + gt_est.mean()) * 1e3),
-                   boundary_est_to_gt_mean_mm=float(est_gt.mean() * 1e3),
-                   boundary_covered_frac=float(np.mean(gt_est <= 2e-3)))
-    if len(merged.points):
-        d = closest_point_on_mesh(merged.points, plate.mesh)[1]
-        out.update(points_rms_mm=float(np.sqrt(np.mean(d ** 2)) * 1e3), points_max_mm=float(d.max() * 1e3))
+    truth, as sensing.json's record (millimetres): its surface sampled every
+    ``evaluation.merged.SURFACE_SAMPLE_M``, then scored by ``evaluation.merged.score_merged`` (the
+    figures' definitions). ``poses``: the measuring poses merged (recorded beside the figures)."""
     S = sample_triangles(merged.surface_vertices, merged.surface_faces, SURFACE_SAMPLE_M)
-    if len(S):
-        s = score_surface(S, plate.mesh, sample_spacing_m=SURFACE_SAMPLE_M, coverage_radius_m=2e-3,
-                          max_distance_m=1e-3)
-        out.update(surface_rms_mm=float(s.dist.rms * 1e3), surface_coverage_frac=float(s.surface_coverage_frac),
-                   surface_points=int(len(S)))
+    score = score_merged(plate.mesh, plate.boundary, merged.boundary, merged.points, S)
+    out = {"poses": int(poses), "boundary_points": int(len(merged.boundary)), "points": int(len(merged.points))}
+    mm = 1e3
+    if score.boundary is not None:
+        b = score.boundary
+        out.update(boundary_mean_mm=b.mean_sym_m * mm, boundary_est_to_gt_mean_mm=b.est_to_gt_mean_m * mm,
+                   boundary_covered_frac=b.covered_frac)
+    if score.points is not None:
+        out.update(points_rms_mm=score.points.rms_m * mm, points_max_mm=score.points.max_m * mm)
+    if score.surface is not None:
+        s = score.surface
+        out.update(surface_rms_mm=s.rms_m * mm, surface_coverage_frac=s.coverage_frac, surface_points=s.samples)
     return MergedFigures(**out)
 
 

@@ -233,10 +233,8 @@ class SimulatedSensor:
         version) can deadlock when two Python threads use it, one holding the GIL while it waits for
         Dr.Jit's lock and the other holding that lock while its log callback asks for the GIL (fixed
         upstream by Dr.Jit commit 553c0ad, after 1.5.0), and Python's garbage collector can free
-        Dr.Jit objects in the measuring thread at any moment. An overlap would save little: a view of
-        the study (640 x 480, spp 2, two or four images) is 1.2 to 2.5 M samples, of the order of
-        5 ms at the 506 M samples/s an H200 rendered at 1280 x 960 (README, Throughput), against the
-        tenths of a second its measurement takes."""
+        Dr.Jit objects in the measuring thread at any moment. An overlap would save little: a view's
+        render is short beside its measurement (docs/findings/design-record.md)."""
         active = rays_for is not None
         shots = [self._shoot_view(name, pose, active) for name, pose in views]
         return [self._measure_view(name, pose, shot, rays_for) for (name, pose), shot in zip(views, shots)]

@@ -1,5 +1,5 @@
-"""Attacks on a run rather than on its inputs, scored like the bad-input harness's cases
-(``bench.perf.bad_inputs``, which runs them after its own): an interrupt (SIGINT, SIGTERM) at a
+"""Attacks on a run rather than on its inputs, classified like the harness's cases
+(``tools/faults/bad_inputs.py``, which runs them after its own): an interrupt (SIGINT, SIGTERM) at a
 random moment of render, reconstruct, report and sweep; plug-ins that exit, raise, crash, hang or
 return what is not an output, in ``compare`` and in a sweep; a full disk and a file-size limit
 during a sweep and a render; a lost or damaged ``manifest.json``; a sweep killed with -9.
@@ -535,35 +535,48 @@ def attacks() -> list[Attack]:
     return out
 
 
-@dataclass
-class Outcome:
-    """An attack's outcome, in the fields of the bad-input harness's (its table and JSON read them)."""
+def _klass(rc: int, tb: bool, problems: list) -> tuple[str, str]:
+    """The harness's class of an attack's outcome (``bad_inputs.CLASSES``) and why."""
+    if tb:
+        return "traceback", "a traceback on stderr"
+    lost = [p for p in problems if "data lost" in p or "redone" in p or "lost" in p]
+    if lost:
+        return "data-loss", lost[0]
+    if rc == 0 and any("expected 1" in p or "expected 2" in p for p in problems):
+        return "exit0-on-failure", problems[0]
+    return ("wrong-message", problems[0]) if problems else ("ok", "")
 
-    case: str
-    rc: int
-    lines: list  # what went wrong, else the first line of stderr
-    clean: bool  # the command did what the attack expects of it (module doc)
-    traceback: bool
-    leftovers: list
-    seconds: float
 
-
-def run_attacks(select: str | None, work: Path) -> list[Outcome]:
-    """The attacks whose name contains ``select`` (all: None), each in ``work/attacks/<n>``."""
+def run_attacks(select: str | None, work: Path, say=None) -> list:
+    """The attacks whose name contains ``select`` (a set: whose name is in it; all: None), each in
+    ``work/attacks/<n>``, as the harness's outcomes (``bad_inputs.Outcome``); ``say``: called with a
+    progress line after each."""
+    from tools.faults.bad_inputs import Outcome  # noqa: PLC0415
     root = Path(work) / "attacks"
     env = write_plugins(root / "plugins")
     outcomes = []
-    for i, a in enumerate(attacks()):
-        if select and select not in a.name:
-            continue
+    chosen = [(i, a) for i, a in enumerate(attacks())  # select: a substring of the name, or a set of names
+              if not select or (select in a.name if isinstance(select, str) else a.name in select)]
+    for n, (i, a) in enumerate(chosen, 1):
         folder = root / f"{i:02d}"
         folder.mkdir(parents=True)
         t0 = time.monotonic()
         try:
             rc, err, problems = a.run(folder, env)
+        except subprocess.TimeoutExpired as e:
+            rc, err, problems = 124, "", [f"hang: {e}"]
         except Exception as e:  # noqa: BLE001  (the harness reports it as the attack's outcome)
             rc, err, problems = -1, "", [f"the attack itself failed: {type(e).__name__}: {e}"]
         tb = "Traceback" in err or "Exception ignored" in err
         lines = problems or [ln for ln in err.splitlines() if ln.strip()][:1] or ["(nothing on stderr)"]
-        outcomes.append(Outcome(a.name, rc, lines, not problems, tb, leftovers(folder), time.monotonic() - t0))
+        klass, why = ("hang", problems[0]) if rc == 124 and problems and problems[0].startswith("hang") \
+            else _klass(rc, tb, problems)
+        left = leftovers(folder)
+        if klass == "ok" and left:
+            klass, why = "leftover", f"left behind: {left[:3]}"
+        outcomes.append(Outcome(a.name, rc, lines, klass == "ok", tb, left, time.monotonic() - t0,
+                                klass=klass, why=why, family="attack", expect_rc=-1))
+        if say:
+            say(f"[attack {n}/{len(chosen)}] {klass:16s} {outcomes[-1].seconds:6.1f} s  {a.name}"
+                + (f"  ({why[:100]})" if why else ""))
     return outcomes

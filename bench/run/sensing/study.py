@@ -27,7 +27,8 @@ from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.io.records import LFormulaRow, StudyRow, StudyTargets, file_form
 from platebench.bench.run.journal import StudyJournal, case_key, code_digest
-from platebench.bench.run.sensing import OUTCOMES, SensingOptions, run_sensing
+from platebench.bench.run.sensing.loop import run_sensing
+from platebench.bench.run.sensing.records import OUTCOMES, SensingOptions
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
 from platebench.plates.spec import FAMILIES, Fold, Twist
@@ -262,9 +263,8 @@ def split_by_bend(row: StudyRow) -> bool:
 
 
 # Deformations whose plate is the same with the bending coordinate reversed (e -> -e): a bend centred
-# on the plate. Only these may have their axis wrapped past 0 or 180 degrees (measured: a 240-degree
-# cylinder at axis 0 and at 180 - 1e-12 rad agree to 0.002 mm; a fold, anchored on one side of an
-# off-centre band, lands 45 mm away: another plate).
+# on the plate. Only these may have their axis wrapped past 0 or 180 degrees (a fold, anchored on one
+# side of an off-centre band, wrapped is another plate; docs/findings/design-record.md).
 AXIS_WRAP_SAFE = (CylindricalBend,)
 
 
@@ -526,7 +526,7 @@ def _study_rows(cases: list[StudyCase], base: SampleConfig, options: SensingOpti
     process pool (each worker dies with this process, ``workers.pool_worker_init``; the renderer's threads are
     the cores divided among them). Rendering uses every core it is given, but the loop's decisions
     (confirmation, planning, ray casts against the measured surface) run on one, so two plates at a
-    time keep both cores of a 2-core machine busy (README gives the measured times)."""
+    time keep both cores of a 2-core machine busy (docs/findings/throughput.md gives the times)."""
     if workers == 1 or len(cases) <= 1:
         for k, case in enumerate(cases):
             row = study_row(case, base, options)

@@ -1,27 +1,39 @@
-"""Bad inputs: every input a user can get wrong, tried as a new user would, and scored.
+"""The fault-injection harness: every input a user can get wrong and every fault a run can meet,
+tried as a user would, each in a fresh ``platebench`` process, and classified.
 
-``python -m platebench.bench.perf.bad_inputs [--json FILE] [-k SUBSTRING]`` (or
-``platebench perf bad-input``) makes a scratch directory with two small rendered samples, a
-reconstruction and a two-sample sweep dataset, then runs ``platebench`` in a fresh process for
-each case: bad TOML values and types, damaged files (truncated PNG/EXR/PFM/NPY, corrupt PLY,
-malformed JSON structure, non-UTF-8 text), unreadable or unwritable paths (run as user
-``nobody`` where this runs as root), bad flags, bad scheduler addresses, huge ranges; and, from
-the modules ``bad_inputs_*`` beside this one, further classes (outputs that would destroy data,
-damaged or linked datasets, sizes declared by file headers, files that are not regular files).
+``python -m tools.faults [--json FILE] [-k SUBSTRING]`` (from the repository root; or
+``python tools/faults/run.py``) makes a scratch directory with two small rendered samples, a
+reconstruction and a two-sample sweep dataset (160 x 120 px), then runs each case. The cases come
+from this module (configuration values and types, damaged files, unreadable or unwritable paths
+run as user ``nobody`` where this runs as root, bad flags, scheduler addresses, huge ranges) and
+from the modules ``bad_inputs_*`` beside it (outputs that would destroy data, datasets that lie,
+generated families of bad flag values and damaged files, and the measured failure cases of
+``bad_inputs_measured``); the attacks on runs (``run_attacks``: signals, plug-ins, full disks,
+damaged manifests) follow.
 
-A case is *clean* when the command exits 2 with exactly one stderr line ``platebench: error:
-...`` that names what the case expects (the file, key or value), or, for a case that expects
-success with warnings (``expect_rc=0``), exits 0 with only ``platebench: warning: ...`` lines on
-stderr naming what it expects. Scored across all cases: *data lost* (a file that was there
-before the command is changed or gone afterwards), *tracebacks* ("Traceback" or "Exception
-ignored" on stderr), *exit 0 on failure* (a case that expects a refusal exited 0), *leftovers*
-(a new output, a staging directory, a lock left by a failed command). A case with ``scratch``
-runs in a directory of its own (a copy of the material, the working directory set there), so a
-destructive command can destroy nothing else. Goal: every case clean, and 0 of each. The cases that
-run as user ``nobody`` are left out, with the reason, where ``nobody`` cannot reach this checkout
-(``nobody_blocker``: a clone under a directory closed to others).
+Each case states what must happen: the exit status (``expect_rc``: 2 refused, 1 failures recorded,
+0 a correct result, 130 / 143 interrupted), the words the one error line must hold (``expect``;
+an item that is a tuple is satisfied by any of its words), the files that must stay as they were
+(every file of the case's directory: a changed or vanished one is data loss), the outputs that
+must not appear (``watch``) and, for a result, a ``check`` of its content. Each outcome has one
+class (``CLASSES``, the first that applies):
 
-Other modules add cases without editing this one: a module ``bench/perf/bad_inputs_<name>.py``
+* ``hang``: the command did not end within its time limit (or within ``within_s`` of a signal);
+* ``traceback``: "Traceback" or "Exception ignored" on stderr;
+* ``data-loss``: a file there before the command is changed or gone afterwards;
+* ``exit0-on-failure``: a case that expects a non-zero status exited 0;
+* ``silent-wrong``: the case's ``check`` found a wrong result;
+* ``wrong-message``: another status than expected, or an error that is not one line naming what the
+  case expects;
+* ``leftover``: a staging name, a lock or a watched output left behind;
+* ``ok``: everything as stated.
+
+A case with ``scratch`` runs in a directory of its own (a copy of the material, the working
+directory set there), so a destructive command can destroy nothing else. The cases that run as
+user ``nobody`` are left out, with the reason, where ``nobody`` cannot reach this checkout
+(``nobody_blocker``).
+
+Other modules add cases without editing this one: a module ``bad_inputs_<name>.py`` beside this one
 is imported by ``cases()`` and appends a function returning ``[Case, ...]`` to ``CASE_SOURCES``
 (``@register_cases``). Its cases share the material ``_prepare`` makes (``{W}/good``,
 ``{W}/good2``, ``{W}/good_recon``, ``{W}/ds``).
@@ -31,36 +43,50 @@ from __future__ import annotations
 import argparse
 import hashlib
 import importlib
+import json
 import os
 import pkgutil
 import resource
 import shutil
+import signal
 import socket
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 NOBODY = 65534
+CLASSES = ("ok", "traceback", "hang", "exit0-on-failure", "silent-wrong", "data-loss", "wrong-message", "leftover")
+STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
 
 @dataclass
 class Case:
     name: str
     args: list  # platebench arguments ({W} = the case's directory: the shared one, or its own with scratch)
-    expect: tuple  # substrings the one error line must contain (expect_rc 0: the warning lines)
+    expect: tuple  # words the one error line must contain (a tuple item: any of its words); expect_rc 0: warnings
     setup: object = None  # callable(work: Path) -> None
     as_nobody: bool = False
     watch: tuple = ()  # paths (relative to W) that must not exist afterwards
     memory_gb: float = 4.0  # address-space limit of the command (a range that expands must not take the host)
     scratch: bool = False  # run in a directory of its own (a copy of the material), the working directory there
     cwd: str = ""  # the command's working directory, relative to W
-    expect_rc: int = 2  # 0: the command succeeds, saying what it left out in warning lines
+    expect_rc: int = 2  # 2 refused (one line), 1 failures recorded, 0 a correct result, 130 / 143 interrupted,
+    # -1 any of 0 (a correct result), 1 (a recorded failure naming ``expect``) and 2 (a one-line refusal)
     teardown: object = None  # callable(work: Path) -> None, run after the command whatever happened
     timeout_s: float = 120.0
+    family: str = "base"  # the family of cases this one belongs to (the findings' table counts by it)
+    check: object = None  # callable(work, rc, stdout, stderr) -> None, or why the result is wrong (silent-wrong)
+    env: dict = field(default_factory=dict)  # extra environment variables ({W} replaced)
+    wrap: tuple = ()  # a command line put before the platebench command ({W} replaced), e.g. a shell step
+    usage: bool = False  # an argparse usage error: status 2, its last line "platebench ...: error: argument ..."
+    signal: tuple = ()  # (signal, after_s, within_s): sent after_s seconds in; the command must end within_s
+    stdout_to: str = ""  # a file standard output is written to (e.g. /dev/full); default captured
+    python: bool = False  # args are a Python program's arguments (``python ARGS``), not platebench's
+    one_line: bool = True  # expect_rc 2: the error is one line (False: detail lines may come before it)
 
 
 CASE_SOURCES: list = []  # functions returning [Case, ...], added by the bad_inputs_* modules (register_cases)
@@ -83,6 +109,10 @@ class Outcome:
     seconds: float = 0.0
     lost: list = field(default_factory=list)  # files there before, changed or gone after
     exit0_on_failure: bool = False
+    klass: str = "ok"  # one of CLASSES
+    why: str = ""  # what made the class (empty for ok)
+    family: str = "base"
+    expect_rc: int = 2
 
 
 def _write(rel: str, data):
@@ -230,16 +260,16 @@ def base_cases() -> list[Case]:
                   ("--workers = -1", "0 to 256"), _write("spec.toml", spec_ok), watch=("o_ds",)))
     # --- damaged samples (reconstruct reads images, calib.json, pattern.json)
     for name, rel, how, expect in (
-            ("truncated image PNG", "images/left_active.png", "truncate", ("left_active.png", "truncated PNG")),
-            ("garbage image PNG", "images/left_passive.png", "garbage", ("left_passive.png", "not a PNG")),
+            ("truncated image PNG", "images/left_active.png", "truncate", ("left_active.png",)),
+            ("garbage image PNG", "images/left_passive.png", "garbage", ("left_passive.png",)),
             ("missing image", "images/right_active.png", "delete", ("right_active.png", "missing")),
-            ("pattern.json features not a list", "pattern.json", '{"features": 3}', ("pattern.json", "features")),
+            ("pattern.json features not a list", "pattern.json", '{"features": 3}', ("pattern.json",)),
             ("pattern.json feature lacks keys", "pattern.json", '{"features": [{"id": 0}]}', ("pattern.json",)),
-            ("pattern.json is a list", "pattern.json", "[1, 2]", ("pattern.json", "allowed a JSON object")),
-            ("pattern.json truncated", "pattern.json", "truncate", ("pattern.json", "invalid JSON")),
-            ("calib.json is a list", "calib.json", "[]", ("calib.json", "allowed a JSON object")),
-            ("calib.json lacks left", "calib.json", '{"right": {}}', ("calib.json", "left")),
-            ("calib.json not UTF-8", "calib.json", "latin1", ("calib.json", "UTF-8")),
+            ("pattern.json is a list", "pattern.json", "[1, 2]", ("pattern.json",)),
+            ("pattern.json truncated", "pattern.json", "truncate", ("pattern.json",)),
+            ("calib.json is a list", "calib.json", "[]", ("calib.json",)),
+            ("calib.json lacks left", "calib.json", '{"right": {}}', ("calib.json",)),
+            ("calib.json not UTF-8", "calib.json", "latin1", ("calib.json",)),
     ):
         c.append(Case(name, ["reconstruct", "{W}/bad", "--out", "{W}/o_recon"], expect, _damage(rel, how),
                       watch=("o_recon",)))
@@ -251,22 +281,22 @@ def base_cases() -> list[Case]:
                   ("nothing", "missing"), watch=("o_recon",)))
     # --- damaged ground truth and reconstructions (evaluate reads them)
     for name, rel, how, expect in (
-            ("corrupt plate.ply", "plate.ply", "garbage", ("plate.ply", "PLY")),
-            ("truncated boundary.npy", "boundary.npy", "truncate", ("boundary.npy", "truncated")),
-            ("truncated disp0GT.pfm", "gt/disp0GT.pfm", "truncate", ("disp0GT.pfm", "truncated PFM")),
-            ("garbage disp0GT.pfm", "gt/disp0GT.pfm", "garbage", ("disp0GT.pfm", "not a PFM")),
-            ("truncated depth EXR", "gt/left_depth.exr", "truncate", ("left_depth.exr", "OpenEXR")),
-            ("truncated mask PNG", "gt/left_mask.png", "truncate", ("left_mask.png", "truncated PNG")),
-            ("sample.json truncated", "sample.json", "truncate", ("sample.json", "invalid JSON")),
-            ("sample.json is a list", "sample.json", "[]", ("sample.json", "allowed a JSON object")),
+            ("corrupt plate.ply", "plate.ply", "garbage", ("plate.ply",)),
+            ("truncated boundary.npy", "boundary.npy", "truncate", ("boundary.npy",)),
+            ("truncated disp0GT.pfm", "gt/disp0GT.pfm", "truncate", ("disp0GT.pfm",)),
+            ("garbage disp0GT.pfm", "gt/disp0GT.pfm", "garbage", ("disp0GT.pfm",)),
+            ("truncated depth EXR", "gt/left_depth.exr", "truncate", ("left_depth.exr",)),
+            ("truncated mask PNG", "gt/left_mask.png", "truncate", ("left_mask.png",)),
+            ("sample.json truncated", "sample.json", "truncate", ("sample.json",)),
+            ("sample.json is a list", "sample.json", "[]", ("sample.json",)),
             ("sample.json config not a table", "sample.json", '{"layout_version": 1, "config": 5}',
-             ("sample.json", "config")),
+             ("sample.json",)),
     ):
         c.append(Case(name, ["evaluate", "{W}/bad", "{W}/good_recon"], expect, _damage(rel, how)))
     for name, rel, how, expect in (
             ("garbage points.csv", "recon/points.csv", "garbage", ("points.csv",)),
-            ("truncated recon boundary.npy", "recon/boundary.npy", "truncate", ("boundary.npy", "truncated")),
-            ("recon.json is a list", "recon/recon.json", "[]", ("recon.json", "allowed a JSON object")),
+            ("truncated recon boundary.npy", "recon/boundary.npy", "truncate", ("boundary.npy",)),
+            ("recon.json is a list", "recon/recon.json", "[]", ("recon.json",)),
     ):
         c.append(Case(name, ["evaluate", "{W}/good", "{W}/bad_recon"], expect, _damage(rel, how)))
     c.append(Case("study --bend 0:1e12:1e-3", ["study", "false-boundary", "--bend", "0:1e12:1e-3", "--out",
@@ -285,10 +315,34 @@ def base_cases() -> list[Case]:
 MATERIAL = ("good", "good2", "good_recon", "ds", "small.toml", "ds.toml")  # what _prepare makes, scratch copies
 
 
+def cli(*args) -> list[str]:
+    """The command line that runs ``platebench ARGS`` in a fresh process: the ``platebench`` script
+    installed beside this Python (as a user runs it), else the module through this Python."""
+    script = Path(sys.executable).parent / "platebench"
+    head = [str(script)] if script.is_file() else [sys.executable, "-m", "platebench.bench.cli.main"]
+    return [*head, *map(str, args)]
+
+
+def _session(sid: int) -> list[int]:
+    """The processes of session ``sid`` (read from /proc; empty where there is none)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()
+        if len(fields) > 3 and int(fields[3]) == sid and fields[0] != "Z":
+            out.append(int(d.name))
+    return out
+
+
 def _prepare(work: Path) -> None:
     """Two small samples (160 x 120, spp 2; bends 10 and 30 degrees), the first one's reconstruction and a
     two-sample sweep dataset (160 x 120, spp 1, paper's method): the material the cases copy and damage.
-    Made through the CLI in a subprocess, as a user would (perf sits below the CLI's layer)."""
+    Made through the CLI in a subprocess, as a user would."""
     cfg = work / "small.toml"
     cfg.write_text("[scene]\nwidth = 160\nheight = 120\n[render]\nspp = 2\n")
     (work / "ds.toml").write_text("[sweep]\nname = \"bad-input\"\n[base.scene]\nwidth = 160\nheight = 120\n"
@@ -297,9 +351,9 @@ def _prepare(work: Path) -> None:
                  ["render", "--config", str(cfg), "--bend-deg", "30", "--out", str(work / "good2")],
                  ["reconstruct", str(work / "good"), "--out", str(work / "good_recon")],
                  ["sweep", str(work / "ds.toml"), "--out", str(work / "ds"), "--workers", "0", "--no-progress"]):
-        p = subprocess.run([sys.executable, "-m", "platebench.bench.cli.main", *argv], capture_output=True, text=True)
+        p = subprocess.run(cli(*argv), capture_output=True, text=True)
         if p.returncode != 0:
-            raise SystemExit(f"bad_inputs: could not prepare {argv}: {p.stderr.strip()[-500:]}")
+            raise SystemExit(f"faults: could not prepare {argv}: {p.stderr.strip()[-500:]}")
 
 
 def _snapshot(work: Path) -> set:
@@ -373,42 +427,141 @@ def run_case(case: Case, work: Path, port: int, timeout: float | None = None) ->
         if case.setup is not None:
             case.setup(work)
         return _run(case, work, port, timeout or case.timeout_s)
+    except Exception as e:  # noqa: BLE001  (a case whose own set-up fails is reported, not raised)
+        return Outcome(case.name, -1, [f"the case itself failed: {type(e).__name__}: {e}"], False, False,
+                       klass="wrong-message", why=f"set-up failed: {type(e).__name__}: {e}", family=case.family,
+                       expect_rc=case.expect_rc)
     finally:
         if case.teardown is not None:
             case.teardown(work)
         if case.scratch:
             shutil.rmtree(work, ignore_errors=True)
+        else:  # what a case made in the shared directory (counted as a leftover above) misleads no later case
+            for w in case.watch:
+                p = work / w
+                shutil.rmtree(p, ignore_errors=True) if p.is_dir() and not p.is_symlink() else \
+                    p.unlink(missing_ok=True)
+
+
+def _command(case: Case, work: Path, port: int) -> list[str]:
+    def fill(a):
+        return str(a).replace("{W}", str(work)).replace("{PORT}", str(port))
+    args = [fill(a) for a in case.args]
+    cmd = [sys.executable, *args] if case.python else cli(*args)
+    return [fill(a) for a in case.wrap] + cmd
+
+
+def _kill_group(p: subprocess.Popen) -> None:
+    try:
+        os.killpg(p.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _execute(case: Case, cmd: list, cwd: Path, env: dict, timeout: float) -> tuple[int, str, str, bool, str]:
+    """(status, stdout, stderr, hung, why) of the case's command, in a session of its own (a hang is
+    killed with all its processes)."""
+    limit = int(case.memory_gb * 2**30)
+    sink = open(case.stdout_to, "w") if case.stdout_to else subprocess.PIPE  # noqa: SIM115
+    try:
+        p = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=sink, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
+                             start_new_session=True, encoding="utf-8", errors="replace",
+                             preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+    finally:
+        if case.stdout_to:
+            sink.close()
+    why = ""
+    try:
+        if case.signal:
+            sig, after_s, within_s = case.signal
+            try:
+                out, err = p.communicate(timeout=after_s)
+                return p.returncode, out or "", err or "", False, f"ended before the {sig.name} at {after_s} s"
+            except subprocess.TimeoutExpired:
+                pass
+            p.send_signal(sig)
+            t0 = time.monotonic()
+            try:
+                out, err = p.communicate(timeout=within_s)
+            except subprocess.TimeoutExpired:
+                _kill_group(p)
+                out, err = p.communicate()
+                return 124, out or "", (err or "") + "\n(timed out)", True, \
+                    f"still running {within_s} s after {sig.name}"
+            why = f"ended {time.monotonic() - t0:.1f} s after {sig.name}"
+        else:
+            out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill_group(p)
+        out, err = p.communicate()
+        return 124, out or "", (err or "") + "\n(timed out)", True, f"no end within {timeout:.0f} s"
+    deadline = time.monotonic() + 3.0  # what the command left running in its session outlives it: a hang
+    while _session(p.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    alive = _session(p.pid)
+    _kill_group(p)
+    if alive:
+        return p.returncode, out or "", err or "", True, f"processes {alive[:5]} outlived the command"
+    return p.returncode, out or "", err or "", False, why
+
+
+def _named(line: str, expect: tuple) -> list:
+    """The expected words (a tuple item: any of its words) that ``line`` lacks."""
+    low = line.lower()
+    return [x for x in expect if not (any(a.lower() in low for a in x) if isinstance(x, tuple) else x.lower() in low)]
 
 
 def _run(case: Case, work: Path, port: int, timeout: float) -> Outcome:
     before = _snapshot(work)
     held = _contents(work)
-    args = [a.replace("{W}", str(work)).replace("{PORT}", str(port)) for a in case.args]
-    cmd = [sys.executable, "-m", "platebench.bench.cli.main", *args]
+    cmd = _command(case, work, port)
     env = dict(os.environ)
     env.pop("PLATEBENCH_DEBUG", None)
+    env.update({k: str(v).replace("{W}", str(work)) for k, v in case.env.items()})
     if case.as_nobody and _as_nobody():
         (work / "home").mkdir(exist_ok=True)
         os.chown(work / "home", NOBODY, NOBODY)
         env["HOME"] = str(work / "home")
         cmd = ["setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups", *cmd]
-    limit = int(case.memory_gb * 2**30)
     t0 = time.monotonic()
-    try:
-        r = subprocess.run(cmd, cwd=work / case.cwd, env=env, capture_output=True, text=True, timeout=timeout,
-                           preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
-        rc, err = r.returncode, r.stderr
-    except subprocess.TimeoutExpired as e:
-        rc, err = 124, (e.stderr.decode() if isinstance(e.stderr, bytes) else e.stderr or "") + "\n(timed out)"
+    rc, out, err, hung, note = _execute(case, cmd, work / case.cwd, env, timeout)
     seconds = time.monotonic() - t0
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
-    tb = "Traceback" in err or "Exception ignored" in err
-    if case.expect_rc == 0:  # success, saying in warning lines what it left out
-        named = all(any(x in ln for ln in lines) for x in case.expect)
-        clean = rc == 0 and bool(lines) and all(ln.startswith("platebench: warning:") for ln in lines) and named
-    else:
-        named = all(x in (lines[0] if lines else "") for x in case.expect)
-        clean = rc == case.expect_rc and len(lines) == 1 and lines[0].startswith("platebench: error:") and named
+    tb = "Traceback" in err or "Exception ignored" in err or "Fatal Python error" in err
+    if case.usage:  # argparse: usage lines, then "platebench CMD: error: argument FLAG: ..."
+        missing = _named(lines[-1] if lines else "", case.expect)
+        clean = rc == 2 and bool(lines) and ": error: argument" in lines[-1] and not missing
+        wrong = "" if clean else f"exit {rc}, last line {(lines or [''])[-1][:120]!r}" + \
+            (f", lacks {missing}" if missing else "")
+    elif case.expect_rc == 0:  # success; its warnings or its summary, when expected, name what they must
+        said = lines + out.splitlines()
+        missing = [x for x in case.expect if all(_named(ln, (x,)) for ln in said)] if case.expect else []
+        clean = rc == 0 and not missing
+        wrong = "" if clean else f"exit {rc}" + (f", no line says {missing}" if missing else "")
+    elif case.expect_rc == 2:
+        missing = _named(lines[0] if case.one_line and lines else "\n".join(lines), case.expect)
+        clean = rc == 2 and (len(lines) == 1 or not case.one_line) and bool(lines) \
+            and lines[-1].startswith("platebench: error:") and not missing
+        wrong = "" if clean else (f"exit {rc}, {len(lines)} stderr line(s)" +
+                                  (f", the error line lacks {missing}" if missing else ""))
+    elif case.expect_rc == -1:  # any of: a correct result, a recorded failure naming it, a one-line refusal
+        text = "\n".join(lines) + "\n" + out
+        missing = _named(lines[0] if rc == 2 and lines else text, case.expect)
+        clean = rc == 0 or (rc == 1 and not missing) or (rc == 2 and len(lines) == 1 and not missing
+                                                        and lines[0].startswith("platebench: error:"))
+        wrong = "" if clean else f"exit {rc}, {len(lines)} stderr line(s)" + (f", lacks {missing}" if missing else "")
+    else:  # 1: failures recorded; 130 / 143: interrupted (stderr and stdout together must say it)
+        text = "\n".join(lines) + "\n" + out
+        missing = [x for x in case.expect if _named(text, (x,))]
+        clean = rc == case.expect_rc and not missing
+        wrong = "" if clean else f"exit {rc}, expected {case.expect_rc}" + (f", nothing says {missing}" if missing
+                                                                             else "")
+    problem = None
+    if case.check is not None and not hung:
+        try:
+            problem = case.check(work, rc, out, err)
+        except Exception as e:  # noqa: BLE001  (a check that cannot read the result: the result is wrong)
+            problem = f"the check could not read the result: {type(e).__name__}: {e}"
     after = _contents(work)
     lost = sorted(p for p, h in held.items() if after.get(p) != h)
     new = sorted(_snapshot(work) - before)
@@ -418,15 +571,45 @@ def _run(case: Case, work: Path, port: int, timeout: float) -> Outcome:
     left += [w for w in case.watch if (work / w).exists() and w not in left]
     if case.expect_rc == 0:  # a successful command's own output is no leftover
         left = [p for p in left if is_temp_name(Path(p).name) or p.endswith(".lock")]
-    return Outcome(case.name, rc, lines, clean, tb, sorted(set(left)), seconds, lost,
-                   exit0_on_failure=case.expect_rc != 0 and rc == 0)
+    exit0 = case.expect_rc not in (0, -1) and rc == 0
+    klass, why = classify(hung, tb, lost, exit0, problem, clean, left)
+    if klass == "hang":
+        why = note
+    elif klass == "wrong-message":
+        why = wrong
+    return Outcome(case.name, rc, lines or ([out.strip().splitlines()[0]] if out.strip() else []), klass == "ok",
+                   tb, sorted(set(left)), seconds, lost, exit0_on_failure=exit0, klass=klass, why=why,
+                   family=case.family, expect_rc=case.expect_rc)
 
 
-def run_all(select: str | None = None, work: Path | None = None, as_nobody: bool = True) -> list[Outcome]:
-    """Run every case (``select``: those whose name contains it; ``as_nobody`` False: leave out the cases
-    that run as user nobody) in ``work`` (default a scratch directory, removed afterwards)."""
+def classify(hung: bool, tb: bool, lost: list, exit0: bool, problem: str | None, clean: bool,
+             left: list) -> tuple[str, str]:
+    """(class, why) of an outcome: the first of ``CLASSES`` after "ok" that applies (module doc), else ok."""
+    if hung:
+        return "hang", ""
+    if tb:
+        return "traceback", "a traceback on stderr"
+    if lost:
+        return "data-loss", f"changed or gone: {lost[:3]}"
+    if exit0:
+        return "exit0-on-failure", "exit 0 where a failure was expected"
+    if problem:
+        return "silent-wrong", problem
+    if not clean:
+        return "wrong-message", ""
+    if left:
+        return "leftover", f"left behind: {left[:3]}"
+    return "ok", ""
+
+
+def run_all(select: str | None = None, work: Path | None = None, as_nobody: bool = True, say=None,
+            attacks: bool = True, only: set | None = None) -> list[Outcome]:
+    """Run every case (``select``: those whose name contains it; ``only``: those named in it; ``as_nobody``
+    False: leave out the cases that run as user nobody; ``attacks`` False: leave out the attacks on runs) in
+    ``work`` (default a scratch directory, removed afterwards). ``say``: called with a progress line after
+    each case."""
     own = work is None
-    work = Path(tempfile.mkdtemp(prefix="platebench-badinput-")) if own else Path(work)
+    work = Path(tempfile.mkdtemp(prefix="platebench-faults-")) if own else Path(work)
     os.chmod(work, 0o755)
     (work / "pub").mkdir(exist_ok=True)
     os.chmod(work / "pub", 0o777)
@@ -438,13 +621,19 @@ def run_all(select: str | None = None, work: Path | None = None, as_nobody: bool
         for p in work.rglob("*"):
             os.chmod(p, 0o755 if p.is_dir() else 0o644)
         os.chmod(work / "pub", 0o777)
+        chosen = [c for c in cases() if not (select and select not in c.name) and (as_nobody or not c.as_nobody)
+                  and (only is None or c.name in only)]
         out = []
-        for case in cases():
-            if (select and select not in case.name) or (case.as_nobody and not as_nobody):
-                continue
+        for i, case in enumerate(chosen, 1):
             out.append(run_case(case, work, srv.getsockname()[1]))
-        from platebench.bench.perf.run_attacks import run_attacks  # noqa: PLC0415  (signals, plug-ins, full disks)
-        return out + run_attacks(select, work)
+            if say:
+                o = out[-1]
+                say(f"[{i}/{len(chosen)}] {o.klass:16s} {o.seconds:6.1f} s  {case.name}"
+                    + (f"  ({o.why[:100]})" if o.why else ""))
+        if not attacks:
+            return out
+        from tools.faults.run_attacks import run_attacks  # noqa: PLC0415  (signals, plug-ins, full disks)
+        return out + run_attacks(select, work, say=say)
     finally:
         srv.close()
         if own:
@@ -452,36 +641,82 @@ def run_all(select: str | None = None, work: Path | None = None, as_nobody: bool
 
 
 def table(outcomes: list[Outcome]) -> str:
-    rows = [f"{'case':44s} {'exit':>4s} {'clean':>5s} {'tb':>3s} {'lost':>4s} {'left':>4s}  first line of stderr"]
+    rows = [f"{'case':52s} {'exit':>4s} {'class':16s} first line of stderr, or why"]
     for o in outcomes:
-        rows.append(f"{o.case[:44]:44s} {o.rc:4d} {'yes' if o.clean else 'NO':>5s} {'YES' if o.traceback else '-':>3s} "
-                    f"{len(o.lost):4d} {len(o.leftovers):4d}  {(o.lines[0] if o.lines else '')[:150]}")
-    n = len(outcomes)
-    rows.append(f"bad inputs tried {n}, handled cleanly {sum(o.clean for o in outcomes)}, data lost "
-                f"{sum(bool(o.lost) for o in outcomes)}, tracebacks {sum(o.traceback for o in outcomes)}, exit 0 on "
-                f"failure {sum(o.exit0_on_failure for o in outcomes)}, leftovers {sum(bool(o.leftovers) for o in outcomes)}")
+        rows.append(f"{o.case[:52]:52s} {o.rc:4d} {o.klass:16s} {(o.why or (o.lines[0] if o.lines else ''))[:150]}")
+    rows.append(summary(outcomes))
     return "\n".join(rows)
 
 
+def counts(outcomes: list[Outcome]) -> dict:
+    """Outcomes per class (every class of ``CLASSES``, zeros included)."""
+    return {k: sum(o.klass == k for o in outcomes) for k in CLASSES}
+
+
+def summary(outcomes: list[Outcome]) -> str:
+    return f"cases {len(outcomes)}: " + ", ".join(f"{k} {n}" for k, n in counts(outcomes).items())
+
+
 def failed(o: Outcome) -> bool:
-    """Whether an outcome misses the goal (module doc)."""
-    return not o.clean or o.traceback or bool(o.leftovers) or bool(o.lost) or o.exit0_on_failure
+    """Whether an outcome misses what its case states (module doc)."""
+    return o.klass != "ok"
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m platebench.bench.perf.bad_inputs", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m tools.faults", description=__doc__.split("\n\n")[0])
     p.add_argument("-k", dest="select", help="only cases whose name contains this")
-    p.add_argument("--json", type=Path, help="also write the outcomes as JSON here")
+    p.add_argument("--json", type=Path, help="also write the counts and every outcome as JSON here")
+    p.add_argument("--list", action="store_true", help="list the cases (family, name) and run nothing")
+    p.add_argument("--no-attacks", action="store_true", help="leave out the attacks on runs (signals, plug-ins, "
+                   "full disks, manifests)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--rerun", type=Path, metavar="JSON", help="run again only the cases that were not ok in this "
+                   "earlier --json output, and write (with --json) its outcomes with theirs replaced")
     args = p.parse_args(argv)
+    if args.list:
+        from tools.faults.run_attacks import attacks  # noqa: PLC0415
+        chosen = [c for c in cases() if not (args.select and args.select not in c.name)]
+        for c in chosen:
+            print(f"{c.family:14s} {c.name}")
+        extra = [a for a in attacks() if not (args.select and args.select not in a.name)]
+        for a in extra:
+            print(f"{'attack':14s} {a.name}")
+        print(f"{len(chosen) + len(extra)} cases")
+        return 0
     blocker = nobody_blocker()
-    outcomes = run_all(args.select, as_nobody=blocker is None)
+    say = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    t0 = time.monotonic()
+    earlier = json.loads(args.rerun.read_text()) if args.rerun else None
+    if earlier is None:
+        outcomes = run_all(args.select, as_nobody=blocker is None, say=say, attacks=not args.no_attacks)
+    else:
+        again = {o["case"] for o in earlier["outcomes"] if o["klass"] != "ok"}
+        from tools.faults.run_attacks import attacks as attack_list  # noqa: PLC0415
+        redo = {o.case: o for o in run_all(as_nobody=blocker is None, say=say, attacks=False, only=again)}
+        names = {a.name for a in attack_list()} & again
+        if names:
+            work = Path(tempfile.mkdtemp(prefix="platebench-faults-"))
+            try:
+                _prepare(work)
+                from tools.faults.run_attacks import run_attacks  # noqa: PLC0415
+                redo.update({o.case: o for o in run_attacks(names, work, say=say)})
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
+        outcomes = [redo.get(o["case"]) or Outcome(**o) for o in earlier["outcomes"]]
+    wall = time.monotonic() - t0
     print(table(outcomes))
+    print(f"wall time {wall:.0f} s")
     if blocker:
         print(f"left out: the {sum(c.as_nobody for c in cases())} cases run as user nobody ({blocker})")
     if args.json:
-        from platebench.bench.io.atomic import write_json  # noqa: PLC0415
-        write_json(args.json, {"generator": "platebench perf", "target": "bad-input",
-                               "figures": [o.__dict__ for o in outcomes]})
+        doc = {"generator": "tools/faults", "cases": len(outcomes), "counts": counts(outcomes),
+               "wall_s": round(wall, 1), "left_out": blocker,
+               "rerun_of": None if earlier is None else {"counts": earlier["counts"], "wall_s": earlier["wall_s"],
+                                                         "cases_run_again": sum(o["klass"] != "ok"
+                                                                                for o in earlier["outcomes"])},
+               "families": {f: sum(o.family == f for o in outcomes) for f in sorted({o.family for o in outcomes})},
+               "outcomes": [asdict(o) for o in outcomes]}
+        args.json.write_text(json.dumps(doc, indent=1, default=str))
     return 0 if not any(failed(o) for o in outcomes) else 1
 
 

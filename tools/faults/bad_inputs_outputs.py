@@ -1,5 +1,5 @@
-"""Bad-input cases (``bench.perf.bad_inputs``): outputs that would destroy what the user did not hand
-over, datasets that lie (files swapped, links leading out), sizes declared by file headers, and
+"""Cases of the fault-injection harness (``tools/faults/bad_inputs.py``): outputs that would destroy
+what the user did not hand over, datasets that lie (files swapped, links leading out), sizes declared by file headers, and
 paths that are not regular files.
 
 Every destructive case runs in a directory of its own (``scratch``): a copy of the material, the
@@ -15,7 +15,7 @@ import subprocess
 import zlib
 from pathlib import Path
 
-from platebench.bench.perf.bad_inputs import Case, _write, register_cases
+from tools.faults.bad_inputs import Case, _write, register_cases
 
 SMALL_RENDER = ["--width", "64", "--height", "48", "--spp", "1"]
 
@@ -218,6 +218,8 @@ def output_cases() -> list[Case]:
              ("o.journal.jsonl", "not a study journal"), _file("o.journal.jsonl", note), ""),
     ):
         c.append(Case(name, args, expect, setup, scratch=True, cwd=cwd, watch=("o",)))
+    for x in c:
+        x.family = "outputs"
     return c
 
 
@@ -291,4 +293,6 @@ def reader_cases() -> list[Case]:
                       ("full/report", "no space left"),
                       _do(_mount_tmpfs("full", "48k"), _file("full/filler", b"\0" * 40_000)), scratch=True,
                       teardown=_umount("full")))
+    for x in c:
+        x.family = "readers"
     return c

@@ -1,8 +1,8 @@
 """Chaos benchmark: a 20-sample Dask sweep whose scheduler, workers and sweep process are killed at
 random moments, resumed after each kill, and checked (not a timed test; a script that reproduces).
 
-``python -m platebench.bench.perf.chaos [--rounds 10] [--samples 20] [--seed 0]`` (or
-``platebench perf chaos``). Each round starts ``platebench sweep SPEC --scheduler ADDR [--resume]``
+``python -m tools.faults.chaos [--rounds 10] [--samples 20] [--seed 0]`` (from the repository
+root). Each round starts ``platebench sweep SPEC --scheduler ADDR [--resume]``
 in a fresh process on a real ``LoopbackCluster`` (127.0.0.1), waits until it commits a sample, then a random 0-6 s, then kill -9s a
 random victim by PID: the scheduler (the cluster is restarted), one worker (its nanny too; a new
 worker joins), or the sweep process. After the sweep process has ended, the dataset is checked:
@@ -158,7 +158,7 @@ def run_chaos(rounds: int = 10, samples: int = 20, seed: int = 0, workdir: Path 
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m platebench.bench.perf.chaos", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m tools.faults.chaos", description=__doc__.split("\n\n")[0])
     p.add_argument("--rounds", type=int, default=10)
     p.add_argument("--samples", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{s['tracebacks']}, hung {s['hung']}, leftovers {s['leftovers']}")
     if args.json:
         from platebench.bench.io.atomic import write_json  # noqa: PLC0415
-        write_json(args.json, {"generator": "platebench perf", "target": "chaos", "figures": s})
+        write_json(args.json, {"generator": "tools/faults chaos", "figures": s})
     bad = sum(s[k] for k in ("samples_lost", "samples_redone", "duplicated_rows", "corrupt_files", "wrong_complete",
                              "hung"))
     return 0 if bad == 0 and s["final_exit"] == 0 else 1
