@@ -209,3 +209,38 @@ def left_depth(kind: str, value, truth: ProtocolTruth) -> np.ndarray:
     if kind == "points":
         return depth_from_points(value, truth.camera, truth.shape)
     raise ValueError(f"output kind {kind!r} is not known: allowed {', '.join(OUTPUT_KINDS)}")
+
+
+@dataclass(frozen=True)
+class SparseFigures:
+    """Sparse points (the paper's square centres) against the true surface: ``count`` finite points,
+    the RMS and largest distance to the surface (mm), and the RMS z-depth error (mm) along each point's
+    ray from the left camera against the surface's first hit on that ray (None where no ray hits)."""
+
+    count: int
+    distance_rms_mm: float | None
+    distance_max_mm: float | None
+    depth_rms_mm: float | None
+
+
+def sparse_figures(points_m: np.ndarray, truth: ProtocolTruth, mesh) -> SparseFigures:
+    """The ``SparseFigures`` of world-frame points (N, 3) in metres (rows with a non-finite coordinate
+    left out) against the true mesh (``trimesh.Trimesh``, world frame): distances by
+    ``evaluation.point_metrics.point_to_surface_distance``, first hits by ``first_hits``."""
+    from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
+    p = np.asarray(points_m, np.float64).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    if not len(p):
+        return SparseFigures(0, None, None, None)
+    dist = point_to_surface_distance(p, mesh)
+    cam = truth.camera
+    dirs = p - cam.center
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    hit, locs = first_hits(mesh, cam.center, dirs)
+    zt = np.full(len(p), np.nan)
+    zt[hit] = cam.depth(locs)
+    e = cam.depth(p) - zt
+    e = e[np.isfinite(e)]
+    mm = 1e3
+    return SparseFigures(len(p), float(math.sqrt(np.mean(dist * dist))) * mm, float(np.max(dist)) * mm,
+                         float(math.sqrt(np.mean(e * e))) * mm if e.size else None)

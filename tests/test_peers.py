@@ -364,7 +364,7 @@ def test_sgbm_search_beyond_the_images_is_refused_for_either_pair(bent, tmp_path
     assert main(["compare", str(sample_dir), "--methods", method, "--min-depth-mm", "20", "--max-depth-mm", "2000",
                  "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "sgbm: --min-depth-mm 20 to --max-depth-mm 2000 asks for disparities" in err[0], err
+    assert len(err) == 1 and f"{method}: --min-depth-mm 20 to --max-depth-mm 2000 asks for disparities" in err[0], err
     assert not out.exists()
 
 

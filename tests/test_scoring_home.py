@@ -43,12 +43,6 @@ ALLOWED = {
         "the colour scale's range (a display range of the compared errors, not a figure)",
     ("bench/run/realism.py", "rms", "measure_corner_noise"):
         "the corner detector's noise on rendered views: an input of the realism model, not a score",
-    ("bench/run/calibration.py", "rms", None):
-        "the calibration study's residuals of the estimated rig (a study of the calibration, scored there)",
-    ("bench/benchmark/score.py", "distance", "_sparse"):
-        "the benchmark's sparse rows (square centres against the true surface), scored beside its reader",
-    ("bench/benchmark/score.py", "rms", "_sparse"):
-        "the benchmark's sparse rows (square centres against the true surface), scored beside its reader",
 }
 
 

@@ -32,7 +32,6 @@ sparse points, scored apart (``SparseRow``).
 from __future__ import annotations
 
 import concurrent.futures as cf
-import math
 import multiprocessing
 import os
 import shutil
@@ -164,28 +163,12 @@ def protocol_truth(sample_dir: Path):
 
 
 def _sparse(job: _Job, method: str, points: np.ndarray, truth, mesh) -> SparseRow:
-    """Sparse points (the paper's square centres) against the true surface: the distance to it
-    (``evaluation.point_metrics.point_to_surface_distance``), and the z-depth error along each point's
-    ray from the left camera, against the true surface's first hit on that ray."""
-    from platebench.evaluation.point_metrics import point_to_surface_distance  # noqa: PLC0415
-    p = np.asarray(points, np.float64).reshape(-1, 3)
-    p = p[np.all(np.isfinite(p), axis=1)]
-    if not len(p):
-        return SparseRow(job.split, job.sample_id, method, "square_centres", 0, None, None, None)
-    dist = point_to_surface_distance(p, mesh)
-    from platebench.evaluation.protocol import first_hits  # noqa: PLC0415
-    cam = truth.camera
-    dirs = p - cam.center
-    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
-    hit, locs = first_hits(mesh, cam.center, dirs)
-    zt = np.full(len(p), np.nan)
-    zt[hit] = cam.depth(locs)
-    e = cam.depth(p) - zt
-    e = e[np.isfinite(e)]
-    mm = 1e3
-    return SparseRow(job.split, job.sample_id, method, "square_centres", len(p),
-                     float(math.sqrt(np.mean(dist * dist))) * mm, float(np.max(dist)) * mm,
-                     float(math.sqrt(np.mean(e * e))) * mm if e.size else None)
+    """Sparse points (the paper's square centres) against the true surface
+    (``evaluation.protocol.sparse_figures``)."""
+    from platebench.evaluation.protocol import sparse_figures  # noqa: PLC0415
+    f = sparse_figures(points, truth, mesh)
+    return SparseRow(job.split, job.sample_id, method, "square_centres", f.count, f.distance_rms_mm,
+                     f.distance_max_mm, f.depth_rms_mm)
 
 
 def _score_folder(job: _Job, method: str, folder: Path, truth, mesh, time_s, sparse: list) -> BenchmarkRow:

@@ -147,7 +147,7 @@ def _check_paper_recon(sample: Path, recon: Path | None) -> None:
         check_made_from(sample, d, meta)
 
 
-def _check_sgbm_range(sample: Path, depth_range_m) -> None:
+def _check_sgbm_range(sample: Path, depth_range_m, method: str) -> None:
     """Refuse an SGBM disparity search that OpenCV cannot run on the sample's images
     (``bench.config.sgbm_range``); a damaged sample is left to its reader, after the output rule."""
     from platebench.bench.config.sgbm_range import check_sgbm_range  # noqa: PLC0415
@@ -158,7 +158,7 @@ def _check_sgbm_range(sample: Path, depth_range_m) -> None:
         rig = load_calibration(sample).rig
     except (DatasetError, OSError):
         return
-    check_sgbm_range(rig, depth_range_m)
+    check_sgbm_range(rig, depth_range_m, method)
 
 
 def _method_list(text: str) -> tuple:
@@ -223,8 +223,9 @@ def run(args) -> int:
     # what the flags name, before the output rule and before any render (module doc)
     _check_methods(args.methods)
     _check_recon_flag(args.recon)
-    if any(m in ("sgbm", "sgbm-passive") for m in args.methods):
-        _check_sgbm_range(Path(args.sample), depth_range)
+    sgbm_method = next((m for m in ("sgbm", "sgbm-passive") if m in args.methods), None)
+    if sgbm_method is not None:  # both search the same disparity range
+        _check_sgbm_range(Path(args.sample), depth_range, sgbm_method)
     t0 = time.perf_counter()
     out = Path(args.out) if args.out is not None else Path(args.sample) / "compare"
     # the output rule (bench.io.outputs): never into the sample or the reconstruction it reads, except the

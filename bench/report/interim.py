@@ -210,8 +210,6 @@ def sensing_section(sensing_dir: Path, out_dir: Path) -> dict:
     figures = [{"label": "cures", "value": run.cures},
                {"label": "points matched", "value": final.matched},
                {"label": "false boundary detected", "value": detected, "status": "bad" if detected else "good"}]
-    if "boundary_verified" in (doc.get("final") or {}):
-        figures.append({"label": "boundary verified", "value": final.boundary_verified})
     figures += [{"label": f"GT: {cam} camera sees", "value": v.visible_fraction,
                  "unit": "fraction of the boundary"} for cam, v in vis.items()]
     figures += [{"label": column_label(k), "value": v} for k, v in final.accuracy.items()]

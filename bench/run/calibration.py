@@ -57,6 +57,8 @@ from platebench.bench.io.images import DatasetError
 from platebench.bench.io.sample_files import read_json
 from platebench.bench.run.render import render_sample
 from platebench.bench.run.score import recon_data, truth_from_sample
+from platebench.evaluation.calibration_errors import RayErrors, rms_max, rotation_angle_rad  # noqa: F401
+from platebench.evaluation.calibration_errors import ray_errors as _ray_errors
 from platebench.evaluation.score import Score, score_reconstruction
 from platebench.errors import UserValueError
 from platebench.reconstruction.calibration import (
@@ -203,41 +205,9 @@ def calibrate_from_images(images: CalibrationImages, width: int, height: int, pa
 
 
 # -- errors against the truth ----------------------------------------------------------
-def rotation_angle_rad(Ra: np.ndarray, Rb: np.ndarray) -> float:
-    """Angle (radians) of the rotation Ra Rb^T."""
-    c = (np.trace(np.asarray(Ra) @ np.asarray(Rb).T) - 1.0) / 2.0
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
-
-
-@dataclass(frozen=True, eq=False)
-class RayErrors:
-    """Per feature (``ids``, (F,)): the angle between an estimated and a true ray (rad, (F,)) and
-    the distance between their cuts with a plane z = const (metres, (F,))."""
-
-    ids: np.ndarray
-    angle_rad: np.ndarray
-    distance_at_plane_m: np.ndarray
-
-
 def ray_errors(est: FeatureRays, true: FeatureRays, plane_z_m: float = PLATE_PLANE_Z_M) -> RayErrors:
-    """Per feature (matched by id): angle between the rays (rad) and the distance between
-    their cuts with the plane z = ``plane_z_m`` (metres)."""
-    idx = {int(i): k for k, i in enumerate(true.ids)}
-    k = np.array([idx[int(i)] for i in est.ids])
-    de, dt = est.directions, true.directions[k]
-    ang = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", de, dt)), -1.0, 1.0))
-
-    def cut(o, d):
-        s = (plane_z_m - o[:, 2]) / d[:, 2]
-        return o + d * s[:, None]
-
-    dist = np.linalg.norm(cut(est.origins, de) - cut(true.origins[k], dt), axis=1)
-    return RayErrors(est.ids.astype(int), ang, dist)
-
-
-def _rms_max(v) -> tuple[float, float]:
-    v = np.abs(np.asarray(v, float))
-    return float(np.sqrt(np.mean(v ** 2))), float(v.max())
+    """``evaluation.calibration_errors.ray_errors`` at the plate's plane z = ``PLATE_PLANE_Z_M`` by default."""
+    return _ray_errors(est, true, plane_z_m)
 
 
 def _image_grid(width: int, height: int) -> np.ndarray:
@@ -297,8 +267,8 @@ def _stereo_errors(st: StereoCalibration, rig: StereoRig) -> StereoFigures:
 def _rays_report(sl: StructuredLightCalibration, true_rays: FeatureRays, true_center: np.ndarray,
                  target_z_m) -> RayFigures:
     e = ray_errors(sl.rays, true_rays)
-    angle_rms, angle_max = _rms_max(e.angle_rad * 1e3)
-    dist_rms, dist_max = _rms_max(e.distance_at_plane_m * 1e3)
+    angle_rms, angle_max = rms_max(e.angle_rad * 1e3)
+    dist_rms, dist_max = rms_max(e.distance_at_plane_m * 1e3)
     return RayFigures(
         ids=tuple(e.ids.tolist()),
         angle_error_mrad=tuple((e.angle_rad * 1e3).tolist()),
@@ -306,7 +276,7 @@ def _rays_report(sl: StructuredLightCalibration, true_rays: FeatureRays, true_ce
         line_fit_residual_um=tuple((sl.residual_rms_m * 1e6).tolist()),
         projector_center_error_mm=tuple(((sl.projector_center - true_center) * 1e3).tolist()),
         projector_center_error_norm_mm=float(np.linalg.norm(sl.projector_center - true_center) * 1e3),
-        ray_miss_of_common_center_rms_mm=float(np.sqrt(np.mean(sl.center_miss_m ** 2)) * 1e3),
+        ray_miss_of_common_center_rms_mm=rms_max(sl.center_miss_m * 1e3)[0],
         target_planes=tuple(TargetPlaneFigures(known_z_mm=z * 1e3, measured_z_mm=float(np.mean(p.points[:, 2]) * 1e3),
                                                depth_error_mm=float((np.mean(p.points[:, 2]) - z) * 1e3),
                                                tilt_deg=float(np.degrees(np.arccos(min(1.0, abs(p.plane_normal[2]))))),

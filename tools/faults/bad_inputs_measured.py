@@ -385,7 +385,7 @@ def _tracebacks() -> list[Case]:
                         ("sgbm-passive", ["--min-depth-mm", "100", "--max-depth-mm", "110"]),
                         ("sgbm", ["--min-depth-mm", "1", "--max-depth-mm", "1000000"])):
         c.append(Case(f"measured: compare --methods {name} {' '.join(flags)}",
-                      ["compare", "good", "--methods", name, *flags, "--out", "o"], ("sgbm",), scratch=True,
+                      ["compare", "good", "--methods", name, *flags, "--out", "o"], (f"{name}:",), scratch=True,
                       watch=("o",)))
     c.append(Case("measured: compare --methods phase-opencv on a 160 x 120 sample",
                   ["compare", "good", "--methods", "phase-opencv", "--out", "o"], ("phase-opencv", "recorded"),
