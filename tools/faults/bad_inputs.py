@@ -663,6 +663,11 @@ def failed(o: Outcome) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # A harness started in the background (``cmd &``, nohup) inherits SIGINT ignored, and so would every
+    # command it runs: give them the default disposition a user's terminal gives, so that the signal
+    # attacks test the command, not the harness's start.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     p = argparse.ArgumentParser(prog="python -m tools.faults", description=__doc__.split("\n\n")[0])
     p.add_argument("-k", dest="select", help="only cases whose name contains this")
     p.add_argument("--json", type=Path, help="also write the counts and every outcome as JSON here")
