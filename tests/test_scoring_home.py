@@ -177,10 +177,18 @@ PLANTED = {
 }
 
 
+def _planted_in(folder: str) -> str:
+    """The repository-relative name of a planted module (no such file exists) in ``folder``."""
+    return f"{folder}/{PLANTED_MODULE}"
+
+
+PLANTED_MODULE = "planted_module.py"
+
+
 @pytest.mark.parametrize("name", sorted(PLANTED))
 def test_the_checker_finds_planted_scoring(name):
     rule = name.split("_")[0].replace("percentile", "quantile")
-    found = scoring_outside_evaluation(PLANTED[name], "bench/run/planted.py")
+    found = scoring_outside_evaluation(PLANTED[name], _planted_in("bench/run"))
     assert [r for r, *_ in found] and {r for r, *_ in found} == {rule}, found
 
 
@@ -192,10 +200,10 @@ def test_the_checker_leaves_what_is_not_scoring_alone():
              "    c = np.median(w)  # a summary of scored figures across samples\n"
              "    return a, b, c, np.linalg.norm(x)\n"
              "PAPER_NAME = 'Chen and Zheng'\n")
-    assert scoring_outside_evaluation(clean, "bench/report/planted.py") == []
+    assert scoring_outside_evaluation(clean, _planted_in("bench/report")) == []
     residual = "import numpy as np\ndef fit(r):\n    return np.sqrt(np.mean(r ** 2)), np.percentile(r, 90)\n"
-    assert scoring_outside_evaluation(residual, "reconstruction/planted.py") == []  # no ground truth there
-    assert {r for r, *_ in scoring_outside_evaluation(residual, "bench/run/planted.py")} == {"rms", "quantile"}
+    assert scoring_outside_evaluation(residual, _planted_in("reconstruction")) == []  # no ground truth there
+    assert {r for r, *_ in scoring_outside_evaluation(residual, _planted_in("bench/run"))} == {"rms", "quantile"}
 
 
 def test_the_scored_per_point_errors_are_written_and_read_back_exactly():
