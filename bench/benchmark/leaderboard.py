@@ -264,10 +264,10 @@ def _csv_cells(cls, data: bytes, path: Path) -> list[tuple]:
 
 def _parquet_cells(cls, data: bytes, path: Path) -> list[tuple]:
     import pyarrow as pa  # noqa: PLC0415
-    import pyarrow.parquet as pq  # noqa: PLC0415
+    from platebench.bench.io.parquet import read_parquet  # noqa: PLC0415
     cols = _columns(cls)
     try:
-        table = pq.read_table(pa.BufferReader(data))
+        table = read_parquet(data)
     except (pa.ArrowException, OSError, ValueError) as e:
         raise ResultsTableError(f"{path}: not a readable Parquet table ({str(e).splitlines()[0][:200]})") from None
     names = [n for n, _, _ in cols]

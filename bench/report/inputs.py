@@ -37,13 +37,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from platebench.bench.config.axes import PARAMETERS
 from platebench.bench.files import JSON_MAX_BYTES, read_capped
 from platebench.bench.io.layout import FORMAT, MANIFEST, RESULTS_CSV, RESULTS_PARQUET, SAMPLES
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.outputs import GENERATOR_REPORT, KINDS
+from platebench.bench.io.parquet import read_parquet
 from platebench.bench.io.table_checksums import verify_table
 from platebench.errors import UserValueError
 from platebench.evaluation.metrics_row import METRIC_FIELDS
@@ -316,7 +316,7 @@ def _read_table(path: Path) -> pd.DataFrame:
     """results.parquet (typed) or results.csv (types from the column registries) as a frame."""
     if path.suffix == ".parquet":
         try:
-            return pq.read_table(path).to_pandas()
+            return read_parquet(path).to_pandas(use_threads=False)
         except (pa.ArrowException, ValueError) as e:
             raise ReportInputError(f"{path}: not a readable Parquet table ({_first_line(e)})") from None
     return _read_csv(path, TEXT_COLUMNS)

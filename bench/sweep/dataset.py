@@ -315,8 +315,8 @@ def write_results(dataset: Path, results: list[SampleResult]) -> list[dict]:
 
 def read_results(dataset: Path):
     """The results table as a pyarrow Table."""
-    import pyarrow.parquet as pq  # noqa: PLC0415
-    return pq.read_table(Path(dataset) / RESULTS_PARQUET)
+    from platebench.bench.io.parquet import read_parquet  # noqa: PLC0415
+    return read_parquet(Path(dataset) / RESULTS_PARQUET)
 
 
 # ----------------------------------------------------------------------------- manifest
