@@ -28,6 +28,16 @@ def _not_in_worker_import(name: str) -> None:
                                 f"{getattr(sys.modules.get('__main__'), '__file__', '?')}: {GUARD_HINT}")
 
 
+def _begin(name: str) -> None:
+    """What every facade function does first: refuse a call during a worker's import of the main script
+    (``_not_in_worker_import``), then load the installed packages' families, metrics and cure rules
+    (``bench.run.extensions.load_extensions``: once per process; ``ExtensionError`` when one cannot be
+    loaded)."""
+    _not_in_worker_import(name)
+    from platebench.bench.run.extensions import load_extensions
+    load_extensions()
+
+
 def render(config=None, *, renderer=None, progress=None):
     """Render one sample (4 images + exact ground truth) in memory.
 
@@ -35,8 +45,9 @@ def render(config=None, *, renderer=None, progress=None):
     paper's reference experiment). ``renderer``: a ``PlateRenderer`` from an earlier call
     (``sample.renderer``), to reuse its compiled kernels. Returns a ``RenderedSample``.
     """
-    _not_in_worker_import("render")
-    from platebench.bench.config import SampleConfig, load_config
+    _begin("render")
+    from platebench.bench.config import SampleConfig
+    from platebench.bench.io.config_files import load_config
     from platebench.bench.run.render import render_sample
     if config is None or isinstance(config, (str, Path)):
         config = load_config(None if config is None else Path(config))
@@ -53,7 +64,7 @@ def reconstruct(sample, *, options=None):
     ground truth. Returns a ``platebench.reconstruction.paper.pipeline.Reconstruction`` (world
     frame, metres).
     """
-    _not_in_worker_import("reconstruct")
+    _begin("reconstruct")
     from platebench.bench.run.paper_method import reconstruct_sample
     return reconstruct_sample(sample, options)
 
@@ -64,7 +75,7 @@ def score(sample, reconstruction):
     ``sample``: a ``RenderedSample`` or a sample directory; ``reconstruction``: a pipeline
     ``Reconstruction`` or a reconstruction directory.
     """
-    _not_in_worker_import("score")
+    _begin("score")
     from platebench.bench.run.score import score_any
     return score_any(sample, reconstruction)
 
@@ -76,7 +87,7 @@ def sense(config=None, out=None, *, overwrite: bool = False, **options):
     there (the output rule of ``platebench sense``: a new folder, or with ``overwrite`` a sensing
     run's). ``options``: fields of ``platebench.bench.run.sensing.SensingOptions``.
     """
-    _not_in_worker_import("sense")
+    _begin("sense")
     from platebench.bench.config import SampleConfig
     from platebench.bench.io.outputs import output_dir
     from platebench.bench.run.sensing import SensingOptions, run_sensing
@@ -97,7 +108,7 @@ def sweep(spec, out, *, workers: int = 1, scheduler: str | None = None, resume: 
     with ``check`` (default), ``SamplesFailedError`` is raised naming how many failed and the first
     error (its ``summary`` holds the rest), so a script never goes on quietly over failed samples.
     ``check=False`` returns the summary whatever failed."""
-    _not_in_worker_import("sweep")
+    _begin("sweep")
     from platebench.bench.io.outputs import guard_output
     from platebench.bench.sweep.executors import DaskExecutor, LocalExecutor, run_sweep
     from platebench.bench.sweep.spec import load_spec
@@ -137,6 +148,6 @@ def report(path, out=None, *, overwrite: bool = False) -> Path:
     """Write the self-contained HTML report of a dataset, study, sensing run, sample or
     reconstruction (``out``: default ``path/report``; ``overwrite``: replace an earlier report);
     returns the path of ``index.html``."""
-    _not_in_worker_import("report")
+    _begin("report")
     from platebench.bench.report.html import write_report
     return write_report(Path(path), None if out is None else Path(out), overwrite=overwrite)

@@ -65,8 +65,8 @@ _MAX_SAMPLES = 2_000_000
 class BoundaryScore:
     """Directed and symmetric distances between an estimated and a true boundary.
 
-    Values are in the input unit (``unit``: "m" or "px"); ``to_dict`` reports mm
-    for metres and px for pixels.
+    Values are in the input unit (``unit``: "m" or "px"); the JSON form (``bench.io.codecs.evaluation``)
+    reports mm for metres and px for pixels.
     """
 
     est_to_gt: ErrorStats
@@ -78,34 +78,6 @@ class BoundaryScore:
     length_gt: float
     sample_spacing: float
     unit: str = "m"
-
-    def to_dict(self) -> dict:
-        """Keys (mm for metres, px for pixels): ``est_to_gt_{mean,rms,max,p95}_mm``,
-        ``est_to_gt_count``, ``gt_to_est_*``, ``mean_sym_mm``, ``rms_sym_mm``,
-        ``hausdorff_mm``, ``length_est_mm``, ``length_gt_mm``, ``sample_spacing_mm``."""
-        suf, scale = _UNITS[self.unit]
-        out = {}
-        out.update(self.est_to_gt.to_dict("est_to_gt", suf, scale))
-        out.update(self.gt_to_est.to_dict("gt_to_est", suf, scale))
-        out[f"mean_sym_{suf}"] = self.mean_sym * scale
-        out[f"rms_sym_{suf}"] = self.rms_sym * scale
-        out[f"hausdorff_{suf}"] = self.hausdorff * scale
-        out[f"length_est_{suf}"] = self.length_est * scale
-        out[f"length_gt_{suf}"] = self.length_gt * scale
-        out[f"sample_spacing_{suf}"] = self.sample_spacing * scale
-        return out
-
-    @classmethod
-    def from_dict(cls, d: dict, unit: str = "m") -> "BoundaryScore":
-        """The inverse of ``to_dict`` for a boundary in ``unit`` ("m": keys in mm, "px")."""
-        suf, scale = _UNITS[unit]
-
-        def value(name):
-            v = d.get(f"{name}_{suf}")
-            return math.nan if v is None else float(v) / scale
-        return cls(ErrorStats.from_dict(d, "est_to_gt", suf, scale), ErrorStats.from_dict(d, "gt_to_est", suf, scale),
-                   value("mean_sym"), value("rms_sym"), value("hausdorff"), value("length_est"), value("length_gt"),
-                   value("sample_spacing"), unit)
 
 
 # ----------------------------------------------------------------------- helpers

@@ -43,16 +43,6 @@ class SparseDepthScore:
         """The share of the plate's pixels with an estimate (None: not measured)."""
         return None if self.coverage is None else self.coverage.coverage_frac
 
-    def to_dict(self) -> dict:
-        out = {"points": self.points, "points_on_plate": self.points_on_plate,
-               "centres_depth_median_mm": self.centres_depth_median_mm,
-               "centres_depth_rms_mm": self.centres_depth_rms_mm, "centres_depth_max_mm": self.centres_depth_max_mm}
-        if self.surface_rms_mm is not None:
-            out.update(surface_rms_mm=self.surface_rms_mm, surface_max_mm=self.surface_max_mm)
-        if self.coverage is not None:
-            out.update(self.coverage.to_dict())
-        return out
-
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Bilinear lookup at (N,2) pixel coordinates; NaN unless all four neighbours are finite."""

@@ -35,11 +35,6 @@ class DetectionScore:
     def cases(self) -> int:
         return self.true_positive + self.false_positive + self.false_negative + self.true_negative
 
-    def to_dict(self) -> dict:
-        return {"true_positive": self.true_positive, "false_positive": self.false_positive,
-                "false_negative": self.false_negative, "true_negative": self.true_negative,
-                "precision": self.precision, "recall": self.recall}
-
 
 def detection_score(truth: Iterable, flagged: Iterable) -> DetectionScore:
     """Score ``flagged`` (bool or None per case) against ``truth`` (bool or None per case)."""

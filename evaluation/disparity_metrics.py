@@ -68,11 +68,6 @@ BAD_THRESHOLDS_PX: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0)
 QUANTILES_PCT: tuple[int, ...] = (50, 90, 95, 99)
 
 
-def _thr_key(t: float) -> str:
-    """0.5 -> '0_5', 1.0 -> '1_0', 4.0 -> '4_0'."""
-    return f"{t:.1f}".replace(".", "_")
-
-
 @dataclass(frozen=True)
 class MiddleburyRegion:
     """Middlebury v3 figures for one region ("all" or "nonocc")."""
@@ -86,30 +81,11 @@ class MiddleburyRegion:
     rms: float
     quantiles: tuple[tuple[int, float], ...]  # ((q %, error px; inf possible), ...)
 
-    def to_dict(self, prefix: str = "mb") -> dict:
-        p = f"{prefix}_{self.region}_"
-        out = {f"{p}bad_{_thr_key(t)}_pct": v for t, v in self.bad_pct}
-        out[f"{p}invalid_pct"] = self.invalid_pct
-        out[f"{p}avgerr_px"] = self.avgerr
-        out[f"{p}rms_px"] = self.rms
-        out.update({f"{p}a{q}_px": v for q, v in self.quantiles})
-        out[f"{p}gt_count"] = self.gt_count
-        out[f"{p}valid_count"] = self.valid_count
-        return out
-
 
 @dataclass(frozen=True)
 class MiddleburyScore:
     all: MiddleburyRegion
     nonocc: MiddleburyRegion | None
-
-    def to_dict(self) -> dict:
-        """Keys ``mb_{all,nonocc}_{bad_0_5_pct, bad_1_0_pct, bad_2_0_pct, bad_4_0_pct,
-        invalid_pct, avgerr_px, rms_px, a50_px, a90_px, a95_px, a99_px, gt_count, valid_count}``."""
-        out = self.all.to_dict("mb")
-        if self.nonocc is not None:
-            out.update(self.nonocc.to_dict("mb"))
-        return out
 
 
 @dataclass(frozen=True)
@@ -125,30 +101,11 @@ class Eth3dRegion:
     rms: float
     quantiles: tuple[tuple[int, float], ...]
 
-    def to_dict(self, prefix: str = "eth") -> dict:
-        p = f"{prefix}_{self.region}_"
-        out = {f"{p}coverage_frac": self.coverage}
-        out.update({f"{p}bad_{_thr_key(t)}_pct": v for t, v in self.bad_pct})
-        out[f"{p}avgerr_px"] = self.avgerr
-        out[f"{p}rms_px"] = self.rms
-        out.update({f"{p}a{q}_px": v for q, v in self.quantiles})
-        out[f"{p}gt_count"] = self.gt_count
-        out[f"{p}est_count"] = self.est_count
-        return out
-
 
 @dataclass(frozen=True)
 class Eth3dScore:
     all: Eth3dRegion
     nonocc: Eth3dRegion | None
-
-    def to_dict(self) -> dict:
-        """Keys ``eth_{all,nonocc}_{coverage_frac, bad_0_5_pct, bad_1_0_pct, bad_2_0_pct,
-        bad_4_0_pct, avgerr_px, rms_px, a50_px, a90_px, a95_px, a99_px, gt_count, est_count}``."""
-        out = self.all.to_dict("eth")
-        if self.nonocc is not None:
-            out.update(self.nonocc.to_dict("eth"))
-        return out
 
 
 # ----------------------------------------------------------------------- helpers

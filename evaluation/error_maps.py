@@ -17,18 +17,23 @@ from platebench.evaluation.point_metrics import point_to_surface_distance
 if TYPE_CHECKING:
     import trimesh  # annotations only: importing trimesh takes a second
 
-__all__ = ["DepthErrorMap", "depth_error_map", "PointDistanceMap", "point_distance_map"]
+__all__ = ["DepthErrorMap", "depth_error_map", "PointDistanceMap", "point_distance_map", "MAX_MAP_POINTS",
+           "implied_depth", "output_error_map"]
+
+MAX_MAP_POINTS = 20_000  # a point cloud's or mesh's error map holds at most this many points (seeded sample)
 
 
 @dataclass(frozen=True, eq=False)
 class DepthErrorMap:
     """A depth map against the true depth of the left view: ``error_m`` (H, W) the signed error
     Z_est - Z_gt on the plate's pixels with an estimate (finite and > 0), NaN elsewhere; ``errors``
-    the statistics of its absolute values; ``plate_px`` the plate's pixels."""
+    the statistics of its absolute values; ``plate_px`` the plate's pixels; ``plate`` (H, W) bool the
+    plate's pixels (None: not kept)."""
 
     error_m: np.ndarray = field(repr=False)
     errors: AbsErrors
     plate_px: int
+    plate: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def coverage_frac(self) -> float:
@@ -43,17 +48,18 @@ def depth_error_map(depth_m, true_depth_m, mask) -> DepthErrorMap:
     mask = np.asarray(mask, bool)
     with np.errstate(invalid="ignore"):  # inf - inf off the plate, masked out
         err = np.where(mask & np.isfinite(z) & (z > 0), z - true_depth_m, np.nan)
-    return DepthErrorMap(err, AbsErrors.of(err[np.isfinite(err)], signed=False), int(mask.sum()))
+    return DepthErrorMap(err, AbsErrors.of(err[np.isfinite(err)], signed=False), int(mask.sum()), mask)
 
 
 @dataclass(frozen=True, eq=False)
 class PointDistanceMap:
     """Points (K, 3, world, metres) and each one's exact distance to the true surface ``distance_m``
-    (K,), with their statistics."""
+    (K,), with their statistics; ``finite_count`` the finite points they were drawn from (K or more)."""
 
     points: np.ndarray = field(repr=False)
     distance_m: np.ndarray = field(repr=False)
     errors: AbsErrors
+    finite_count: int = 0
 
 
 def point_distance_map(points_m, mesh: trimesh.Trimesh, max_points: int | None = None,
@@ -62,7 +68,36 @@ def point_distance_map(points_m, mesh: trimesh.Trimesh, max_points: int | None =
     ``max_points`` of them: a sample of that many drawn without replacement with ``seed``."""
     P = np.asarray(points_m, np.float64)
     P = P[np.all(np.isfinite(P), axis=1)]
+    finite = len(P)
     if max_points is not None and len(P) > max_points:
         P = P[np.random.default_rng(seed).choice(len(P), max_points, replace=False)]
     dist = point_to_surface_distance(P, mesh)
-    return PointDistanceMap(P, dist, AbsErrors.of(dist, signed=False))
+    return PointDistanceMap(P, dist, AbsErrors.of(dist, signed=False), finite)
+
+
+def implied_depth(disparity_px, fb: float, doffs_px: float) -> np.ndarray:
+    """(H, W) z-depth (metres) of a left-view disparity map (px): Z = f B / (d + doffs), ``fb`` the
+    focal length times the baseline (px m), ``doffs_px`` the principal points' offset; NaN where there
+    is no estimate (non-finite) or d + doffs <= 0."""
+    d = np.asarray(disparity_px, np.float64) + doffs_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(d) & (d > 0), fb / d, np.nan)
+
+
+def output_error_map(kind: str, values, truth, max_points: int | None = MAX_MAP_POINTS,
+                     seed: int = 0) -> DepthErrorMap | PointDistanceMap:
+    """The error map of a method's output of ``kind`` against ``truth`` (an
+    ``evaluation.field_scores.FieldTruth``): a ``DepthErrorMap`` of a disparity (``values`` (H, W) px,
+    through ``implied_depth``) or a depth map ((H, W) metres) on the true plate's pixels; a
+    ``PointDistanceMap`` of points ((N, 3) world, metres) or a mesh's vertices (``values`` a
+    trimesh.Trimesh), at most ``max_points`` of them (``point_distance_map``). ``ValueError`` for a map
+    of another shape than the truth's or an unknown kind."""
+    if kind in ("disparity", "depth"):
+        z = (implied_depth(values, truth.pair.fb, truth.pair.doffs_px) if kind == "disparity"
+             else np.asarray(values, np.float64))
+        if z.shape != truth.depth.shape:
+            raise ValueError(f"{kind} map of shape {z.shape}: the sample's maps are {truth.depth.shape}")
+        return depth_error_map(z, truth.depth, truth.mask)
+    if kind in ("points", "mesh"):
+        return point_distance_map(values if kind == "points" else values.vertices, truth.mesh, max_points, seed)
+    raise ValueError(f"kind {kind!r} has no error map: allowed disparity, depth, points, mesh")

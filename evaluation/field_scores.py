@@ -32,10 +32,10 @@ gives one of four kinds of result, each scored with the metrics its field uses:
 ``coverage_frac`` has one meaning for every kind, the share of the left view's plate pixels with an
 estimate (``evaluation.pixel_coverage``).
 
-Every score is a frozen dataclass with values in metres (pixels for disparities); ``to_dict()``
-gives the JSON layout, with the unit in every key (mm, px, pct, frac, count, px counts as
-``_px``), and ``metrics_row()`` the results-table row (``MetricsRow``: shared columns plus every
-other figure in ``extra``). Bad inputs raise ``FieldScoreError`` (one line naming the input).
+Every score is a frozen dataclass with values in metres (pixels for disparities); its JSON layout,
+with the unit in every key (mm, px, pct, frac, count, px counts as ``_px``), is its codec in
+``bench.io.codecs.evaluation``, and its results-table row is ``bench.run.outputs.score_row``. Bad
+inputs raise ``FieldScoreError`` (one line naming the input).
 """
 from __future__ import annotations
 
@@ -53,7 +53,6 @@ from platebench.evaluation.disparity_metrics import (
     eth3d_metrics,
     middlebury_metrics,
 )
-from platebench.evaluation.metrics_row import METRIC_NAMES, MetricsRow, registered_figures
 from platebench.evaluation.pixel_coverage import (
     PixelCoverage,
     coverage_of_map,
@@ -195,27 +194,6 @@ class AbsErrors:
                    float(a.max()), tuple((q, nearest_rank_quantile(a, q)) for q in QUANTILES_PCT),
                    float(e.mean()) if signed else None)
 
-    def to_dict(self, prefix: str) -> dict:
-        """``{prefix}_{mean,median,rms,max}_mm``, ``{prefix}_a{50,90,95,99}_mm``, ``{prefix}_mean_signed_mm``
-        (signed errors only), ``{prefix}_count``."""
-        out = {f"{prefix}_mean_mm": self.mean_m * MM, f"{prefix}_median_mm": self.median_m * MM,
-               f"{prefix}_rms_mm": self.rms_m * MM, f"{prefix}_max_mm": self.max_m * MM}
-        out.update({f"{prefix}_a{q}_mm": v * MM for q, v in self.quantiles_m})
-        if self.signed_mean_m is not None:
-            out[f"{prefix}_mean_signed_mm"] = self.signed_mean_m * MM
-        out[f"{prefix}_count"] = self.count
-        return out
-
-
-def _row(shared: dict, flat: dict, score=None) -> MetricsRow:
-    """A MetricsRow: ``shared`` columns, every other number of ``flat`` in ``extra``, and the
-    registered metrics' figures of ``score`` (``metrics_row.registered_figures``)."""
-    extra = {k: v for k, v in flat.items() if k not in METRIC_NAMES and k not in shared
-             and isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)}
-    if score is not None:
-        extra.update(registered_figures(score))
-    return MetricsRow(**shared, extra=extra)
-
 
 # ----------------------------------------------------------------------------- depth
 @dataclass(frozen=True)
@@ -236,18 +214,6 @@ class DepthScore:
     def coverage_frac(self) -> float:
         """The share of the plate's pixels with an estimate (``evaluation.pixel_coverage``)."""
         return self.coverage.coverage_frac
-
-    def to_dict(self) -> dict:
-        out = {"plate_px": self.plate_px, "estimated_px": self.estimated_px, "off_plate_px": self.off_plate_px,
-               "coverage_frac": self.coverage_frac}
-        out.update(self.errors.to_dict("depth"))
-        out.update({f"depth_bad_{_key(t)}_mm_pct": v for t, v in self.bad_pct})
-        return out
-
-    def metrics_row(self) -> MetricsRow:
-        e = self.errors
-        return _row({"depth_rms_mm": e.rms_m * MM, "depth_max_mm": e.max_m * MM, "depth_median_mm": e.median_m * MM,
-                     "coverage_frac": self.coverage_frac}, self.to_dict(), self)
 
 
 def _map(values, truth: FieldTruth, what: str) -> np.ndarray:
@@ -293,23 +259,6 @@ class DisparityScore:
     nonocc_px: int
     doffs_px: float
 
-    def to_dict(self) -> dict:
-        """The implied-depth keys of ``DepthScore.to_dict`` at the top, ``middlebury`` and ``eth3d``
-        sections (keys ``mb_*``/``eth_*``, see ``evaluation.disparity_metrics``)."""
-        out = {"doffs_px": self.doffs_px, "nonocc_px": self.nonocc_px}
-        out.update(self.depth.to_dict())
-        out["middlebury"] = self.middlebury.to_dict()
-        out["eth3d"] = self.eth3d.to_dict()
-        return out
-
-    def metrics_row(self) -> MetricsRow:
-        e = self.depth.errors
-        flat = {k: v for k, v in self.to_dict().items() if not isinstance(v, dict)}
-        flat.update(self.middlebury.to_dict())
-        flat.update(self.eth3d.to_dict())
-        return _row({"depth_rms_mm": e.rms_m * MM, "depth_max_mm": e.max_m * MM, "depth_median_mm": e.median_m * MM,
-                     "coverage_frac": self.depth.coverage_frac}, flat, self)
-
 
 def score_disparity(disparity_px, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM,
                     what: str = "disparity map") -> DisparityScore:
@@ -342,21 +291,6 @@ class PointCloudScore:
     @property
     def outlier_frac(self) -> float:
         return self.outlier_count / self.count if self.count else math.nan
-
-    def to_dict(self) -> dict:
-        out = {"points_count": self.count, "points_dropped_count": self.dropped_count}
-        out.update(self.distance.to_dict("dist"))
-        c = self.surface
-        out.update({"outlier_threshold_mm": self.outlier_threshold_m * MM, "outlier_count": self.outlier_count,
-                    "outlier_frac": self.outlier_frac, **self.coverage.to_dict(),
-                    "surface_coverage_frac": c.surface_coverage_frac,
-                    "coverage_radius_mm": c.coverage_radius_m * MM, "covered_area_mm2": c.covered_area_m2 * 1e6,
-                    "plate_area_mm2": c.plate_area_m2 * 1e6, "sample_spacing_mm": c.sample_spacing_m * MM})
-        return out
-
-    def metrics_row(self) -> MetricsRow:
-        return _row({"surface_rms_mm": self.distance.rms_m * MM, "coverage_frac": self.coverage.coverage_frac},
-                    self.to_dict(), self)
 
 
 def _points(points_m, what: str) -> tuple[np.ndarray, int]:
@@ -403,24 +337,6 @@ class MeshScore:
     def overall_m(self) -> float:
         """DTU's overall figure: (mean accuracy + mean completeness) / 2."""
         return 0.5 * (self.accuracy.mean_m + self.completeness.mean_m)
-
-    def to_dict(self) -> dict:
-        out = {"faces_count": self.faces_count, "sample_spacing_mm": self.sample_spacing_m * MM}
-        out.update(self.accuracy.to_dict("accuracy"))
-        out.update(self.completeness.to_dict("completeness"))
-        out["overall_mm"] = self.overall_m * MM
-        if self.coverage is not None:
-            out.update(self.coverage.to_dict())
-        for t, p, r, f in self.thresholds:
-            k = _key(t * MM)
-            out[f"precision_{k}_mm_pct"] = 100.0 * p
-            out[f"recall_{k}_mm_pct"] = 100.0 * r
-            out[f"fscore_{k}_mm_pct"] = 100.0 * f
-        return out
-
-    def metrics_row(self) -> MetricsRow:
-        return _row({"surface_rms_mm": self.accuracy.rms_m * MM, "coverage_frac": self.coverage_frac},
-                    self.to_dict(), self)
 
 
 def score_mesh(mesh: trimesh.Trimesh, truth: FieldTruth, *, thresholds_m=MESH_THRESHOLDS_M,

@@ -43,15 +43,6 @@ class PixelCoverage:
         """estimated_px / plate_px, 0..1 (NaN without plate pixels)."""
         return self.estimated_px / self.plate_px if self.plate_px else math.nan
 
-    def to_dict(self) -> dict:
-        """Keys ``plate_px``, ``estimated_px``, ``coverage_frac``."""
-        return {"plate_px": self.plate_px, "estimated_px": self.estimated_px, "coverage_frac": self.coverage_frac}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "PixelCoverage":
-        """The inverse of ``to_dict``."""
-        return cls(int(d.get("plate_px") or 0), int(d.get("estimated_px") or 0))
-
 
 def _mask(mask) -> np.ndarray:
     m = np.asarray(mask, bool)

@@ -44,15 +44,14 @@ __all__ = [
     "match_stats",
 ]
 
-M_TO_MM = 1e3
-
 
 # --------------------------------------------------------------------------- points
 
 
 @dataclass(frozen=True)
 class PointScore:
-    """Per-axis error statistics of N 3D points (values in metres; ``to_dict`` in mm)."""
+    """Per-axis error statistics of N 3D points (values in metres; the JSON form,
+    ``bench.io.codecs.evaluation``, in mm)."""
 
     depth: ErrorStats
     x: ErrorStats
@@ -65,33 +64,6 @@ class PointScore:
     count: int
     # per-point error vectors in the left camera frame, (N, 3) metres, read-only
     errors_cam: np.ndarray = field(repr=False, compare=False)
-
-    def to_dict(self) -> dict:
-        """Keys: ``{depth,x,y,xy_radial,err3d}_{mean,rms,max,p95}_mm``, ``{depth,x,y}_mean_signed_mm``, ``count``."""
-        out: dict = {}
-        for name in ("depth", "x", "y", "xy_radial", "err3d"):
-            d = getattr(self, name).to_dict(name, "mm", M_TO_MM)
-            d.pop(f"{name}_count")
-            out.update(d)
-        out["depth_mean_signed_mm"] = self.depth_bias_signed * M_TO_MM
-        out["x_mean_signed_mm"] = self.x_bias_signed * M_TO_MM
-        out["y_mean_signed_mm"] = self.y_bias_signed * M_TO_MM
-        out["count"] = self.count
-        return out
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "PointScore":
-        """The inverse of ``to_dict`` (metres; the per-point errors are not in it: an empty (0, 3) array)."""
-        n = int(d.get("count") or 0)
-
-        def signed(name):
-            v = d.get(f"{name}_mean_signed_mm")
-            return math.nan if v is None else float(v) / M_TO_MM
-        stats = {name: ErrorStats.from_dict(d, name, "mm", M_TO_MM, n) for name in ("depth", "x", "y", "xy_radial", "err3d")}
-        errors = np.zeros((0, 3))
-        errors.setflags(write=False)
-        return cls(**stats, depth_bias_signed=signed("depth"), x_bias_signed=signed("x"), y_bias_signed=signed("y"),
-                   count=n, errors_cam=errors)
 
 
 def _check_rotation(R, name: str = "R_left") -> np.ndarray:
@@ -457,22 +429,6 @@ class MatchScore:
     correct_match_rate: float
     detection_rate: float
     correct_visible_rate: float
-
-    def to_dict(self) -> dict:
-        return {
-            "expected_count": self.expected,
-            "visible_count": self.visible,
-            "reported_count": self.reported,
-            "duplicate_count": self.duplicate,
-            "detected_visible_count": self.detected_visible,
-            "detected_not_visible_count": self.detected_not_visible,
-            "missed_count": self.missed,
-            "correct_count": self.correct,
-            "wrong_count": self.wrong,
-            "correct_match_rate_frac": self.correct_match_rate,
-            "detection_rate_frac": self.detection_rate,
-            "correct_visible_rate_frac": self.correct_visible_rate,
-        }
 
 
 def _id_list(ids, name: str) -> list:

@@ -15,17 +15,20 @@ carries its unit. Sections:
   the share of the true plate's area within the coverage radius of the estimate).
 * ``coverage``: the bench's ``coverage_frac`` (``evaluation.pixel_coverage``): the share of the
   left view's plate pixels whose true ray hits the interpolated surface mesh.
-* ``false_boundary``: ground truth (a true-boundary point hidden from a camera) vs
-  the counting test's verdict.
+* ``false_boundary``: ground truth (a true-boundary point hidden from a camera, ``BoundaryTruth``) vs
+  the counting test's verdict (``reconstruction.paper.false_boundary.FalseBoundaryTest``).
 * ``per_point``: what an error map draws (``PerPointErrors``): each square centre's error (the 3D
   error against its true centre where its identity is known, else its distance to the true
   surface) and each surface vertex's exact distance to the true surface.
 * ``paper_bound`` (depth <= 2 mm, x/y <= 1 mm, paper V-D) and ``goals`` (depth RMS <=
   0.03 mm, x/y RMS <= 0.05 mm, boundary mean <= 0.2 mm).
+
+The JSON layout of every part (score.json) is its codec in ``bench.io.codecs.evaluation``.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -49,14 +52,17 @@ from platebench.evaluation.truth import (
     feature_visibility,
     true_feature_points,
 )
+from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
 
 if TYPE_CHECKING:
     import trimesh  # annotations only: importing trimesh takes a second
 
-__all__ = ["ScoreError", "SampleTruth", "ReconstructionData", "PointErrors", "PerPointErrors", "Matching",
-           "FalseBoundaryVerdict",
+    from platebench.scenes.render.ground_truth import BoundaryVisibility
+
+__all__ = ["ScoreError", "BoundaryTruth", "SampleTruth", "ReconstructionData", "PointErrors", "PerPointErrors",
+           "Matching", "FalseBoundaryVerdict",
            "PaperBound", "Goals", "Score", "score_reconstruction", "format_table",
            "PAPER_DEPTH_MM", "PAPER_XY_MM", "GOAL_DEPTH_RMS_MM", "GOAL_XY_RMS_MM", "GOAL_BOUNDARY_MEAN_MM"]
 
@@ -71,6 +77,20 @@ class ScoreError(UserValueError):
 
 
 @dataclass(frozen=True)
+class BoundaryTruth:
+    """Ground truth of one camera's view of the true boundary: the share of it the camera sees
+    (``visible_fraction``, 0..1 by arc length) and whether part of it is hidden (``false_boundary``)."""
+
+    false_boundary: bool
+    visible_fraction: float
+
+    @classmethod
+    def of(cls, visibility: BoundaryVisibility) -> "BoundaryTruth":
+        """The truth a ground-truth cast (``scenes.render.ground_truth.BoundaryVisibility``) gives."""
+        return cls(bool(visibility.false_boundary), float(visibility.visible_fraction))
+
+
+@dataclass(frozen=True)
 class SampleTruth:
     mesh: trimesh.Trimesh
     boundary: np.ndarray
@@ -80,7 +100,7 @@ class SampleTruth:
     projector: Camera
     feature_ids: np.ndarray
     feature_centers: np.ndarray
-    visibility: dict  # camera -> {"false_boundary": bool, "visible_fraction": float, ...}
+    visibility: Mapping[str, BoundaryTruth]  # camera -> its view of the true boundary
     # (H, W, 3) world point (metres) seen at each left pixel (gt/left_points.exr): the true rays of
     # the coverage; None: coverage is not measured
     points_left: np.ndarray | None = None
@@ -94,7 +114,7 @@ class ReconstructionData:
     feature_id: np.ndarray
     boundary: np.ndarray
     surface_vertices: np.ndarray | None
-    false_boundary: dict  # recon.json's false_boundary section
+    false_boundary: FalseBoundaryTest  # the method's counting test (recon.json's false_boundary section)
     # the centres the method set apart as cut squares (scored apart, in ``Score.cut_points``): (K,3), (K,2), (K,2)
     cut_points: np.ndarray | None = None
     cut_uv_left: np.ndarray | None = None
@@ -104,11 +124,6 @@ class ReconstructionData:
 
 def _mm(x: float | None) -> float | None:
     return None if x is None else float(x) * 1e3
-
-
-def _m(x_mm) -> float:
-    """Metres from a file's millimetres (None: NaN)."""
-    return math.nan if x_mm is None else float(x_mm) / 1e3
 
 
 @dataclass(frozen=True)
@@ -134,16 +149,6 @@ class PointErrors:
         """max(x_max, y_max): the largest lateral error along either image axis (the paper's x/y)."""
         return max(self.stats.x.max, self.stats.y.max)
 
-    def to_dict(self) -> dict:
-        d = self.stats.to_dict()
-        d["to_surface_rms_mm"] = _mm(self.to_surface_rms_m)
-        d["to_surface_max_mm"] = _mm(self.to_surface_max_m)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "PointErrors":
-        return cls(PointScore.from_dict(d), _m(d.get("to_surface_rms_mm")), _m(d.get("to_surface_max_mm")))
-
 
 @dataclass(frozen=True, eq=False)
 class PerPointErrors:
@@ -157,20 +162,6 @@ class PerPointErrors:
     centre_error_m: np.ndarray
     centre_known: np.ndarray
     surface_distance_m: np.ndarray | None = None
-
-    def to_dict(self) -> dict:
-        out = {"centre_error_mm": [float(v) for v in np.asarray(self.centre_error_m) * 1e3],
-               "centre_identity_known": [bool(k) for k in self.centre_known]}
-        if self.surface_distance_m is not None:
-            out["surface_vertex_distance_mm"] = [float(v) for v in np.asarray(self.surface_distance_m) * 1e3]
-        return out
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "PerPointErrors":
-        surf = d.get("surface_vertex_distance_mm")
-        return cls(np.asarray(d.get("centre_error_mm") or [], float) / 1e3,
-                   np.asarray(d.get("centre_identity_known") or [], bool),
-                   None if surf is None else np.asarray(surf, float) / 1e3)
 
 
 @dataclass(frozen=True)
@@ -190,21 +181,6 @@ class Matching:
     def correct_match_rate_frac(self) -> float:
         return self.correct_match_count / self.matched_count if self.matched_count else 0.0
 
-    def to_dict(self) -> dict:
-        return {"matched_count": self.matched_count, "correct_match_count": self.correct_match_count,
-                "correct_match_rate_frac": self.correct_match_rate_frac,
-                "label_correct_rate_frac": self.label_correct_rate_frac,
-                "detected_count": dict(self.detected_count), "visible_count": dict(self.visible_count),
-                "visible_in_both_count": self.visible_in_both_count, "expected_count_gt": self.expected_count_gt,
-                "expected_count_method": self.expected_count_method}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Matching":
-        return cls(int(d.get("matched_count") or 0), int(d.get("correct_match_count") or 0),
-                   float(d.get("label_correct_rate_frac") or 0.0), dict(d.get("detected_count") or {}),
-                   dict(d.get("visible_count") or {}), int(d.get("visible_in_both_count") or 0),
-                   int(d.get("expected_count_gt") or 0), int(d.get("expected_count_method", -1)))
-
 
 @dataclass(frozen=True)
 class FalseBoundaryVerdict:
@@ -220,14 +196,6 @@ class FalseBoundaryVerdict:
     @property
     def agrees(self) -> bool:
         return self.detected == self.ground_truth_any
-
-    def to_dict(self) -> dict:
-        return {"ground_truth": dict(self.ground_truth), "ground_truth_any": self.ground_truth_any,
-                "detected": self.detected, "agrees": self.agrees}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "FalseBoundaryVerdict":
-        return cls({k: bool(v) for k, v in (d.get("ground_truth") or {}).items()}, bool(d.get("detected")))
 
 
 @dataclass(frozen=True)
@@ -246,14 +214,6 @@ class PaperBound:
         return bool(self.depth_max_mm <= self.depth_limit_mm and self.xy_per_axis_max_mm <= self.xy_limit_mm
                     and self.all_points)
 
-    def to_dict(self) -> dict:
-        return {"depth_max_mm": self.depth_max_mm, "xy_per_axis_max_mm": self.xy_per_axis_max_mm,
-                "all_points": self.all_points, "met": self.met}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "PaperBound":
-        return cls(float(d["depth_max_mm"]), float(d["xy_per_axis_max_mm"]), bool(d["all_points"]))
-
 
 @dataclass(frozen=True)
 class Goals:
@@ -271,28 +231,12 @@ class Goals:
         return bool(self.depth_rms_mm <= self.depth_rms_goal_mm and self.xy_per_axis_rms_mm <= self.xy_per_axis_rms_goal_mm
                     and self.boundary_mean_mm <= self.boundary_mean_goal_mm)
 
-    def to_dict(self) -> dict:
-        return {"depth_rms_mm": self.depth_rms_mm, "depth_rms_goal_mm": self.depth_rms_goal_mm,
-                "xy_per_axis_rms_mm": self.xy_per_axis_rms_mm,
-                "xy_per_axis_rms_goal_mm": self.xy_per_axis_rms_goal_mm,
-                "boundary_mean_mm": self.boundary_mean_mm, "boundary_mean_goal_mm": self.boundary_mean_goal_mm,
-                "met": self.met}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Goals":
-        def mm(key):
-            v = d.get(key)
-            return math.nan if v is None else float(v)
-        return cls(mm("depth_rms_mm"), mm("xy_per_axis_rms_mm"), mm("boundary_mean_mm"),
-                   d.get("depth_rms_goal_mm", GOAL_DEPTH_RMS_MM), d.get("xy_per_axis_rms_goal_mm", GOAL_XY_RMS_MM),
-                   d.get("boundary_mean_goal_mm", GOAL_BOUNDARY_MEAN_MM))
-
 
 @dataclass(frozen=True)
 class Score:
     """Every metric of one reconstruction against the truth. Parts are None where the reconstruction
-    has nothing to score (no point with a known true feature, no boundary, no surface). ``to_dict``
-    gives score.json's layout (units in every key)."""
+    has nothing to score (no point with a known true feature, no boundary, no surface). Its codec in
+    ``bench.io.codecs.evaluation`` gives score.json's layout (units in every key)."""
 
     points: PointErrors | None
     matching: Matching
@@ -311,47 +255,9 @@ class Score:
     # each centre's and surface vertex's error (None: not measured)
     per_point: PerPointErrors | None = field(default=None, compare=False)
 
-    def to_dict(self) -> dict:
-        out: dict = {"points": self.points.to_dict() if self.points else {"count": 0},
-                     "matching": self.matching.to_dict()}
-        if self.coverage is not None:
-            out["coverage"] = self.coverage.to_dict()
-        for name in ("boundary_3d", "boundary_image", "surface"):
-            part = getattr(self, name)
-            if part is not None:
-                out[name] = part.to_dict()
-        out["false_boundary"] = self.false_boundary.to_dict()
-        if self.paper_bound is not None:
-            out["paper_bound"] = self.paper_bound.to_dict()
-        if self.goals is not None:
-            out["goals"] = self.goals.to_dict()
-        if self.cut_count:
-            out["cut_points"] = {"count": self.cut_count, **(self.cut_points.to_dict() if self.cut_points else {})}
-        if self.per_point is not None:
-            out["per_point"] = self.per_point.to_dict()
-        return out
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Score":
-        """score.json's layout (``to_dict``) read back as a ``Score``: the parts it holds (a part it lacks
-        is None), values in metres again; each point's error vector is not in the file (empty arrays)."""
-        def part(name, reader):
-            body = d.get(name)
-            return reader(body) if isinstance(body, dict) else None
-        points = part("points", lambda b: PointErrors.from_dict(b) if b.get("count") else None)
-        cut = d.get("cut_points") if isinstance(d.get("cut_points"), dict) else {}
-        return cls(points, Matching.from_dict(d.get("matching") or {}),
-                   part("boundary_3d", BoundaryScore.from_dict),
-                   part("boundary_image", lambda b: BoundaryScore.from_dict(b, "px")),
-                   part("surface", SurfaceScore.from_dict),
-                   FalseBoundaryVerdict.from_dict(d.get("false_boundary") or {}),
-                   part("paper_bound", PaperBound.from_dict), part("goals", Goals.from_dict),
-                   PointErrors.from_dict(cut) if "depth_rms_mm" in cut else None, int(cut.get("count") or 0),
-                   part("coverage", PixelCoverage.from_dict), part("per_point", PerPointErrors.from_dict))
-
 
 def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
-    """All metrics of one reconstruction (``Score``; ``to_dict()`` for score.json)."""
+    """All metrics of one reconstruction (``Score``; score.json is its codec in ``bench.io.codecs.evaluation``)."""
     for name, arr in (("points", rec.points), ("boundary", rec.boundary)):
         if arr.size and not np.all(np.isfinite(arr)):
             raise ScoreError(f"reconstruction {name} hold NaN or inf")
@@ -385,10 +291,10 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
     matching = Matching(
         matched_count=int(len(rec.points)), correct_match_count=int(correct.sum()),
         label_correct_rate_frac=float(np.mean(rec.feature_id == gid_l)) if len(gid_l) else 0.0,
-        detected_count={k: int(v) for k, v in fb.get("detected", {}).items()},
+        detected_count={k: int(v) for k, v in fb.detected.items()},
         visible_count={cam: len(ids) for cam, ids in vis.seen.items()},
         visible_in_both_count=len(vis.visible_in_both()), expected_count_gt=len(vis.on_plate),
-        expected_count_method=int(fb.get("expected", -1)))
+        expected_count_method=int(fb.expected))
     boundary_3d = boundary_image = None
     if len(rec.boundary) >= 3:
         boundary_3d = polyline_distance(rec.boundary, truth.boundary)
@@ -401,8 +307,8 @@ def score_reconstruction(truth: SampleTruth, rec: ReconstructionData) -> Score:
     if truth.points_left is not None:
         coverage = coverage_of_mesh(_surface_mesh(rec), truth.rig.left.center, truth.points_left,
                                     truth.masks["left"])
-    verdict = FalseBoundaryVerdict({cam: bool(v["false_boundary"]) for cam, v in truth.visibility.items()},
-                                   bool(fb.get("false_boundary_detected", False)))
+    verdict = FalseBoundaryVerdict({cam: bool(v.false_boundary) for cam, v in truth.visibility.items()},
+                                   bool(fb.false_boundary_detected))
     paper_bound = goals = None
     if points is not None:
         paper_bound = PaperBound(_mm(points.stats.depth.max), _mm(points.xy_per_axis_max_m),

@@ -16,8 +16,9 @@ Conventions
 * ``count`` = number of values.
 
 Values are stored in the unit of the input (metres for geometry, pixels for
-image-space metrics); ``to_dict`` converts to the reporting unit (``scale=1e3``
-and ``unit_suffix="mm"`` for metres -> millimetres) and puts the unit in every key.
+image-space metrics); their JSON form (the codec in ``bench.io.codecs.evaluation``) converts to the
+reporting unit (``scale=1e3`` and ``unit_suffix="mm"`` for metres -> millimetres) and puts the unit in
+every key.
 """
 
 from __future__ import annotations
@@ -147,30 +148,3 @@ class ErrorStats:
         return ErrorStats(
             self.mean * factor, self.rms * factor, self.max * factor, self.p95 * factor, self.count
         )
-
-    @classmethod
-    def from_dict(cls, d: dict, prefix: str = "", unit_suffix: str = "mm", scale: float = 1e3,
-                  count: int | None = None) -> "ErrorStats":
-        """The inverse of ``to_dict`` (values divided by ``scale``; missing or None: NaN); ``count``:
-        when the dict carries none of its own under ``{prefix}_count``."""
-        def value(name):
-            v = d.get(stat_key(prefix, name, unit_suffix))
-            return math.nan if v is None else float(v) / scale
-        n = d.get(stat_key(prefix, "count"), count)
-        return cls(value("mean"), value("rms"), value("max"), value("p95"), int(n or 0))
-
-    def to_dict(self, prefix: str = "", unit_suffix: str = "mm", scale: float = 1e3) -> dict:
-        """``{prefix}_mean_{unit}``, ``_rms_``, ``_max_``, ``_p95_`` (times ``scale``) and ``{prefix}_count``.
-
-        Example: ``to_dict("depth")`` -> ``depth_mean_mm``, ``depth_rms_mm``,
-        ``depth_max_mm``, ``depth_p95_mm``, ``depth_count`` from values in metres.
-        Use ``unit_suffix="px", scale=1.0`` for pixel statistics. NaN (no values)
-        stays NaN.
-        """
-        return {
-            stat_key(prefix, "mean", unit_suffix): float(self.mean * scale),
-            stat_key(prefix, "rms", unit_suffix): float(self.rms * scale),
-            stat_key(prefix, "max", unit_suffix): float(self.max * scale),
-            stat_key(prefix, "p95", unit_suffix): float(self.p95 * scale),
-            stat_key(prefix, "count"): int(self.count),
-        }

@@ -50,14 +50,13 @@ from .stats import ErrorStats, check_array
 
 __all__ = ["SurfaceScore", "score_surface", "sample_mesh_surface"]
 
-M_TO_MM = 1e3
 _MAX_SURFACE_SAMPLES = 5_000_000
 
 
 @dataclass(frozen=True)
 class SurfaceScore:
     """Surface accuracy (metres) and surface coverage (the share of the true plate's area within
-    ``coverage_radius_m`` of the estimate); ``to_dict`` reports mm and mm^2."""
+    ``coverage_radius_m`` of the estimate); the JSON form (``bench.io.codecs.evaluation``) reports mm and mm^2."""
 
     dist: ErrorStats
     surface_coverage_frac: float
@@ -68,43 +67,6 @@ class SurfaceScore:
     sample_spacing_m: float
     coverage_radius_m: float
     max_distance_m: float | None
-
-    def to_dict(self) -> dict:
-        """Keys: ``dist_{mean,rms,max,p95}_mm``, ``dist_count``, ``surface_coverage_frac``,
-        ``covered_area_mm2``, ``plate_area_mm2``, ``gt_sample_count``,
-        ``coverage_point_count``, ``sample_spacing_mm``, ``coverage_radius_mm``,
-        ``coverage_max_distance_mm`` (None = no limit)."""
-        out = self.dist.to_dict("dist", "mm", M_TO_MM)
-        out.update(
-            {
-                "surface_coverage_frac": self.surface_coverage_frac,
-                "covered_area_mm2": self.covered_area_m2 * 1e6,
-                "plate_area_mm2": self.plate_area_m2 * 1e6,
-                "gt_sample_count": self.gt_sample_count,
-                "coverage_point_count": self.points_used_for_coverage,
-                "sample_spacing_mm": self.sample_spacing_m * M_TO_MM,
-                "coverage_radius_mm": self.coverage_radius_m * M_TO_MM,
-                "coverage_max_distance_mm": None
-                if self.max_distance_m is None
-                else self.max_distance_m * M_TO_MM,
-            }
-        )
-        return out
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "SurfaceScore":
-        """The inverse of ``to_dict`` (metres and m^2); the older layout's key ``coverage_frac`` is read
-        as ``surface_coverage_frac``."""
-        def value(key, scale=M_TO_MM):
-            v = d.get(key)
-            return math.nan if v is None else float(v) / scale
-        coverage = "coverage_frac" if "surface_coverage_frac" not in d and "coverage_frac" in d \
-            else "surface_coverage_frac"
-        return cls(ErrorStats.from_dict(d, "dist", "mm", M_TO_MM), value(coverage, 1.0),
-                   value("covered_area_mm2", 1e6), value("plate_area_mm2", 1e6), int(d.get("gt_sample_count") or 0),
-                   int(d.get("coverage_point_count") or 0), value("sample_spacing_mm"), value("coverage_radius_mm"),
-                   None if d.get("coverage_max_distance_mm") is None
-                   else float(d["coverage_max_distance_mm"]) / M_TO_MM)
 
 
 def _face_mask(mesh, faces) -> np.ndarray | None:

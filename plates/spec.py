@@ -1,4 +1,5 @@
-"""Plate specifications: frozen, validated, JSON-safe.
+"""Plate specifications: frozen, validated, of JSON-safe values (their file form is
+``bench/io/codecs/plates.py``'s).
 
 Units: metres and radians (degrees appear only inside error messages).
 
@@ -26,8 +27,8 @@ import abc
 import inspect
 import math
 import numbers
-from dataclasses import MISSING, dataclass, field, fields, is_dataclass
-from typing import Any, ClassVar, Mapping
+from dataclasses import dataclass, field, is_dataclass
+from typing import Any, ClassVar
 
 from platebench.errors import UserValueError
 
@@ -214,10 +215,6 @@ class DeformationFamily(abc.ABC):
         """Named plates of this family for the false-boundary study (families the study does not
         sweep by bend: cylinders and folds are built from its --bend list)."""
         return ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict with a "family" key (what ``PlateSpec.to_dict`` nests)."""
-        return {"family": self.family, **{f.name: getattr(self, f.name) for f in fields(self)}}
 
 
 # every registered family by its key, in the order tables show them (``register_family``)
@@ -704,41 +701,6 @@ class PlateSpec:
     def _check_fit(self) -> None:
         """Cross-field checks: the deformation must fit this plate size (the family's ``check_fit``)."""
         self.deformation.check_fit(self.length_m, self.width_m)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict; the deformation is a nested dict with a "family" key."""
-        return {"length_m": self.length_m, "width_m": self.width_m,
-                "thickness_m": self.thickness_m, "deformation": self.deformation.to_dict()}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "PlateSpec":
-        """Inverse of to_dict; unknown or missing keys and unknown families raise PlateSpecError."""
-        if not isinstance(d, Mapping):
-            raise PlateSpecError(f"PlateSpec dict = {d!r} is not a mapping")
-        _check_keys("PlateSpec", d, {"length_m", "width_m", "thickness_m", "deformation"},
-                    required={"length_m", "width_m"})
-        deformation = _deformation_from_dict(d.get("deformation", {"family": "flat"}))
-        return cls(d["length_m"], d["width_m"], d.get("thickness_m", 0.0), deformation)
-
-
-def _check_keys(owner: str, d: Mapping[str, Any], allowed: set[str], required: set[str]) -> None:
-    for key in d:
-        if key not in allowed:
-            raise PlateSpecError(
-                f"{owner} key {key!r} is unknown: allowed keys " + ", ".join(sorted(allowed)))
-    for key in sorted(required):
-        if key not in d:
-            raise PlateSpecError(f"{owner} key {key!r} is missing: required keys " + ", ".join(sorted(required)))
-
-
-def _deformation_from_dict(d: Any) -> Deformation:
-    if not isinstance(d, Mapping):
-        raise PlateSpecError(f"PlateSpec.deformation = {d!r} is not a mapping")
-    cls = family_class(d.get("family"))
-    names = {f.name for f in fields(cls)}
-    required = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
-    _check_keys(cls.__name__, d, names | {"family"}, required)
-    return cls(**{k: v for k, v in d.items() if k != "family"})
 
 
 def reference_spec() -> PlateSpec:

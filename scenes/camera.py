@@ -206,19 +206,6 @@ class Camera:
         """The same camera without its distortion (K, pose and size kept)."""
         return Camera(self.K, self.R, self.t, self.width, self.height)
 
-    def to_dict(self) -> dict:
-        d = {"K": self.K.tolist(), "R": self.R.tolist(), "t": self.t.tolist(),
-             "width": self.width, "height": self.height}
-        if self.distortion is not None:
-            d["distortion_k1_k2_p1_p2_k3"] = self.distortion.as_opencv().tolist()
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Camera":
-        dist = d.get("distortion_k1_k2_p1_p2_k3")
-        return cls(np.array(d["K"]), np.array(d["R"]), np.array(d["t"]), d["width"], d["height"],
-                   None if dist is None else BrownConrady.from_opencv(dist))
-
 
 def triangulate_rectified(u_left, v_left, u_right, left: Camera, baseline_m: float) -> np.ndarray:
     """Triangulate matches of a conventional (parallel) stereo pair into world points.

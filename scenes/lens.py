@@ -66,19 +66,9 @@ class BrownConrady:
         k3 = float(c[4]) if c.size > 4 else 0.0
         return cls(float(c[0]), float(c[1]), float(c[2]), float(c[3]), k3)
 
-    @classmethod
-    def from_dict(cls, d: dict) -> "BrownConrady":
-        unknown = sorted(set(d) - {"k1", "k2", "p1", "p2", "k3"})
-        if unknown:
-            raise ValueError(f"unknown distortion key {unknown[0]}: allowed k1, k2, p1, p2, k3")
-        return cls(**{k: float(v) for k, v in d.items()})
-
     def as_opencv(self) -> np.ndarray:
         """OpenCV's distortion vector ``(k1, k2, p1, p2, k3)`` (float64, shape (5,))."""
         return np.array([self.k1, self.k2, self.p1, self.p2, self.k3])
-
-    def to_dict(self) -> dict:
-        return {"k1": self.k1, "k2": self.k2, "p1": self.p1, "p2": self.p2, "k3": self.k3}
 
     @property
     def is_identity(self) -> bool:

@@ -10,7 +10,7 @@ say which feature lit which camera pixel.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -26,15 +26,6 @@ class Feature:
     col: int
     center: tuple[float, float]
     corners: tuple[tuple[float, float], ...]
-
-    def to_dict(self) -> dict:
-        return {"id": self.id, "row": self.row, "col": self.col,
-                "center": list(self.center), "corners": [list(c) for c in self.corners]}
-
-    @classmethod
-    def from_dict(cls, d) -> "Feature":
-        return cls(int(d["id"]), int(d["row"]), int(d["col"]), tuple(d["center"]),
-                   tuple(tuple(c) for c in d["corners"]))
 
 
 @dataclass(frozen=True)
@@ -82,16 +73,13 @@ class Pattern:
         ids[ok] = sub
         return ids
 
-    def features_json(self) -> dict:
-        return {"width": self.width, "height": self.height, "description": self.description,
-                "features": [f.to_dict() for f in self.features]}
-
 
 @dataclass(frozen=True)
 class SquareGridLayout:
     """The layout of a square grid (``square_grid``; its pattern's ``description``): rows and
     columns of squares, a square's side, the gap between squares in x and between rows, and the
-    top-left square's corner, in projector pixels."""
+    top-left square's corner, in projector pixels. A description holds ``"kind": "square_grid"``
+    and then these fields by name."""
 
     rows: int
     cols: int
@@ -100,18 +88,6 @@ class SquareGridLayout:
     gap_y_px: int
     x0: int
     y0: int
-
-    def to_dict(self) -> dict:
-        return {"kind": "square_grid", "rows": self.rows, "cols": self.cols, "square_px": self.square_px,
-                "gap_x_px": self.gap_x_px, "gap_y_px": self.gap_y_px, "x0": self.x0, "y0": self.y0}
-
-    @classmethod
-    def from_dict(cls, d) -> "SquareGridLayout":
-        """A square grid's description (``to_dict``); ValueError for another pattern's."""
-        if d.get("kind") != "square_grid":
-            raise ValueError(f"pattern description of kind {d.get('kind')!r} is not a square grid's")
-        return cls(int(d["rows"]), int(d["cols"]), int(d["square_px"]), int(d["gap_x_px"]), int(d["gap_y_px"]),
-                   int(d["x0"]), int(d["y0"]))
 
 
 def square_grid(width: int, height: int, rows: int = 4, cols: int = 4, square_px: int = 40,
@@ -148,7 +124,7 @@ def square_grid(width: int, height: int, rows: int = 4, cols: int = 4, square_px
             lo_v, hi_v = r0 - 0.5, r0 + square_px - 0.5
             features.append(Feature(fid, r, c, (c0 + (square_px - 1) / 2.0, r0 + (square_px - 1) / 2.0),
                                     ((lo_u, lo_v), (hi_u, lo_v), (hi_u, hi_v), (lo_u, hi_v))))
-    desc = SquareGridLayout(rows, cols, square_px, gap_x_px, gap_y_px, x0, y0).to_dict()
+    desc = {"kind": "square_grid", **asdict(SquareGridLayout(rows, cols, square_px, gap_x_px, gap_y_px, x0, y0))}
     return Pattern(image, tuple(features), fmap, desc)
 
 

@@ -67,10 +67,3 @@ class Projector:
         if (pattern.width, pattern.height) != (self.pattern.width, self.pattern.height):
             raise ValueError("a replacement pattern must keep the projector's size")
         return Projector(self.camera, pattern, self.kind, self.cutoff_rad)
-
-    def to_dict(self) -> dict:
-        d = self.camera.to_dict()
-        d["kind"] = self.kind
-        if self.cutoff_rad is not None:
-            d["cutoff_rad"] = self.cutoff_rad
-        return d

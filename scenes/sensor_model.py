@@ -70,13 +70,6 @@ class SensorModel:
         np.clip(x, 0, self.max_dn, out=x)
         return x.astype(np.uint8 if self.bit_depth == 8 else np.uint16)
 
-    def to_dict(self) -> dict:
-        d = {"bit_depth": self.bit_depth, "radiance_full_scale": self.radiance_full_scale, "gamma": self.gamma,
-             "full_well_e": self.full_well_e, "read_noise_dn": self.read_noise_dn}
-        if self.line_jitter_px > 0:  # recorded only when on: records without it read as before
-            d["line_jitter_px"] = self.line_jitter_px
-        return d
-
 
 def line_shifts_px(rows: int, sigma_px: float, seed: int) -> np.ndarray:
     """(rows,) seeded horizontal shift of each image row (px), N(0, sigma_px^2); the stream is the

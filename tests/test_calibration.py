@@ -222,7 +222,8 @@ def test_pipeline_with_estimated_calibration_finds_the_16_squares(small_cfg, cal
     from platebench.bench.report.text import format_calibration_table
     text = format_calibration_table(result.report, cmp)
     assert "estimated" in text and "baseline error" in text and "at the square centres" in text
-    json.dumps({name: {"metrics": rows[name].columns(), "score": s.to_dict()} for name, s in cmp.items()})
+    from platebench.bench.io.codecs import encode
+    json.dumps({name: {"metrics": rows[name].columns(), "score": encode(s)} for name, s in cmp.items()})
 
 
 def test_the_calibration_report_reads_back_what_calibration_json_holds(calibrated):

@@ -19,6 +19,7 @@ from platebench.bench.config.hardware_camera import (
     camera_hardware,
 )
 from platebench.bench.config.sample_config import ConfigError
+from platebench.bench.io.codecs import encode
 from platebench.scenes.sensor_model import SensorModel, jitter_rows, line_shifts_px
 
 
@@ -45,7 +46,7 @@ def test_the_1995_camera_follows_from_its_sources():
 
 
 def test_every_defect_is_off_by_default_and_the_default_records_read_as_before():
-    d = SampleConfig().to_dict()
+    d = encode(SampleConfig())
     assert "distortion" not in d["scene"] and "fy_px" not in d["scene"] and "line_jitter_px" not in d["sensor"]
     scene = SampleConfig().scene.build()
     assert scene.rig.left.distortion is None and scene.rig.left.K[0, 0] == scene.rig.left.K[1, 1]
@@ -73,7 +74,7 @@ def test_each_defect_switched_on_alone_changes_only_what_it_owns(name):
     alone = apply_camera_hardware(SampleConfig(), PULNIX_TM540_1995, CameraDefects.only(name))
     every = apply_camera_hardware(SampleConfig(), PULNIX_TM540_1995, CameraDefects())
     but = apply_camera_hardware(SampleConfig(), PULNIX_TM540_1995, CameraDefects().without(name))
-    a, b, e, w = (_flat(c.to_dict()) for c in (base, alone, every, but))
+    a, b, e, w = (_flat(encode(c)) for c in (base, alone, every, but))
 
     def changed(x, y):
         return {k for k in set(x) | set(y) if x.get(k) != y.get(k)}

@@ -120,6 +120,8 @@ def test_report_coverage_panels(sweep, expected, tmp_path, monkeypatch):
 
 def test_one_definition_for_every_kind(small_sample):
     """A map, a cloud and a mesh of the true plate each cover the plate's pixels by the one rule."""
+    from platebench.bench.io.codecs import encode
+    from platebench.bench.run.outputs import score_row
     from platebench.evaluation.field_scores import FieldTruth, score_depth, score_mesh, score_point_cloud
     s = small_sample[0]
     gl, gr = s.gt["left"], s.gt["right"]
@@ -128,14 +130,14 @@ def test_one_definition_for_every_kind(small_sample):
     depth = np.where(gl.mask, gl.depth, np.inf)
     depth[: depth.shape[0] // 2] = np.inf  # the upper half has no estimate
     want = np.count_nonzero(np.isfinite(depth) & gl.mask) / plate
-    assert score_depth(depth, truth).metrics_row().coverage_frac == want
+    assert score_row(score_depth(depth, truth)).coverage_frac == want
     pts = gl.points[gl.mask].astype(np.float64)
     cloud = score_point_cloud(pts[::2], truth)
     uv = np.rint(s.scene.rig.left.project(pts[::2])).astype(int)
     hit = np.zeros_like(gl.mask)
     hit[uv[:, 1], uv[:, 0]] = True
-    assert cloud.metrics_row().coverage_frac == np.count_nonzero(hit & gl.mask) / plate
-    assert cloud.to_dict()["surface_coverage_frac"] == cloud.surface.surface_coverage_frac
+    assert score_row(cloud).coverage_frac == np.count_nonzero(hit & gl.mask) / plate
+    assert encode(cloud)["surface_coverage_frac"] == cloud.surface.surface_coverage_frac
     mesh = score_mesh(s.plate.mesh, truth)
-    assert mesh.metrics_row().coverage_frac == mesh.coverage.estimated_px / plate
+    assert score_row(mesh).coverage_frac == mesh.coverage.estimated_px / plate
     assert mesh.coverage.estimated_px >= plate - mesh.coverage.plate_px // 100  # the true plate covers its pixels

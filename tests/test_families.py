@@ -11,6 +11,7 @@ from typing import ClassVar
 
 import pytest
 
+from platebench.bench.io.codecs import encode
 from platebench.plates import PlateSpec, PlateSpecError, build_plate
 from platebench.plates.spec import (
     FAMILIES,
@@ -78,7 +79,7 @@ def test_sweep_study_and_report_ask_the_families():
     from platebench.bench.sweep.spec import AXES, family_defaults, parse_spec
     assert FAMILY_ORDER == tuple(FAMILIES) == CATEGORY_ORDER["family"]
     for name, cls in FAMILIES.items():
-        assert family_defaults(name, L, W) == cls.defaults(L, W).to_dict()
+        assert family_defaults(name, L, W) == encode(cls.defaults(L, W))
     names = list(AXES)
     assert names.index("axis_deg") < names.index("fold_position_m") < names.index("sag_m") < names.index("dent_depth_m")
     spec = parse_spec({"sweep": {"name": "s"}, "base": {"scene": {"width": 160, "height": 120}},

@@ -12,9 +12,9 @@ scanned.
 
 A record's codec is the file boundary wherever the record lives, so a pure codec's reads are exempt:
 the reads inside the ``return`` statement of a method named ``to_dict`` or ``from_dict`` defined in a
-class body, where each value read flows straight into the object the method returns. (A science
-package's type, such as a calibration or a plate, keeps its codec beside it because the science
-packages may not import ``bench``.) A read anywhere else in such a method (an assignment, a
+class body, where each value read flows straight into the object the method returns. (The science
+packages' types, such as a calibration or a plate, have their codecs in ``bench/io/codecs/``, which
+is exempt.) A read anywhere else in such a method (an assignment, a
 condition, a loop) is counted like any other, as is every read in a function of another name or in
 a module-level function.
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from platebench.bench.io.codecs import decode, encode
 from platebench.plates import CylindricalBend, Flat, PlateSpec, build_plate
 from platebench.scenes.camera import Camera, intrinsics
 from platebench.scenes.lens import BrownConrady, DistortionError
@@ -104,11 +105,11 @@ def test_project_rays_and_at_depth_invert_each_other_through_the_lens(name, seed
 
 def test_camera_dict_keeps_the_lens_and_a_pinhole_dict_is_unchanged():
     cam = Camera(intrinsics(900.0, 512, 480, fy_px=1125.0), np.eye(3), np.zeros(3), 512, 480, LENSES["barrel-1995"])
-    d = cam.to_dict()
+    d = encode(cam)
     assert d["distortion_k1_k2_p1_p2_k3"] == LENSES["barrel-1995"].as_opencv().tolist()
-    back = Camera.from_dict(d)
+    back = decode(Camera, d)
     assert back.distortion == cam.distortion and np.array_equal(back.K, cam.K)
-    assert "distortion_k1_k2_p1_p2_k3" not in cam.pinhole.to_dict()
+    assert "distortion_k1_k2_p1_p2_k3" not in encode(cam.pinhole)
 
 
 # -- rendering and ground truth (real Mitsuba) --------------------------------------------------------

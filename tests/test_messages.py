@@ -50,7 +50,8 @@ def test_the_lens_is_checked_and_named_at_the_size_asked_for(tmp_path):
     """A configuration's lens is checked at --width x --height, not at the file's (default) size: a
     lens that folds over only in the wider field of 1280 x 960 px is accepted at 160 x 120 with the
     file's focal length, and a lens that folds at the size asked for is refused naming that size."""
-    from platebench.bench.config.sample_config import ConfigError, load_config
+    from platebench.bench.config.sample_config import ConfigError
+    from platebench.bench.io.config_files import load_config
 
     narrow = tmp_path / "narrow.toml"  # f fixed: 160 x 120 px see a tenth of the field 1280 x 960 px see
     narrow.write_text("[scene]\nf_px = 2000.0\n[scene.distortion]\nk1 = -5.0\n")

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
+from platebench.bench.io.codecs import encode
 from platebench.evaluation.boundary_metrics import (
     contour_pixels_distance,
     mask_contours_subpixel,
@@ -40,7 +41,7 @@ def test_concentric_circles_2d_and_3d():
     # polygon vs true circle differs by the sagitta r (1 - cos(pi/n)) ~ 6e-8 m
     for v in (s.est_to_gt.mean, s.est_to_gt.rms, s.gt_to_est.mean, s.mean_sym, s.rms_sym, s.hausdorff):
         assert v == pytest.approx(d, abs=2e-7)
-    dd = s.to_dict()
+    dd = encode(s)
     assert dd["hausdorff_mm"] == pytest.approx(1.0, abs=2e-4)
     assert dd["length_gt_mm"] == pytest.approx(2e3 * np.pi * (r + d), rel=1e-5)
     a3 = np.c_[a, np.full(len(a), 0.2)]
@@ -73,7 +74,7 @@ def test_rectangle_translated_in_plane():
     assert s.est_to_gt.mean == pytest.approx(mean, rel=1e-4)
     assert s.gt_to_est.mean == pytest.approx(mean, rel=1e-4)
     assert s.hausdorff == pytest.approx(d, rel=1e-9)
-    assert s.to_dict()["hausdorff_mm"] == pytest.approx(2.0)
+    assert encode(s)["hausdorff_mm"] == pytest.approx(2.0)
 
 
 def test_point_to_segment_not_to_vertex():
@@ -81,7 +82,7 @@ def test_point_to_segment_not_to_vertex():
     dense, coarse = rectangle(0, 0, 1, 1, per_side=100), rectangle(0, 0, 1, 1)
     s = polyline_distance(dense, coarse, unit="px")
     assert s.hausdorff == pytest.approx(0.0, abs=1e-12)
-    assert s.to_dict()["hausdorff_px"] == pytest.approx(0.0, abs=1e-12)
+    assert encode(s)["hausdorff_px"] == pytest.approx(0.0, abs=1e-12)
     np.testing.assert_allclose(points_to_polyline_distance([[0.5, 0.25], [2.0, 1.0]], coarse), [0.25, 1.0])
 
 
@@ -163,7 +164,7 @@ def test_contour_pixels_distance_inset_rectangle():
     m[y0 : y1 + 1, x0 : x1 + 1] = True
     est = np.array([[x0 + 1, y0 + 1], [x1 - 1, y0 + 1], [x1 - 1, y1 - 1], [x0 + 1, y1 - 1]], float)
     s = contour_pixels_distance(m, est)
-    d = s.to_dict()
+    d = encode(s)
     assert d["est_to_gt_mean_px"] == pytest.approx(1.5, abs=1e-9)
     assert d["est_to_gt_max_px"] == pytest.approx(1.5, abs=1e-9)
     assert d["hausdorff_px"] == pytest.approx(math.sqrt(3.25), abs=1e-9)

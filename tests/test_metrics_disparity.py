@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from platebench.bench.io.codecs import encode
 from platebench.evaluation.disparity_metrics import eth3d_metrics, middlebury_metrics
 
 INF = np.inf
@@ -42,7 +43,7 @@ NONOCC = np.array(
 def test_middlebury_all_by_hand():
     # n = 14 known pixels, 1 invalid (inf), 13 valid errors sorted:
     #   0, 0.1, 0.2, 0.2, 0.4, 0.5, 0.7, 1.0, 1.5, 2.5, 3.0, 5.0, 20.0  (sum 35.1, sum of squares 444.49)
-    d = middlebury_metrics(EST, GT).to_dict()
+    d = encode(middlebury_metrics(EST, GT))
     assert d["mb_all_gt_count"] == 14 and d["mb_all_valid_count"] == 13
     assert d["mb_all_bad_0_5_pct"] == pytest.approx(100 * 8 / 14)  # 7 (> 0.5; 0.5 itself is not) + 1 invalid
     assert d["mb_all_bad_1_0_pct"] == pytest.approx(100 * 6 / 14)  # 1.5 2.5 3.0 5.0 20 + 1 invalid
@@ -60,7 +61,7 @@ def test_middlebury_all_by_hand():
 
 def test_middlebury_nonocc_by_hand():
     # n = 9: valid errors 0.2 0.2 0.7 1.5 3.0 0.0 0.5 2.5 (8, sum 8.6, squares 18.32), 1 invalid
-    d = middlebury_metrics(EST, GT, NONOCC).to_dict()
+    d = encode(middlebury_metrics(EST, GT, NONOCC))
     assert d["mb_nonocc_gt_count"] == 9 and d["mb_nonocc_valid_count"] == 8
     assert d["mb_nonocc_bad_0_5_pct"] == pytest.approx(100 * 5 / 9)  # 0.7 1.5 2.5 3.0 + 1 invalid
     assert d["mb_nonocc_bad_1_0_pct"] == pytest.approx(100 * 4 / 9)  # 1.5 2.5 3.0 + 1
@@ -76,7 +77,7 @@ def test_middlebury_nonocc_by_hand():
 
 
 def test_eth3d_by_hand():
-    d = eth3d_metrics(EST, GT, NONOCC).to_dict()
+    d = encode(eth3d_metrics(EST, GT, NONOCC))
     # all: 12 estimated of 14 known
     assert d["eth_all_coverage_frac"] == pytest.approx(12 / 14)  # 0.857143
     assert d["eth_all_bad_0_5_pct"] == pytest.approx(100 * 6 / 12)  # 0.7 1.0 1.5 2.5 3.0 5.0
@@ -114,7 +115,7 @@ def test_signed_errors_do_not_cancel():
 def test_roi_and_empty_nonocc():
     roi = np.zeros((4, 4), bool)
     roi[2, :] = True  # row 2: errors 0, 0.5, 2.5, 5.0
-    d = eth3d_metrics(EST, GT, roi=roi).to_dict()
+    d = encode(eth3d_metrics(EST, GT, roi=roi))
     assert d["eth_all_gt_count"] == 4 and d["eth_all_avgerr_px"] == pytest.approx(2.0)
     m = middlebury_metrics(EST, GT, np.zeros((4, 4), bool))
     assert m.nonocc.gt_count == 0 and math.isnan(m.nonocc.avgerr) and math.isnan(m.nonocc.invalid_pct)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from platebench.bench.io.codecs import encode
 from platebench.evaluation.point_metrics import (
     closest_point_on_mesh,
     match_stats,
@@ -49,7 +50,7 @@ def test_error_stats_by_hand():
     assert s.max == 4.0
     assert s.p95 == pytest.approx(3.85)
     assert s.count == 4
-    d = s.to_dict("depth", "mm", 1e3)
+    d = encode(s, "depth", "mm", 1e3)
     assert d == pytest.approx(
         {"depth_mean_mm": 2500.0, "depth_rms_mm": 1e3 * math.sqrt(7.5), "depth_max_mm": 4000.0,
          "depth_p95_mm": 3850.0, "depth_count": 4}
@@ -93,7 +94,7 @@ def test_depth_offset_along_tilted_left_axis():
     optical_axis_world = R_TILT[2]  # third row of R = camera +z in world coordinates
     est = truth + 0.3e-3 * optical_axis_world
     s = score_points(est, truth, R_TILT)
-    d = s.to_dict()
+    d = encode(s)
     for k in ("depth_mean_mm", "depth_rms_mm", "depth_max_mm", "depth_p95_mm", "err3d_max_mm"):
         assert d[k] == pytest.approx(0.3, abs=1e-12)
     for k in ("x_max_mm", "y_max_mm", "xy_radial_max_mm", "xy_radial_rms_mm"):
@@ -127,7 +128,7 @@ def test_lateral_offset_and_signed_errors_do_not_cancel():
     sx = np.array([1, -1, 1, -1])[:, None]  # +d, -d along camera x: signed mean 0
     sz = np.array([1, -1, -1, 1])[:, None]  # +d, -d along camera z (depth)
     est = truth + sx * d * cam_x_world + sz * d * cam_z_world
-    s = score_points(est, truth, R_TILT).to_dict()
+    s = encode(score_points(est, truth, R_TILT))
     assert s["x_mean_mm"] == pytest.approx(0.7)
     assert s["x_mean_signed_mm"] == pytest.approx(0.0, abs=1e-12)
     assert s["depth_mean_mm"] == pytest.approx(0.7)
@@ -262,7 +263,7 @@ def test_match_stats_by_hand():
     detected = np.array([tuple(v) for v in visible[:13]] + [(0, 0), (3, 3)])
     correct = np.ones(15, dtype=bool)
     correct[[4, 14]] = False  # pair 4 (id (1, 0)) and the (3, 3) pair are mismatched
-    m = match_stats(detected, expected, visible, correct).to_dict()
+    m = encode(match_stats(detected, expected, visible, correct))
     assert m["expected_count"] == 16 and m["visible_count"] == 14
     assert m["reported_count"] == 15 and m["duplicate_count"] == 1
     assert m["detected_visible_count"] == 13  # unique visible ids among the reports

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from platebench.bench.io.codecs import encode
 from platebench.evaluation.surface_metrics import score_surface
 
 LX, LY = 0.10, 0.06  # plate 100 mm x 60 mm in z = 0
@@ -32,7 +33,7 @@ def test_points_at_known_height_full_coverage():
     P = grid_points(-LX / 2, LX / 2, -LY / 2, LY / 2, 0.5e-3, 0.3e-3)
     P[::2, 2] = -0.3e-3  # +d and -d: absolute distances, no cancellation
     s = score_surface(P, MESH, LX * LY, sample_spacing_m=0.5e-3)
-    d = s.to_dict()
+    d = encode(s)
     for k in ("dist_mean_mm", "dist_rms_mm", "dist_max_mm", "dist_p95_mm"):
         assert d[k] == pytest.approx(0.3, abs=1e-9)
     # every surface sample is within 0.5 mm * sqrt(2) / 2 = 0.354 mm of a foot point (< 1 mm radius)
@@ -61,7 +62,7 @@ def test_depth_error_does_not_uncover_but_outlier_gate_does():
     g = score_surface(P, MESH, LX * LY, sample_spacing_m=1e-3, max_distance_m=2e-3)
     assert g.surface_coverage_frac == 0.0 and g.points_used_for_coverage == 0
     assert g.dist.mean == pytest.approx(3e-3)  # accuracy still counts every point
-    assert g.to_dict()["coverage_max_distance_mm"] == pytest.approx(2.0)
+    assert encode(g)["coverage_max_distance_mm"] == pytest.approx(2.0)
 
 
 def test_plate_area_normalises_coverage():

@@ -230,6 +230,7 @@ def test_numpy_column_decode_matches_opencv_getprojpixel(bent):
 
 @pytest.mark.render
 def test_opencv_decode_agrees_roughly_and_sgbm_is_worse(bent):
+    from platebench.bench.io.codecs import encode
     from platebench.evaluation.disparity_metrics import (
         eth3d_metrics,
         middlebury_metrics,
@@ -249,7 +250,7 @@ def test_opencv_decode_agrees_roughly_and_sgbm_is_worse(bent):
     scores = {}
     for name, r in (("sgbm", sg), ("sub", sub)):
         d = np.where(r.valid, r.disparity, np.inf)
-        scores[name] = {**middlebury_metrics(d, gt_disp).to_dict(), **eth3d_metrics(d, gt_disp).to_dict()}
+        scores[name] = {**encode(middlebury_metrics(d, gt_disp)), **encode(eth3d_metrics(d, gt_disp))}
     for key in ("mb_all_bad_0_5_pct", "mb_all_bad_1_0_pct", "mb_all_bad_2_0_pct", "mb_all_invalid_pct",
                 "mb_all_avgerr_px", "eth_all_coverage_frac", "eth_all_bad_1_0_pct", "eth_all_rms_px"):
         assert key in scores["sgbm"] and np.isfinite(scores["sgbm"][key]), key
@@ -281,6 +282,7 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     from platebench.bench.cli import compare as cmd_compare
     from platebench.bench.cli.main import main
     from platebench.bench.io.sample_files import write_sample
+    from platebench.bench.run.outputs import score_row
     s = bent["sample"]
     sample_dir = write_sample(tmp_path / "s", s)
     # Dense peers through the Python entry point, reusing the compiled renderer.
@@ -295,7 +297,7 @@ def test_compare_command_end_to_end(bent, tmp_path, capsys):
     assert sg.figures.mb_all_bad_1_0_pct > sub.figures.mb_all_bad_1_0_pct
     # typed scores, non-occluded region included (the 10-degree plate is seen whole by both cameras)
     assert sub.score.middlebury.nonocc.gt_count == sub.score.middlebury.all.gt_count > 1000
-    row = sub.score.metrics_row().columns()  # what a sweep's results table gets
+    row = score_row(sub.score).columns()  # what a sweep's results table gets
     assert row["mb_nonocc_bad_1_0_pct"] == dict(sub.score.middlebury.nonocc.bad_pct)[1.0]
     assert row["coverage_frac"] == sub.figures.coverage_frac and row["mb_all_bad_1_0_pct"] == sub.figures.mb_all_bad_1_0_pct
     # The paper row: points.csv from a reconstruction (here: true plate points), CLI without renders.

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from platebench.bench.io.codecs import decode, encode
 from platebench.plates import (
     CylindricalBend,
     Dent,
@@ -129,13 +130,13 @@ def test_reference_spec_is_the_papers_plate():
 @pytest.mark.parametrize("name", list(EVERY_FAMILY) + [f"thick_{k}" for k in THICK])
 def test_dict_round_trip_every_family(name):
     s = EVERY_FAMILY[name] if name in EVERY_FAMILY else THICK[name[len("thick_"):]]
-    d = json.loads(json.dumps(s.to_dict()))
-    assert PlateSpec.from_dict(d) == s
+    d = json.loads(json.dumps(encode(s)))
+    assert decode(PlateSpec, d) == s
     assert d["deformation"]["family"] in FAMILIES and type(s.deformation) is FAMILIES[d["deformation"]["family"]]
 
 
-def test_from_dict_defaults_to_flat_sheet():
-    assert PlateSpec.from_dict({"length_m": 0.2, "width_m": 0.1}) == PlateSpec(0.2, 0.1)
+def test_decode_defaults_to_flat_sheet():
+    assert decode(PlateSpec, {"length_m": 0.2, "width_m": 0.1}) == PlateSpec(0.2, 0.1)
 
 
 @pytest.mark.parametrize("make, words", [
@@ -196,9 +197,9 @@ def test_plate_spec_error_is_a_value_error():
     ({"length_m": L, "width_m": W, "deformation": {"family": "cylinder", "angle_rad": 7.0}},
      ["CylindricalBend.angle_rad", "401.07 deg"]),
 ])
-def test_from_dict_errors_name_the_problem(d, words):
+def test_decode_errors_name_the_problem(d, words):
     with pytest.raises(PlateSpecError) as info:
-        PlateSpec.from_dict(d)
+        decode(PlateSpec, d)
     for word in words:
         assert word in str(info.value), (word, str(info.value))
 

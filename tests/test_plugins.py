@@ -116,13 +116,13 @@ def test_plugins_run_in_compare_and_sweep_task(registry, plugin_module, small_sa
     assert guess["kind"] == "depth" and 0 < guess["depth_rms_mm"] < 20 and guess["coverage_frac"] == 1.0
     assert doc["methods"]["sgbm"]["middlebury"]["mb_nonocc_bad_1_0_pct"] is not None
     assert "flat_guess" in text and (out / "compare.png").stat().st_size > 1000
-    # as a sweep worker runs it: output + score.json in its reconstruction directory, metrics as a row
+    # as a sweep worker runs it: output, error map + score.json in its reconstruction directory, metrics as a row
     rdir = tmp_path / "recon" / "guess"
     res = get_method(f"{plugin_module}:flat_guess").run(MethodContext(small_sample_dir, rdir, None, None))
     cols = res.metrics.columns()
     assert cols["depth_rms_mm"] == pytest.approx(guess["depth_rms_mm"])
     assert cols["method_guess_depth_mm"] == pytest.approx(400.0, abs=1.0) and cols["depth_a99_mm"] > 0
-    assert sorted(p.name for p in rdir.iterdir()) == ["depth.exr", "score.json"]
+    assert sorted(p.name for p in rdir.iterdir()) == ["depth.exr", "error_map.npz", "score.json"]
     sj = json.loads((rdir / "score.json").read_text())
     assert sj["kind"] == "depth" and sj["method_metrics"] == {"guess_depth_mm": pytest.approx(400.0, abs=1.0)}
     # points: the plate centre lies on the true surface (the mesh is within 1 um of it)

@@ -208,7 +208,8 @@ def test_only_regular_files_are_read_and_a_fifo_is_named_as_one(tmp_path):
                            capture_output=True, text=True, timeout=60)
         assert p.returncode == 2 and p.stderr.count("\n") == 1 and needle in p.stderr, p.stderr
     (tmp_path / "big.toml").write_bytes(b"# padding\n" * 500_000)
-    from platebench.bench.config import ConfigError, load_config
+    from platebench.bench.config import ConfigError
+    from platebench.bench.io.config_files import load_config
     with pytest.raises(ConfigError, match="too large for a configuration file"):
         load_config(tmp_path / "big.toml")
     png = tmp_path / "d.png"

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from platebench.bench.config import SampleConfig
-from platebench.bench.config.sample_config import load_config
+from platebench.bench.io.config_files import load_config
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.sweep.spec import load_spec, parse_spec
 from platebench.evaluation.metrics_row import METRIC_NAMES, METRICS, Metric, is_metric, metric_label, metric_unit, \
     register_metric
@@ -60,8 +61,8 @@ def ripple():
 def test_a_family_module_is_known_to_plate_specs_configs_and_sweep_specs(ripple, tmp_path):
     d = {"length_m": L, "width_m": W, "deformation": {"family": "toy_ripple", "amplitude_m": 0.001,
                                                       "wavelength_m": 0.05}}
-    spec = PlateSpec.from_dict(d)
-    assert type(spec.deformation) is ripple and PlateSpec.from_dict(spec.to_dict()) == spec
+    spec = decode(PlateSpec, d)
+    assert type(spec.deformation) is ripple and decode(PlateSpec, encode(spec)) == spec
     assert list(FAMILIES)[-1] == "toy_ripple"  # after the built-ins, in the tables' order
     (tmp_path / "sample.toml").write_text(f'[plate]\nlength_m = {L}\nwidth_m = {W}\n[plate.deformation]\n'
                                           'family = "toy_ripple"\namplitude_m = 0.001\nwavelength_m = 0.05\n')
@@ -73,7 +74,7 @@ def test_a_family_module_is_known_to_plate_specs_configs_and_sweep_specs(ripple,
         size = sweep.samples[1].config.plate
         assert got[1] == ripple.defaults(size.length_m, size.width_m)
     with pytest.raises(PlateSpecError, match="wavelength_m"):
-        PlateSpec.from_dict({**d, "deformation": {**d["deformation"], "wavelength_m": 0.0}})
+        decode(PlateSpec, {**d, "deformation": {**d["deformation"], "wavelength_m": 0.0}})
 
 
 @pytest.mark.parametrize("thickness_m", [0.0, 0.001])
@@ -118,7 +119,7 @@ def test_a_family_without_its_surface_or_its_ruling_cannot_register():
     with pytest.raises(PlateSpecError, match="not a deformation"):
         PlateSpec(L, W, 0.0, unregistered())
     with pytest.raises(PlateSpecError, match="toy_unregistered"):
-        PlateSpec.from_dict({"length_m": L, "width_m": W, "deformation": {"family": "toy_unregistered"}})
+        decode(PlateSpec, {"length_m": L, "width_m": W, "deformation": {"family": "toy_unregistered"}})
 
 
 # ----------------------------------------------------------------------------- a metric

@@ -10,10 +10,10 @@ a store), ``x.get("KEY", ...)`` and ``x.pop("KEY", ...)``, where KEY is a figure
 
 * any key whose name ends in a unit (``_mm``, ``_mm2``, ``_frac``, ``_pct``, ``_px``, ``_m``,
   ``_m2``, ``_deg``, ``_rad``): a figure, or a specification's value in its unit, which a
-  specification's own dataclass parses in its ``from_dict``;
+  specification's codec (``bench.io.codecs``) parses;
 * a field of ``Stage3Accuracy``, ``MergedFigures``, ``StudyRow``, ``StudyTargets``,
   ``MethodFigures``, ``SparseDepthScore`` or ``MetricsRow``, or a key of score.json
-  (``Score.to_dict``, every part), whose name ends in a unit;
+  (``Score``'s codec in ``bench.io.codecs.evaluation``, every part), whose name ends in a unit;
 * or an older spelling the records read back (their ``RENAMED`` keys, ``coverage_pct``).
 
 Left out of the key set: a plate's and a rig's parameters (``bend_deg``, ``axis_deg``,
@@ -36,6 +36,7 @@ from pathlib import Path
 import pytest
 
 from platebench.bench.io import records as R
+from platebench.bench.io.codecs import decode, encode
 from platebench.evaluation.dense import SparseDepthScore
 from platebench.evaluation.metrics_row import METRIC_FIELDS
 from platebench.evaluation.score import score_reconstruction
@@ -70,7 +71,7 @@ def figure_keys() -> FigureKeys:
     """The keys the scan looks for (module doc)."""
     names = {f.name for c in RECORDS for f in dataclasses.fields(c)} | set(METRIC_FIELDS)
     t, p = _truth()
-    names |= _keys(score_reconstruction(t, _recon(t, p, depth_mm=0.1, boundary_up_mm=0.1)).to_dict())
+    names |= _keys(encode(score_reconstruction(t, _recon(t, p, depth_mm=0.1, boundary_up_mm=0.1))))
     old = {k for c in RECORDS for k in getattr(c, "RENAMED", {})} | {"coverage_pct"}
     return FigureKeys({k for k in names if UNIT.fullmatch(k)} - PARAMETERS | old)
 
@@ -156,6 +157,23 @@ def test_no_figure_is_read_from_a_dict_outside_bench_io(keys):
              for line, key in figure_key_reads(p.read_text(), keys)]
     assert not found, ("figures read from a dict by key outside bench/io (read the typed record's attribute, "
                        "or read the file in bench/io):\n" + "\n".join(found))
+
+
+def codec_methods(source: str) -> list[tuple[int, str]]:
+    """(line, Class.method) of every ``to_dict``/``from_dict`` method defined on a class in ``source``:
+    a type's file form written on the type instead of in ``bench.io.codecs``."""
+    return sorted((f.lineno, f"{c.name}.{f.name}") for c in ast.walk(ast.parse(source)) if isinstance(c, ast.ClassDef)
+                  for f in c.body if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                  and f.name in ("to_dict", "from_dict"))
+
+
+def test_file_forms_live_at_the_file_boundary():
+    """No type outside ``bench/io`` carries its own JSON form: its codec is in ``bench.io.codecs``."""
+    found = [f"{rel}:{line}: {name}" for rel, p in _package_files()
+             for line, name in codec_methods(p.read_text())]
+    assert not found, "write the codec in bench/io/codecs (encode.register / decoder):\n" + "\n".join(found)
+    planted = "class Score:\n    x: float\n    def to_dict(self):\n        return {'x_mm': self.x}\n"
+    assert codec_methods(planted) == [(3, "Score.to_dict")]
 
 
 OLD_SPELLINGS = ("coverage_pct", "surface_coverage", "merged_surface_coverage", "merged_boundary_covered",
@@ -306,21 +324,21 @@ def test_specification_records_read_back_what_they_write():
 
     from platebench.bench.config import RigPose
     from platebench.bench.io.export import ExportedSample
-    from platebench.bench.run.sensing.study import StudyRealism
+    from platebench.bench.io.sensing_records import StudyRealism
     from platebench.reconstruction.calibration.stereo import StereoCalibration
     from platebench.reconstruction.paper.false_boundary import FeatureRays
     from platebench.scenes.pattern import SquareGridLayout, square_grid
     from platebench.scenes.scene_spec import reference_scene
-    assert RigPose.from_dict(RigPose(30.0, -45.0).to_dict()) == RigPose(30.0, -45.0)
-    assert RigPose.from_dict({"tilt_deg": 20}) == RigPose(20.0, 0.0) and RigPose.from_dict(None) == RigPose()
+    assert decode(RigPose, encode(RigPose(30.0, -45.0))) == RigPose(30.0, -45.0)
+    assert decode(RigPose, {"tilt_deg": 20}) == RigPose(20.0, 0.0) and decode(RigPose, None) == RigPose()
     g = square_grid(1024, 768, rows=6, cols=12, square_px=12)
-    layout = SquareGridLayout.from_dict(g.description)
-    assert (layout.rows, layout.cols, layout.square_px) == (6, 12, 12) and layout.to_dict() == g.description
+    layout = decode(SquareGridLayout, g.description)
+    assert (layout.rows, layout.cols, layout.square_px) == (6, 12, 12) and encode(layout) == g.description
     with pytest.raises(ValueError, match="not a square grid"):
-        SquareGridLayout.from_dict({"kind": "image", "note": "user image"})
+        decode(SquareGridLayout, {"kind": "image", "note": "user image"})
     rz = StudyRealism("1995", ("noise", "hand_eye"), "--seed + CRC-32", 0.12)
-    assert StudyRealism.from_dict({"plates": 3, **_json(rz.to_dict())}) == rz
-    assert StudyRealism.from_dict({"plates": 3}) == StudyRealism()
+    assert decode(StudyRealism, {"plates": 3, **_json(encode(rz))}) == rz
+    assert decode(StudyRealism, {"plates": 3}) == StudyRealism()
     mb = ExportedSample("0000", "0000", "/d/0000", 3, 12.5, 40, 90, 640, 480)
     kitti = ExportedSample("0001", "training/*/000001_10.png", "/d/0001", 0, 0.0, 20, 60, 320, 240, resample_factor=2,
                            resampled="images reduced 2x", f_px=500.0, baseline_m=0.1)
@@ -328,11 +346,11 @@ def test_specification_records_read_back_what_they_write():
     assert list(kitti.to_dict())[5:9] == ["resample_factor", "resampled", "f_px", "baseline_m"]
     assert ExportedSample.from_dict(_json(mb.to_dict())) == mb and ExportedSample.from_dict(_json(kitti.to_dict())) == kitti
     st = StereoCalibration.from_rig(reference_scene().rig)
-    back = StereoCalibration.from_dict(_json(st.to_dict()))
-    assert back.to_dict() == _json(st.to_dict()) and np.array_equal(back.t_world, st.t_world)
+    back = decode(StereoCalibration, _json(encode(st)))
+    assert encode(back) == _json(encode(st)) and np.array_equal(back.t_world, st.t_world)
     rays = FeatureRays(np.array([[0.0, 0.0, 0.4], [0.01, 0.0, 0.4]]), np.array([[0.0, 0.0, -1.0], [0.0, 0.6, -0.8]]),
                        np.array([3, 7]))
-    r = FeatureRays.from_dict(_json(rays.to_dict()))
+    r = decode(FeatureRays, _json(encode(rays)))
     assert np.array_equal(r.origins, rays.origins) and np.array_equal(r.directions, rays.directions) \
         and r.ids.tolist() == [3, 7]
 
@@ -431,7 +449,7 @@ def test_a_sample_result_gives_the_results_tables_rows():
 
 def _small_config() -> dict:
     from platebench.bench.config import SampleConfig
-    return SampleConfig().to_dict()
+    return encode(SampleConfig())
 
 
 def test_visibility_and_false_boundary_verdicts_read_from_their_files():

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from platebench.bench.io.codecs import encode
 from platebench.reconstruction.strategy.multiview import ViewOutline, verify
 from platebench.reconstruction.strategy.refutation import (
     REFUTE_DEPTH_M,
@@ -60,7 +61,7 @@ def test_a_stretch_on_the_plates_inside_is_refuted_and_the_true_edges_are_not(ti
     assert not verify(views, confirmed=confirmed).verified
     v = verify(views, confirmed=confirmed, refuted=r)
     assert v.verified, v.reason
-    assert v.to_dict()["refuted_points"] == len(views[3].points)
+    assert encode(v)["refuted_points"] == len(views[3].points)
 
 
 def test_a_point_off_the_measured_surface_or_near_the_outline_is_not_seen_inside():

@@ -16,6 +16,7 @@ import pytest
 
 from platebench.bench.cli.main import main
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.codecs import encode
 from platebench.bench.report.html import ReportInputError, write_report
 from platebench.bench.report.inputs import detect_inputs, load_results, sample_folder
 from platebench.errors import UserValueError
@@ -161,7 +162,7 @@ def make_sample(root: Path, hidden: bool = False) -> Path:
     for name in ("left_passive", "right_passive", "left_active"):
         cv2.imwrite(str(root / "images" / f"{name}.png"), rng.integers(0, 255, (480, 640), dtype=np.uint8))
     cv2.imwrite(str(root / "images" / "right_active.png"), rng.integers(0, 65535, (480, 640), dtype=np.uint16))
-    (root / "sample.json").write_text(json.dumps({"layout_version": 1, "config": SampleConfig().to_dict(),
+    (root / "sample.json").write_text(json.dumps({"layout_version": 1, "config": encode(SampleConfig()),
                                                   "variant": "llvm_ad_rgb", "timings_s": {"total_s": 1.5},
                                                   "packages": {"mitsuba": "3.9.1", "dask": None}}))
     vis = {cam: {"visible_fraction": 0.8 if hidden else 1.0, "false_boundary": hidden} for cam in ("left", "right")}
@@ -197,7 +198,7 @@ def make_sensing(root: Path, outcome: str | None = "clean") -> Path:
     root.mkdir(parents=True)
     vis = {"left": {"visible_fraction": 1.0, "false_boundary": False},
            "right": {"visible_fraction": 1.0, "false_boundary": False}}
-    doc = {"config": SampleConfig().to_dict(),
+    doc = {"config": encode(SampleConfig()),
            "steps": [{"stage": 1, "pose": {"distance_m": 0.83, "reason": "stage 1: far pose"}, "gt_visibility": vis},
                      {"stage": 3, "pose": {"distance_m": 0.4, "reason": "stage 3 <near>"}, "matched": 16,
                       "false_boundary": {"detected": {"left_active": 16, "right_active": 16}, "expected": 16,

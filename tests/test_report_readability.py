@@ -197,6 +197,7 @@ def _detector_study(root: Path, fired: dict, plates=(("cylinder", 60.0), ("dome"
     """A study folder whose study.json is a real ``StudyResult``: one plate per (family, bend) of
     ``plates``, nothing hidden at the stage-2 pose, ``fired``: family -> the detectors that fire on
     its plate."""
+    from platebench.bench.io.codecs import encode
     from platebench.bench.io.records import StudyRow
     from platebench.bench.run.sensing.study import StudyResult
     from platebench.reconstruction.strategy.detectors import DETECTORS
@@ -208,7 +209,7 @@ def _detector_study(root: Path, fired: dict, plates=(("cylinder", 60.0), ("dome"
                              detectors={d: d in on for d in DETECTORS}, gt_visible_first_frac=1.0,
                              gt_visible_final_frac=1.0, gt_hidden_first=False, gt_hidden_final=False, time_s=2.0))
     root.mkdir(parents=True)
-    (root / "study.json").write_text(json.dumps(StudyResult(tuple(rows), {}, 4.0).to_dict()))
+    (root / "study.json").write_text(json.dumps(encode(StudyResult(tuple(rows), {}, 4.0))))
     return root
 
 

@@ -14,6 +14,7 @@ from platebench.bench.config import SampleConfig
 from platebench.bench.config.hardware_robot import CELL, ROBOTS, TARGET, nominal_arm, robot_error_model
 from platebench.bench.config.presets import with_realism
 from platebench.bench.config.realism import REALISM_PRESETS, SOURCES, Realism, RealismError
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.run.realism import RealismSetup, calibration_flange_poses, realise
 from platebench.reconstruction.calibration.hand_eye import HandEyeError, solve_hand_eye
 from platebench.scenes.robot import (
@@ -169,7 +170,7 @@ def test_every_source_is_off_in_ideal_and_the_ideal_config_is_the_benchs():
     ideal = REALISM_PRESETS["ideal"]
     assert ideal.sources == () and ideal.is_ideal and ideal.robot is None
     assert not any(ideal.on(s) for s in SOURCES)
-    assert with_realism(SampleConfig(), "ideal").to_dict() == SampleConfig().to_dict()
+    assert encode(with_realism(SampleConfig(), "ideal")) == encode(SampleConfig())
     cfg = with_realism(SampleConfig(), ideal)
     rig = cfg.scene.build().rig
     acq = realise(RealismSetup.prepare(ideal, cfg), rig, 5)
@@ -183,7 +184,7 @@ def test_each_source_switches_alone(name):
     for s in SOURCES:
         assert rz.only(s).sources == (s,) and rz.without(s).sources == tuple(x for x in SOURCES if x != s)
     assert not rz.scaled("robot_accuracy", 0.0).on("robot_accuracy")
-    assert Realism.from_dict(rz.with_seed(9).to_dict()) == rz.with_seed(9)
+    assert decode(Realism, encode(rz.with_seed(9))) == rz.with_seed(9)
     with pytest.raises(RealismError, match="allowed"):
         rz.with_sources(["lens_flare"])
 
@@ -227,6 +228,6 @@ def test_realism_sweep_axes_set_the_preset_each_source_and_the_draw():
     assert ideal.realism.is_ideal and ideal.scene.width == 320 and ideal.realism.seed == 2
     assert off.scene.width == 512 and not off.realism.on("robot_accuracy") and off.realism.on("robot_repeatability")
     assert big.realism.scale("robot_accuracy") == 3.0 and big.realism.seed == 2
-    cols = parameter_columns(big.to_dict())
+    cols = parameter_columns(encode(big))
     assert cols["realism"] == "1995" and cols["realism_seed"] == 2 and cols["realism_robot_accuracy"] == 3.0
-    assert parameter_columns(SampleConfig().to_dict())["realism"] == "ideal"
+    assert parameter_columns(encode(SampleConfig()))["realism"] == "ideal"

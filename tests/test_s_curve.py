@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from platebench.bench.io.codecs import decode, encode
 from platebench.plates import PlateSpec, PlateSpecError, build_plate
 from platebench.plates.deformations import surface_derivatives, surface_normal, surface_point
 from platebench.plates.spec import FAMILIES, SCurve, bending_extent_m, max_curvature_per_m
@@ -99,7 +100,7 @@ def test_s_curve_thickness_and_angle_are_checked_against_its_own_curvature():
     with pytest.raises(PlateSpecError, match=r"allowed 0 to 0.00397\d* m \(half the smallest radius of curvature"):
         PlateSpec(0.05, W, 0.6 * R, SCurve(180 * DEG))
     assert PlateSpec(0.05, W, 0.45 * R, SCurve(180 * DEG)).thickness_m == pytest.approx(0.45 * R)
-    assert PlateSpec.from_dict(PlateSpec(L, W, 0.0, SCurve(0.5, "down", 1.0)).to_dict()).deformation == \
+    assert decode(PlateSpec, encode(PlateSpec(L, W, 0.0, SCurve(0.5, "down", 1.0)))).deformation == \
         SCurve(0.5, "down", 1.0)
 
 
@@ -145,7 +146,7 @@ def test_an_s_curve_runs_through_a_sweep_the_study_and_the_report(tmp_path):
     both = np.isfinite(gt[idx])
     assert both.sum() > 5000 and np.abs(gt[idx][both] - cam.depth(locs)[both]).max() <= 1e-6
     cfg = json.loads((sample / "sample.json").read_text())["config"]["plate"]
-    d = PlateSpec.from_dict(cfg).deformation
+    d = decode(PlateSpec, cfg).deformation
     P = read_exr(sample / "gt" / "left_points.exr").reshape(-1, 3)
     P = P[np.all(np.isfinite(P), axis=1)]
     assert type(d) is SCurve and circle_distance(P, d).max() < 2e-6  # float32 points, 1 um facets

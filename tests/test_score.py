@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 import trimesh
 
+from platebench.bench.io.codecs import decode, encode
 from platebench.evaluation.metrics_row import MetricsRow, metric_label
-from platebench.evaluation.score import ReconstructionData, SampleTruth, Score, score_reconstruction
+from platebench.evaluation.score import BoundaryTruth, ReconstructionData, SampleTruth, Score, score_reconstruction
+from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 from platebench.scenes.camera import Camera
 from platebench.scenes.rig import StereoRig
 
@@ -48,7 +50,7 @@ def _truth() -> tuple[SampleTruth, np.ndarray]:
             inside &= ((b[0] - a[0]) * (vv - a[1]) - (b[1] - a[1]) * (uu - a[0])) * \
                        ((b[0] - a[0]) * (corners[(k + 2) % 4][1] - a[1]) - (b[1] - a[1]) * (corners[(k + 2) % 4][0] - a[0])) > 0
         masks[name] = inside
-    vis = {cam: {"false_boundary": False, "visible_fraction": 1.0} for cam in ("left", "right")}
+    vis = {cam: BoundaryTruth(false_boundary=False, visible_fraction=1.0) for cam in ("left", "right")}
     return SampleTruth(mesh, boundary, masks, fmaps, rig, projector, ids, centres, vis), true_pts
 
 
@@ -63,7 +65,7 @@ def _recon(truth: SampleTruth, true_pts, depth_mm=0.0, ex_mm=0.0, ey_mm=0.0, bou
     g = np.linspace(-SIDE / 2, SIDE / 2, 101)  # 1 mm vertex spacing (coverage radius 2 mm)
     gx, gy = np.meshgrid(g, g)
     surf = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, surface_up_mm * 1e-3)])
-    fb = {"detected": {"left_active": 4, "right_active": 4}, "expected": 4, "false_boundary_detected": detected}
+    fb = FalseBoundaryTest({"left_active": 4, "right_active": 4}, 4, (), counting_test=detected)
     return ReconstructionData(pts, uv_l, uv_r, truth.feature_ids, b, surf, fb)
 
 
@@ -98,7 +100,7 @@ def test_lateral_errors_per_axis_and_radial_are_different_figures(truth):
     assert row.xy_per_axis_rms_mm == pytest.approx(math.sqrt((0.03 ** 2 + 0.04 ** 2) / 2), rel=1e-9)
     assert s.goals.xy_per_axis_rms_mm == pytest.approx(row.xy_per_axis_rms_mm)
     assert s.paper_bound.xy_per_axis_max_mm == pytest.approx(0.04, rel=1e-9)
-    d = s.to_dict()
+    d = encode(s)
     assert d["points"]["xy_radial_rms_mm"] == pytest.approx(0.05)
     assert "xy_rms_mm" not in d["points"] and "xy_rms_mm" not in d["goals"]
     assert "radial" in metric_label("xy_radial_rms_mm") and "per axis" in metric_label("xy_per_axis_rms_mm")
@@ -148,15 +150,15 @@ def test_metric_labels_carry_the_unit_once():
 @pytest.mark.parametrize("offsets", [dict(depth_mm=0.1, ex_mm=0.03, ey_mm=0.04, boundary_up_mm=0.3, surface_up_mm=0.2),
                                      dict(depth_mm=0.07, ex_mm=-0.02, boundary_up_mm=0.1, detected=True)])
 def test_score_json_reads_back_as_the_same_score(truth, offsets):
-    """score.json (``Score.to_dict``) read back with ``Score.from_dict`` writes the same file, and its
+    """score.json (``encode(score)``) read back with ``decode(Score, d)`` writes the same file, and its
     MetricsRow (what the report and the results table show) is the one of the score it came from."""
     t, p = truth
     s = score_reconstruction(t, _recon(t, p, **offsets))
-    d = s.to_dict()
-    back = Score.from_dict(d)
-    assert back.to_dict() == d
+    d = encode(s)
+    back = decode(Score, d)
+    assert encode(back) == d
     assert MetricsRow.from_score(back) == MetricsRow.from_score(s)
     assert back.paper_bound.met == s.paper_bound.met and back.goals.met == s.goals.met
     assert back.false_boundary.agrees == s.false_boundary.agrees
-    empty = Score.from_dict({"points": {"count": 0}, "matching": d["matching"], "false_boundary": d["false_boundary"]})
+    empty = decode(Score, {"points": {"count": 0}, "matching": d["matching"], "false_boundary": d["false_boundary"]})
     assert empty.points is None and empty.surface is None and empty.paper_bound is None

@@ -213,12 +213,13 @@ def test_the_scored_per_point_errors_are_written_and_read_back_exactly():
 
     import numpy as np
 
+    from platebench.bench.io.codecs import decode, encode
     from platebench.evaluation.score import PerPointErrors
 
     rng = np.random.default_rng(0)
     per = PerPointErrors(rng.random(16) * 1e-3, rng.random(16) > 0.3, rng.random(500) * 1e-3)
-    back = PerPointErrors.from_dict(json.loads(json.dumps(per.to_dict())))
+    back = decode(PerPointErrors, json.loads(json.dumps(encode(per))))
     assert np.array_equal(back.centre_error_m * 1e3, per.centre_error_m * 1e3)
     assert np.array_equal(back.surface_distance_m * 1e3, per.surface_distance_m * 1e3)
     assert np.array_equal(back.centre_known, per.centre_known)
-    assert PerPointErrors.from_dict(PerPointErrors(np.zeros(0), np.zeros(0, bool)).to_dict()).surface_distance_m is None
+    assert decode(PerPointErrors, encode(PerPointErrors(np.zeros(0), np.zeros(0, bool)))).surface_distance_m is None

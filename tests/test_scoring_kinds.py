@@ -22,6 +22,7 @@ import trimesh
 from scipy.special import ndtr  # standard normal CDF
 
 from platebench.bench.cli.main import main
+from platebench.bench.io.codecs import decode
 
 pytestmark = pytest.mark.render
 
@@ -231,7 +232,7 @@ def test_points_moved_one_mm_along_the_normal_are_one_mm_away(small_sample_dir, 
 def test_mesh_offset_one_mm_has_accuracy_and_completeness_one_mm(small_sample_dir, tmp_path, capsys):
     from platebench.plates import PlateSpec, build_plate
     meta = json.loads((small_sample_dir / "sample.json").read_text())
-    plate = build_plate(PlateSpec.from_dict(meta["config"]["plate"]))
+    plate = build_plate(decode(PlateSpec, meta["config"]["plate"]))
     top = plate.top_vertices
     verts = plate.mesh.vertices[top] + 1e-3 * plate.surface_normal(plate.mesh_uv[top])  # exact offset surface
     faces = plate.mesh.faces[plate.top_faces]
@@ -353,13 +354,14 @@ def test_every_column_of_every_kind_has_a_label_of_its_own(small_sample_dir):
     import re
 
     from platebench.bench.io.field_truth import load_field_truth
+    from platebench.bench.run.outputs import score_row
     from platebench.evaluation.field_scores import score_depth, score_disparity, score_mesh, score_point_cloud
     from platebench.evaluation.metrics_row import METRIC_FIELDS, is_metric, metric_label
     t = load_field_truth(small_sample_dir)
     mesh = trimesh.load(small_sample_dir / "plate.ply", process=False, force="mesh")
     scores = [score_disparity(t.disparity + 0.2, t), score_depth(t.depth + 1e-4, t),
               score_point_cloud(trimesh.sample.sample_surface(mesh, 500, seed=0)[0], t), score_mesh(mesh, t)]
-    names = {k for s in scores for k in s.metrics_row().columns()} | {"method_lit_px"}
+    names = {k for s in scores for k in score_row(s).columns()} | {"method_lit_px"}
     assert len(names) > 80
     unknown = sorted(n for n in names if not is_metric(n))
     assert not unknown, unknown

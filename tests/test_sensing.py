@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from platebench.bench.config import SampleConfig, SceneParams
+from platebench.bench.io.codecs import encode
 from platebench.bench.run.sensing.study import (
     VisibilityProbe,
     analytic_L,
@@ -220,7 +221,7 @@ def test_a_false_alarms_verdict_in_the_report_never_contradicts_its_outcome(tmp_
     run = _false_alarm_run()
     assert run.final.outcome == "false_alarm" and run.final.boundary_verified and run.cures == 1
     (tmp_path / "sense").mkdir()
-    (tmp_path / "sense" / "sensing.json").write_text(json.dumps(run.to_dict()))
+    (tmp_path / "sense" / "sensing.json").write_text(json.dumps(encode(run)))
     text = _page_text(write_report(tmp_path / "sense"))
     said = loop_verdict_text("false_alarm", True, 1, run.final.verdict_reason)
     assert "after 1 cure that nothing hidden called for (the false alarm" in said
@@ -234,7 +235,7 @@ def test_a_false_alarms_verdict_in_the_report_never_contradicts_its_outcome(tmp_
                           verdict="the confirmed pieces close into one loop", time_s=2.0)
                  for b, oc, cures in ((30, "clean", 0), (60, "false_alarm", 2)))
     (tmp_path / "study").mkdir()
-    (tmp_path / "study" / "study.json").write_text(json.dumps(StudyResult(rows, {}, 4.0).to_dict()))
+    (tmp_path / "study" / "study.json").write_text(json.dumps(encode(StudyResult(rows, {}, 4.0))))
     index = write_report(tmp_path / "study")
     text = _page_text(index)
     plates = index.read_text().split("Plates (2)", 1)[1].split("</table>", 1)[0]
@@ -299,7 +300,7 @@ def test_verify_leaves_an_edge_seen_by_one_pose_unverified_and_names_it():
     v = verify(_views(contour_at=0.03))
     assert not v.verified and v.gaps
     assert all(g.position_m[0] < 0.03 - 0.004 for g in v.gaps)  # the confirmed pieces stop before the contours
-    assert any(u["view"] == "stage 2" for u in v.to_dict()["unconfirmed_outline"])
+    assert any(u["view"] == "stage 2" for u in encode(v)["unconfirmed_outline"])
 
 
 def test_decide_picks_a_view_that_sees_past_a_gap_or_stops_with_the_reason():

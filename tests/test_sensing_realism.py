@@ -213,8 +213,9 @@ def test_a_studys_realism_scale_reaches_every_plates_draw():
     assert half.sigma_angle_rad == pytest.approx(0.5 * full.sigma_angle_rad, rel=1e-12)
     assert half.joint_sigma_rad == pytest.approx(full.joint_sigma_rad, rel=1e-12)
     # the study's settings record the scale and read it back; a study at the sourced magnitudes writes none
-    from platebench.bench.run.sensing.study import StudyRealism
+    from platebench.bench.io.codecs import decode, encode
+    from platebench.bench.io.sensing_records import StudyRealism
     rz = StudyRealism("1995", base.realism.sources, "seeds", 0.15, tuple(base.realism.scales.items()))
-    assert rz.to_dict()["realism_scales"] == {"robot_accuracy": 0.5}
-    assert StudyRealism.from_dict(json.loads(json.dumps(rz.to_dict()))) == rz
-    assert "realism_scales" not in StudyRealism("1995", base.realism.sources, "seeds", 0.15).to_dict()
+    assert encode(rz)["realism_scales"] == {"robot_accuracy": 0.5}
+    assert decode(StudyRealism, json.loads(json.dumps(encode(rz)))) == rz
+    assert "realism_scales" not in encode(StudyRealism("1995", base.realism.sources, "seeds", 0.15))

@@ -229,8 +229,9 @@ def _renderer(sample_dir: Path):
     render their own pattern sequences: they re-aim it at each sample by parameter update
     (``bench.run.compare``), so no scene is built and no kernel compiled again per sample."""
     from platebench.bench.config import SampleConfig  # noqa: PLC0415
+    from platebench.bench.io.codecs import decode  # noqa: PLC0415
     from platebench.bench.io.sample_files import read_json  # noqa: PLC0415
-    cfg = SampleConfig.from_dict(read_json(Path(sample_dir) / "sample.json")["config"])
+    cfg = decode(SampleConfig, read_json(Path(sample_dir) / "sample.json")["config"])
     r = _WORKER["renderer"]
     if r is None or (cfg.variant and r.variant != cfg.variant):
         from platebench.plates import build_plate  # noqa: PLC0415

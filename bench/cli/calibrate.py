@@ -6,6 +6,7 @@ from pathlib import Path
 
 from platebench.bench.cli._args import add_sample_flags
 from platebench.bench.config.sample_flags import config_from_args, refuse_robot_errors
+from platebench.bench.io.config_files import load_config
 from platebench.bench.io.atomic import write_json
 from platebench.bench.io.outputs import check_output, output_dir
 from platebench.errors import UserValueError
@@ -40,7 +41,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    cfg = config_from_args(args)
+    cfg = config_from_args(args, load_config(args.config, args.width, args.height))
     refuse_robot_errors(cfg, "calibrate", allow_estimates=True)
     check_output(args.out, "calibration", overwrite=args.overwrite, inputs=[args.config])
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415

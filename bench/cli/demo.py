@@ -62,6 +62,7 @@ class DemoFailed(PlateBenchError):
 
 def _run(args, out: Path, final: Path) -> int:
     """The demo into the staging directory ``out`` (paths are shown as they will be: under ``final``)."""
+    from platebench.bench.io.codecs import encode  # noqa: PLC0415
     from platebench.bench.io.recon_files import image_checksums, write_reconstruction  # noqa: PLC0415
     from platebench.bench.io.sample_files import write_sample  # noqa: PLC0415
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415
@@ -85,7 +86,7 @@ def _run(args, out: Path, final: Path) -> int:
     write_reconstruction(ref / "recon", r, ref / "sample", image_checksums(inputs.images))
     print(f"reconstructed   {shown(ref / 'recon')} in {RunTimings.from_dict(r.timings_s).total_s * 1e3:.0f} ms")
     score = score_files(ref / "sample", ref / "recon")
-    write_json(ref / "recon" / "score.json", score.to_dict())
+    write_json(ref / "recon" / "score.json", encode(score))
     print(format_score_table(score))
     if args.quick:
         return 0

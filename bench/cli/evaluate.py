@@ -124,11 +124,12 @@ def run(args) -> int:
                                  "reconstruct'; score another program's output with --disparity, --depth, --points "
                                  "or --mesh F)")
         out = _out(args, kind, path)
+        from platebench.bench.io.codecs import encode  # noqa: PLC0415
         from platebench.bench.report.text import format_score_table  # noqa: PLC0415
         from platebench.bench.run.score import score_files  # noqa: PLC0415
 
         score = score_files(args.sample_dir, args.recon_dir)
-        write_json(out, score.to_dict())
+        write_json(out, encode(score))
         print(format_score_table(score))
         print(f"{'written':16s} {out}")
         return 0
@@ -141,9 +142,12 @@ def run(args) -> int:
                         outlier_m=OUTLIER_M if args.outlier_mm is None else args.outlier_mm / 1e3,
                         coverage_radius_m=COVERAGE_RADIUS_M if args.radius_mm is None else args.radius_mm / 1e3)
     write_json(out, scored.document)
+    from platebench.bench.io.error_map_files import error_map_beside, write_error_map  # noqa: PLC0415
+    error_map = write_error_map(error_map_beside(out), scored.error_map)
     print(f"{'method':16s} {name} ({kind}: {path})")
     print(format_field_table(scored.score))
     for h in scored.hints:
         print(f"{'hint':16s} {h}")
     print(f"{'written':16s} {out}")
+    print(f"{'written':16s} {error_map}")
     return 0

@@ -1,6 +1,7 @@
-"""``platebench info``: which libLLVM and Mitsuba variant this machine uses, and the versions of the
+"""``platebench info``: which libLLVM and Mitsuba variant this machine uses, the versions of the
 packages Python imports against the lock file (``bench.io.versions``: a copy whose metadata shadows the
-imported one is an error of ``--check-lock``)."""
+imported one is an error of ``--check-lock``), and the extension points' registries with the entry
+points of installed packages loaded into them (``bench.run.extensions``)."""
 from __future__ import annotations
 
 import json
@@ -19,8 +20,10 @@ class LockMismatch(PlateBenchError):
 def add_parser(sub) -> None:
     p = sub.add_parser("info", help=HELP,
                        description="Print the libLLVM drjit will use, its version, the Mitsuba variant platebench "
-                                   "picks, package versions, and every package of requirements.lock against the "
-                                   "installed version (JSON on stdout; differences flagged on stderr).")
+                                   "picks, package versions, every package of requirements.lock against the "
+                                   "installed version, and the registered deformation families, metrics and cure "
+                                   "rules with the installed packages' entry points that added them (JSON on "
+                                   "stdout; differences flagged on stderr).")
     p.add_argument("--check-lock", action="store_true",
                    help="exit with status 2 (one line) if a package Python imports differs from requirements.lock, or "
                         "if another copy's metadata shadows it on the Python path")
@@ -29,9 +32,10 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from platebench.bench.io.versions import check_lock, package_versions, renderer_setup  # noqa: PLC0415
+    from platebench.bench.run.extensions import registry_names  # noqa: PLC0415
     lock = check_lock()
-    print(json.dumps({"renderer": renderer_setup(), "packages": package_versions(), "lock": lock.to_dict()},
-                     indent=2))
+    print(json.dumps({"renderer": renderer_setup(), "packages": package_versions(), "lock": lock.to_dict(),
+                      "extensions": registry_names()}, indent=2))
     if lock.path is None:
         print("platebench: note: no requirements.lock beside this installation: versions not checked",
               file=sys.stderr)

@@ -15,6 +15,9 @@ Exit status, the same for every command, so that a script can trust it:
   unreadable or unwritable) print one line ``platebench: error: ...``; nothing half-written is
   left behind. argparse's own usage errors exit 2 as well. PLATEBENCH_DEBUG=1 shows the traceback
   of user errors too. Anything else is a bug and keeps its traceback (status 1, Python's).
+* An installed package's extension (an entry point of ``platebench.families``, ``platebench.metrics``
+  or ``platebench.cure_rules``, ``bench.run.extensions``) that cannot be loaded refuses every command
+  with one line naming it and its group, status 2.
 * An argument that is not UTF-8 text (a file name's bytes that decode to no characters) is refused
   with status 2 before any work: every output records its names as UTF-8 text.
 * Printing never changes the status: text the terminal's encoding cannot show is printed with
@@ -228,6 +231,8 @@ def _run(argv: list[str], done) -> int:
     try:
         parser = build_parser(argv)
         args = parser.parse_args(argv)
+        from platebench.bench.run.extensions import load_extensions  # noqa: PLC0415  (loaded after the handlers)
+        load_extensions()  # the families, metrics and cure rules of installed packages (entry points)
         status = int(args.run(args) or 0)
         interrupts.check()  # a signal that a library swallowed on the way
         return done(status)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 from platebench.bench.cli._args import add_sample_flags
 from platebench.bench.config.sample_flags import config_from_args, sample_moves
+from platebench.bench.io.config_files import load_config
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.io.report_records import RunTimings
 
@@ -25,7 +26,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    cfg = config_from_args(args)
+    cfg = config_from_args(args, load_config(args.config, args.width, args.height))
     # the output rule (bench.io.outputs) before the render: --out new, or with --overwrite a sample this
     # command wrote; staged, so it is replaced only once the new sample is complete
     with output_dir(args.out, "sample", overwrite=args.overwrite, inputs=[args.config]) as stage:

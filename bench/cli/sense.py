@@ -5,6 +5,7 @@ from pathlib import Path
 
 from platebench.bench.cli._args import add_sample_flags, add_verify_grid_flag
 from platebench.bench.config.sample_flags import config_from_args
+from platebench.bench.io.config_files import load_config
 from platebench.bench.io.outputs import output_dir
 
 # bench.run.sensing (renderer, pipeline, trimesh, SciPy) is imported where it is used, once the flags are
@@ -37,7 +38,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from platebench.bench.config.sensing import sense_settings  # noqa: PLC0415
 
-    cfg = config_from_args(args)
+    cfg = config_from_args(args, load_config(args.config, args.width, args.height))
     asked = sense_settings(args.workspace_mm, args.max_cures, args.verify_grid)
     from platebench.bench.progress import bar, step_callback  # noqa: PLC0415  (the flags are good: the loop)
     from platebench.bench.report.text import step_lines, summary_lines  # noqa: PLC0415

@@ -207,12 +207,13 @@ def run(args) -> int:
 
     flags = false_boundary_flags(args)
     # the flags are good: the loop and the study
+    from platebench.bench.io.codecs import encode  # noqa: PLC0415
+    from platebench.bench.io.sensing_records import StudyRealism  # noqa: PLC0415
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.journal import journal_path  # noqa: PLC0415
     from platebench.bench.run.sensing import SensingOptions  # noqa: PLC0415
     from platebench.bench.run.sensing.records import auto_verify_grid  # noqa: PLC0415
     from platebench.bench.run.sensing.study import (  # noqa: PLC0415
-        StudyRealism,
         perturbed_cases,
         study_cases,
         with_realism_seeds,
@@ -235,12 +236,12 @@ def run(args) -> int:
     if verify_grid == "auto":
         verify_grid = auto_verify_grid(base.scene.width)
     options = SensingOptions(verify_grid=verify_grid, **options_extra)
-    settings = StudySettings.of(flags, base, verify_grid, len(cases)).to_dict()
+    settings = encode(StudySettings.of(flags, base, verify_grid, len(cases)))
     if not base.realism.is_ideal:
-        settings.update(StudyRealism(
+        settings.update(encode(StudyRealism(
             base.realism.name, base.realism.sources,
             "--seed + CRC-32 of the plate's name, modulo 2^31 (each row's realism_seed)",
-            options.corner_noise_px, tuple(base.realism.scales.items())).to_dict())
+            options.corner_noise_px, tuple(base.realism.scales.items()))))
     ran = 0
     with bar(len(cases), "study false-boundary", unit="plate") as pbar:
         def progress(row):
@@ -387,6 +388,7 @@ def accuracy_lines(study) -> list[str]:
 def run_cut_squares(args) -> int:
     """``study cut-squares`` (``bench.run.cut_study``): its flags checked, the study run and printed."""
     from platebench.bench.config.study import cut_squares_settings  # noqa: PLC0415
+    from platebench.bench.io.codecs import encode  # noqa: PLC0415
     from platebench.bench.progress import bar  # noqa: PLC0415
     from platebench.bench.run.cut_study import (  # noqa: PLC0415
         CUT_AXES_DEG,
@@ -398,7 +400,7 @@ def run_cut_squares(args) -> int:
 
     st = cut_squares_settings(args, CUT_BENDS_DEG, CUT_AXES_DEG, CUT_DISTANCES_M)
     with bar(st.plates, "study cut-squares", unit="plate") as pbar:
-        doc = write_cut_study(args.out, st.base, args.overwrite, lambda row: pbar.update(1), st.to_dict(),
+        doc = write_cut_study(args.out, st.base, args.overwrite, lambda row: pbar.update(1), encode(st),
                               bends_deg=list(st.bends_deg), axes_deg=list(st.axes_deg),
                               distances_m=list(st.distances_m))
     for line in table_lines(doc):

@@ -1,9 +1,9 @@
 """Sample parameters as table columns and sweep axes, defined once.
 
 ``PARAMETERS`` lists every parameter column of the results table: its name (units in the
-name), where it lives in ``SampleConfig.to_dict()`` (or the sweep pose), its unit and label
-for tables and plots, its type, and how its value is read back from a sample's full
-configuration (what was rendered, not what the spec asked for). ``AXES`` lists the sweep
+name), where it lives in a ``SampleConfig``'s form (``bench.io.codecs.bench_records``; or the
+sweep pose), its unit and label for tables and plots, its type, and how its value is read back from a sample's
+full configuration (what was rendered, not what the spec asked for). ``AXES`` lists the sweep
 spec's axis names with the column that carries each (``bench.sweep.spec`` parses and applies
 them; the report plots against the column).
 """
@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from platebench.bench.config.presets import noise_preset_of
 from platebench.bench.config.realism import SOURCES
-from platebench.bench.config.sample_config import ConfigError, RigPose, SampleConfig
+from platebench.bench.config.sample_config import ConfigError, SceneParams
 from platebench.plates.spec import family_sweep_keys
 
 __all__ = ["ParameterColumn", "PARAMETERS", "PARAMETER_NAMES", "AxisInfo", "AXES", "axis_column",
@@ -67,10 +67,18 @@ def _mat(key: str, kind: str | None = None):
 
 
 def _focal(cfg: dict, pose: dict):
+    """The focal length (px) of the configuration's scene table (``SceneParams.focal_px``)."""
     try:
-        return SampleConfig.from_dict(cfg).scene.focal_px
-    except ConfigError:  # a configuration that no longer parses: the focal length it states, if any
+        return SceneParams(**dict(cfg.get("scene") or {})).focal_px
+    except (ConfigError, TypeError, ValueError):  # a scene that no longer parses: the focal length it states, if any
         return _at("scene", "f_px")(cfg, pose)
+
+
+def _pose(key: str):
+    """A rig pose angle (degrees) of the sweep pose table (absent, or no table: 0, the reference pose)."""
+    def read(cfg: dict, pose: dict | None):
+        return float((pose or {}).get(key, 0.0))
+    return read
 
 
 def _pattern(cfg: dict, pose: dict):
@@ -91,8 +99,8 @@ PARAMETERS: tuple[ParameterColumn, ...] = (
     ParameterColumn("metal", "str", "", "metal", _mat("metal", "roughconductor")),
     ParameterColumn("roughness", "float", "", "roughness (GGX alpha)", _mat("alpha", "roughconductor")),
     ParameterColumn("distance_m", "float", "m", "sensing distance", _at("scene", "distance_m")),
-    ParameterColumn("tilt_deg", "float", "deg", "rig tilt", lambda c, p: RigPose.from_dict(p).tilt_deg),
-    ParameterColumn("azimuth_deg", "float", "deg", "rig tilt azimuth", lambda c, p: RigPose.from_dict(p).azimuth_deg),
+    ParameterColumn("tilt_deg", "float", "deg", "rig tilt", _pose("tilt_deg")),
+    ParameterColumn("azimuth_deg", "float", "deg", "rig tilt azimuth", _pose("azimuth_deg")),
     ParameterColumn("baseline_m", "float", "m", "stereo baseline", _at("scene", "baseline_m")),
     ParameterColumn("projector_kind", "str", "", "projector model", _at("scene", "projector_kind")),
     ParameterColumn("pattern", "str", "", "projected pattern", _pattern),
@@ -130,7 +138,7 @@ _BY_NAME = {p.name: p for p in PARAMETERS}
 
 
 def parameter_columns(config: dict, pose: dict | None = None) -> dict:
-    """Column name -> value of every parameter column, read from a full ``SampleConfig.to_dict()``."""
+    """Column name -> value of every parameter column, read from a full ``SampleConfig``'s form."""
     pose = pose or {}
     return {p.name: p.read(config, pose) for p in PARAMETERS}
 
@@ -145,7 +153,7 @@ class AxisInfo:
     """A sweep spec axis: its name, the config path it sets and the results column that carries it."""
 
     name: str
-    path: tuple[str, ...]  # into SampleConfig.to_dict(); ("pose", key) for the pose axes; () for special axes
+    path: tuple[str, ...]  # into a SampleConfig's form; ("pose", key) for the pose axes; () for special axes
     columns: tuple[str, ...]  # results columns carrying its value (first one is plotted)
     help: str
 

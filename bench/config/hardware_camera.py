@@ -21,7 +21,7 @@ the field of view and the 512 x 480 digitisation, not from the sensor's cell siz
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields, replace
 
 from platebench.bench.config.sample_config import ConfigError, SampleConfig
 from platebench.scenes.lens import BrownConrady
@@ -183,7 +183,7 @@ def apply_camera_hardware(cfg: SampleConfig, hw: CameraHardware,
     its camera (size, f, fy, distortion, aperture and focus, sensor model) is replaced."""
     fy = hw.fy_px if defects.pixel_aspect and abs(hw.fy_px - hw.fx_px) > 0 else None
     scene = replace(cfg.scene, width=hw.width, height=hw.height, f_px=hw.fx_px, fy_px=fy,
-                    distortion=hw.distortion.to_dict() if defects.distortion and not hw.distortion.is_identity else {},
+                    distortion=asdict(hw.distortion) if defects.distortion and not hw.distortion.is_identity else {},
                     aperture_radius_m=hw.aperture_radius_m if defects.defocus else 0.0,
                     focus_distance_m=None)
     s = hw.sensor

@@ -127,32 +127,6 @@ class Realism:
     def with_seed(self, seed: int) -> "Realism":
         return replace(self, seed=int(seed))
 
-    # -- records ---------------------------------------------------------------------
-    def to_dict(self) -> dict:
-        return {"preset": self.name, "camera": self.camera, "robot": self.robot, "rigid_head": self.rigid_head,
-                "sources": list(self.sources), "scales": dict(self.scales), "seed": self.seed}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Realism":
-        """A realism table (``to_dict``'s keys; ``preset`` alone gives that preset, other keys change it)."""
-        if not isinstance(d, dict):
-            raise RealismError(f"realism = {d!r} is not a table")
-        allowed = {"preset", "camera", "robot", "rigid_head", "sources", "scales", "seed"}
-        unknown = sorted(set(d) - allowed)
-        if unknown:
-            raise RealismError(f"unknown key realism.{unknown[0]}: allowed keys are {', '.join(sorted(allowed))}")
-        base = realism_preset(d.get("preset", "ideal"))
-        changes = {k: d[k] for k in ("camera", "robot", "rigid_head", "seed") if k in d}
-        if "sources" in d:
-            if not isinstance(d["sources"], (list, tuple)):
-                raise RealismError(f"realism.sources = {d['sources']!r} is not a list of sources")
-            changes["sources"] = tuple(d["sources"])
-        if "scales" in d:
-            if not isinstance(d["scales"], dict):
-                raise RealismError(f"realism.scales = {d['scales']!r} is not a table of source = factor")
-            changes["scales"] = {**base.scales, **d["scales"]}
-        return replace(base, **changes)
-
 
 REALISM_PRESETS: dict[str, Realism] = {
     # Every source off: the commanded rig, the true calibration, a noise-free camera.

@@ -3,7 +3,7 @@
 TOML layout (all SI: metres, radians; every key optional, defaults = the paper's
 reference experiment)::
 
-    [plate]            # PlateSpec.to_dict() format, e.g.
+    [plate]            # a PlateSpec's form (bench/io/codecs/plates.py), e.g.
     length_m = 0.1165
     width_m = 0.0735
     thickness_m = 0.0
@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from platebench.bench.config.realism import Realism, RealismError
+from platebench.bench.config.realism import Realism
 from platebench.bench.files import CONFIG_MAX_BYTES, read_capped
 from platebench.errors import UserValueError
 from platebench.plates import CylindricalBend, PlateSpec, reference_spec
@@ -67,7 +67,7 @@ from platebench.scenes.scene_spec import (
 )
 from platebench.scenes.sensor_model import SensorModel
 
-__all__ = ["ConfigError", "SceneParams", "RigPose", "SampleConfig", "RenderSettings", "SensorModel", "load_config", "parse_grid",
+__all__ = ["ConfigError", "SceneParams", "PlateSize", "RigPose", "SampleConfig", "RenderSettings", "SensorModel", "parse_grid",
            "with_overrides", "read_toml", "read_toml_text", "check_types", "check_value_type", "check_render_size",
            "WAVEFRONT_LIMIT", "TOML_MAX_DEPTH"]
 
@@ -240,18 +240,16 @@ class SceneParams:
     @property
     def lens(self) -> BrownConrady | None:
         """The lens distortion of both cameras (None: an ideal pinhole)."""
-        return BrownConrady.from_dict(self.distortion) if self.distortion else None
+        return BrownConrady(**{k: float(v) for k, v in self.distortion.items()}) if self.distortion else None
 
-    def to_dict(self) -> dict:
-        d = {k: getattr(self, k) for k in ("distance_m", "width", "height", "f_px", "baseline_m",
-                                           "projector_kind", "ambient", "material", "pattern",
-                                           "aperture_radius_m", "focus_distance_m")}
-        # Recorded only when set, so that records of square-pixel, distortion-free scenes read as before.
-        if self.fy_px is not None:
-            d["fy_px"] = self.fy_px
-        if self.distortion:
-            d["distortion"] = dict(self.distortion)
-        return d
+
+@dataclass(frozen=True)
+class PlateSize:
+    """A plate's length and width (m), as a sample's configuration table holds them while a sweep's
+    axes change it (its deformation may not fit the new size yet)."""
+
+    length_m: float
+    width_m: float
 
 
 @dataclass(frozen=True)
@@ -262,16 +260,6 @@ class RigPose:
 
     tilt_deg: float = 0.0
     azimuth_deg: float = 0.0
-
-    def to_dict(self) -> dict:
-        return {"tilt_deg": self.tilt_deg, "azimuth_deg": self.azimuth_deg}
-
-    @classmethod
-    def from_dict(cls, d) -> "RigPose":
-        """A sweep sample's pose table (``{"tilt_deg", "azimuth_deg"}``, either absent: 0; None: the
-        reference pose)."""
-        d = d or {}
-        return cls(float(d.get("tilt_deg", 0.0)), float(d.get("azimuth_deg", 0.0)))
 
 
 @dataclass(frozen=True)
@@ -288,70 +276,11 @@ class SampleConfig:
     def __post_init__(self):
         check_render_size(self.scene.width, self.scene.height, self.render.spp)
 
-    def to_dict(self) -> dict:
-        d = {"plate": self.plate.to_dict(), "scene": self.scene.to_dict(),
-             "render": {"spp": self.render.spp, "seed": self.render.seed, "variant": self.variant},
-             "sensor": self.sensor.to_dict()}
-        if self.realism.to_dict() != Realism().to_dict():  # the ideal bench's records stay as they were
-            d["realism"] = self.realism.to_dict()
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "SampleConfig":
-        if not isinstance(d, dict):
-            raise ConfigError(f"configuration = {d!r} is not a table")
-        _check_keys("config", d, _TOP_KEYS)
-        check_types(d)
-        try:
-            plate = PlateSpec.from_dict(d["plate"]) if "plate" in d else reference_spec()
-            scene_d = dict(d.get("scene", {}))
-            _check_keys("scene", scene_d, _SCENE_KEYS)
-            scene = SceneParams(**scene_d)
-            render_d = dict(d.get("render", {}))
-            _check_keys("render", render_d, _RENDER_KEYS)
-            variant = render_d.pop("variant", None)
-            render = RenderSettings(**render_d)
-            sensor_d = dict(d.get("sensor", {}))
-            _check_keys("sensor", sensor_d, _SENSOR_KEYS)
-            sensor = SensorModel(**sensor_d)
-            realism = Realism.from_dict(d["realism"]) if "realism" in d else Realism()
-        except RealismError as e:
-            raise ConfigError(str(e)) from None
-        except ConfigError:
-            raise
-        except (ValueError, TypeError) as e:
-            raise ConfigError(str(e).splitlines()[0]) from None
-        return cls(plate, scene, render, sensor, variant, realism)
-
 
 # Camera presets: resolution and what the sensor gives. "1995" is a PULNiX TM-540-like CCD
 # (512 x 480, 8-bit, noisy); "modern" a current machine-vision camera; "ideal" is noise-free.
 
 
-
-
-def load_config(path: Path | None, width: int | None = None, height: int | None = None) -> SampleConfig:
-    """Read a TOML sample configuration (None: the reference experiment). ``width``, ``height``: the
-    image size asked for beside the file (``--width``, ``--height``); it replaces the file's before the
-    scene is checked, so that the lens distortion is checked, and named in its error, at the size
-    that will be rendered. A size out of range is left to ``with_overrides``, which refuses it."""
-    if path is None:
-        return SampleConfig()
-    path = Path(path)
-    d = read_toml(path, "configuration")
-    asked = {k: v for k, v in (("width", width), ("height", height))
-             if isinstance(v, int) and not isinstance(v, bool) and IMAGE_SIZE_PX[0] <= v <= IMAGE_SIZE_PX[1]}
-    try:
-        if asked and isinstance(d, dict) and isinstance(d.get("scene", {}), dict):
-            scene = d.get("scene", {})
-            file_size = {k: scene[k] for k in asked if k in scene}
-            if file_size:  # the file's own values are checked too, though the flags replace them
-                SampleConfig.from_dict({**d, "scene": {**scene, **dict.fromkeys(asked, IMAGE_SIZE_PX[0]),
-                                                       **file_size, "distortion": {}}})
-            d = {**d, "scene": {**d.get("scene", {}), **asked}}
-        return SampleConfig.from_dict(d)
-    except ConfigError as e:
-        raise ConfigError(f"{path}: {e}") from None
 
 
 def read_toml(path: Path, what: str = "TOML") -> dict:

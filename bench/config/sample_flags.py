@@ -6,18 +6,18 @@ from __future__ import annotations
 from dataclasses import replace
 
 from platebench.bench.config.presets import with_camera_preset, with_realism
-from platebench.bench.config.sample_config import SampleConfig, load_config, with_overrides
+from platebench.bench.config.sample_config import SampleConfig, with_overrides
 from platebench.errors import UserValueError
 
 __all__ = ["config_from_args", "realism_camera_at_width", "refuse_robot_errors", "sample_moves"]
 
 
-def config_from_args(args) -> SampleConfig:
-    """The ``SampleConfig`` of an argparse namespace holding the sample flags: ``--config``'s file (the
-    lens checked at the size asked for), then the camera or realism preset, then each flag given.
+def config_from_args(args, cfg: SampleConfig) -> SampleConfig:
+    """The ``SampleConfig`` of an argparse namespace holding the sample flags: ``cfg``, ``--config``'s file
+    (``bench.io.config_files.load_config``, the lens checked at the size asked for), then the camera or
+    realism preset, then each flag given.
     Raises ``UserValueError`` when both ``--camera`` and ``--realism`` are given, or ``--realism-seed``
     is outside 0 to 2^31-1; the configuration's own checks raise theirs."""
-    cfg = load_config(args.config, args.width, args.height)
     if getattr(args, "camera", None) and getattr(args, "realism", None):
         raise UserValueError("--camera and --realism both choose the camera: give one (a realism preset names its "
                              "camera)")

@@ -1,7 +1,8 @@
 """The studies' flags (``platebench study false-boundary | accuracy | cut-squares``) checked and turned
 into frozen settings before any study module is loaded: every refusal is one ``UserValueError`` naming
 the flag and what is allowed. The studies themselves are ``bench.run.sensing.study``, ``bench.run.accuracy``
-and ``bench.run.cut_study``; ``to_dict`` gives the settings each writes into its JSON."""
+and ``bench.run.cut_study``; the settings each writes into its JSON are their forms
+(``bench.io.codecs.bench_records``)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -199,7 +200,7 @@ def study_sample_config(realism_name: str | None, realism_scale: str | None, gri
 @dataclass(frozen=True)
 class StudySettings:
     """What a false-boundary study ran with, as study.json's settings record it (the realism's part,
-    ``bench.run.sensing.study.StudyRealism``, is added beside it): angles in degrees, the image in pixels."""
+    ``bench.io.sensing_records.StudyRealism``, is added beside it): angles in degrees, the image in pixels."""
 
     bends_deg: tuple[float, ...]
     axes_deg: tuple[float, ...]
@@ -224,14 +225,6 @@ class StudySettings:
                    base.scene.width, base.scene.height, flags.render.spp, flags.render.seed, flags.perturb_axis_deg,
                    flags.perturb_distance_mm, plates, flags.workers)
 
-    def to_dict(self) -> dict:
-        return {"bends_deg": list(self.bends_deg), "axes_deg": list(self.axes_deg), "aspect": self.aspect,
-                "families": list(self.families), "grid": self.grid or "paper's 4x4 (sense's default)",
-                "verify_grid": self.verify_grid or "stage 3's", "width_px": self.width_px,
-                "height_px": self.height_px, "spp": self.spp, "seed": self.seed,
-                "perturb_axis_deg": self.perturb_axis_deg, "perturb_distance_mm": self.perturb_distance_mm,
-                "plates": self.plates, "workers": self.workers}
-
 
 # ----------------------------------------------------------------------------- cut-squares
 @dataclass(frozen=True)
@@ -252,12 +245,6 @@ class CutSquaresSettings:
     def plates(self) -> int:
         """Plates the study runs: every bend convex and concave about every axis at every distance."""
         return len(self.bends_deg) * 2 * len(self.axes_deg) * len(self.distances_m)
-
-    def to_dict(self) -> dict:
-        """cut_study.json's settings."""
-        return {"bends_deg": list(self.bends_deg), "axes_deg": list(self.axes_deg),
-                "distances_m": list(self.distances_m), "width_px": self.width_px, "spp": self.spp,
-                "seed": self.seed, "grid": self.grid or "paper's 4x4"}
 
 
 def refuse_realism_for_cut_squares(realism: str | None, realism_scale: str | None) -> None:

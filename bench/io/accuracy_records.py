@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from platebench.bench.config.realism import Realism
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.io.realism_records import DrawReport
 from platebench.bench.io.records import Record, records_from
 
@@ -39,13 +40,13 @@ class AccuracySettings:
     corners: str = "edges"
 
     def to_dict(self) -> dict:
-        return {"realism": self.realism.to_dict(), "draws": self.draws, "targets": list(self.targets),
+        return {"realism": encode(self.realism), "draws": self.draws, "targets": list(self.targets),
                 "budget": self.budget, "spp": self.spp, "seed0": self.seed0, "variant": self.variant,
                 "corners": self.corners}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "AccuracySettings":
-        return cls(Realism.from_dict(dict(d["realism"])), int(d["draws"]), tuple(d["targets"]), bool(d["budget"]),
+        return cls(decode(Realism, dict(d["realism"])), int(d["draws"]), tuple(d["targets"]), bool(d["budget"]),
                    int(d["spp"]), int(d["seed0"]), d.get("variant"), str(d.get("corners", "edges")))
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from platebench.bench.io.codecs import decode
 from platebench.bench.io.records import Record, records_from
 from platebench.reconstruction.calibration.stereo import StereoCalibration
 from platebench.reconstruction.paper.false_boundary import FeatureRays
@@ -155,9 +156,9 @@ class CalibrationSetup(Record):
 class CalibrationEstimate(Record):
     """The calibration handed to the pipeline: the stereo calibration of the chosen lens model
     (``distortion_model``, chosen by ``distortion_model_choice``: auto, fixed or free), the
-    structured light's fitted rays (``StructuredLightCalibration.to_dict``), each camera's
-    reprojection RMS (px) per lens model and the share of the board corners' displacement (px RMS)
-    the free model explains, per camera."""
+    structured light's fitted rays (a ``StructuredLightCalibration``'s form,
+    ``bench/io/codecs/reconstruction.py``), each camera's reprojection RMS (px) per lens model and
+    the share of the board corners' displacement (px RMS) the free model explains, per camera."""
 
     stereo: StereoCalibration
     rays: Mapping[str, Any]
@@ -169,12 +170,12 @@ class CalibrationEstimate(Record):
     @property
     def feature_rays(self) -> FeatureRays:
         """The fitted feature rays (world frame)."""
-        return FeatureRays.from_dict(self.rays)
+        return decode(FeatureRays, self.rays)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "CalibrationEstimate":
         d = dict(d)
-        return super().from_dict({**d, "stereo": StereoCalibration.from_dict(d["stereo"])})
+        return super().from_dict({**d, "stereo": decode(StereoCalibration, d["stereo"])})
 
 
 @dataclass(frozen=True)

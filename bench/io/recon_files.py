@@ -27,9 +27,11 @@ from platebench.bench.io.atomic import (
     write_json,
     write_text,
 )
+from platebench.bench.io.codecs import encode
 from platebench.bench.io.images import DatasetError, check_ply, read_npy
 from platebench.bench.io.outputs import write_stamp
 from platebench.bench.io.sample_files import read_json
+from platebench.reconstruction.paper.false_boundary import FalseBoundaryTest
 
 if TYPE_CHECKING:  # trimesh is imported where a mesh is written or read; the pipeline is not needed here
     import trimesh
@@ -55,11 +57,11 @@ def recon_summary(r: Reconstruction, sample_dir: Path, checksums: dict, method: 
         "sample_dir": str(Path(sample_dir).resolve()),
         "input_checksums": checksums,
         "n_points": int(len(r.points)),
-        "cut_squares": r.cut.to_dict(),
-        "false_boundary": r.false_boundary.to_dict(),
+        "cut_squares": encode(r.cut),
+        "false_boundary": encode(r.false_boundary),
         "boundary_plane": _plane_dict(r.boundary_plane),
         "least_squares_plane": _plane_dict(r.least_squares_plane),
-        "fig6": {k: v.to_dict() for k, v in r.fig6.items()},
+        "fig6": {k: encode(v) for k, v in r.fig6.items()},
         "unmatched": list(r.unmatched),
         "corner_row_mismatch_px": r.corner_row_mismatch_px.tolist(),
         "thresholds": r.thresholds,
@@ -126,6 +128,22 @@ class ReconFiles:
     cut_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     cut_uv_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     cut_uv_right: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @property
+    def false_boundary(self) -> FalseBoundaryTest:
+        """recon.json's ``false_boundary`` section as the counting test it records."""
+        return _false_boundary(self.meta.get("false_boundary") or {})
+
+
+def _false_boundary(d) -> FalseBoundaryTest:
+    """A ``FalseBoundaryTest`` from recon.json's ``false_boundary`` section (``encode``'s layout). A key the
+    section lacks reads as: no squares detected, ``expected`` -1 (unknown), the test's flag
+    ``false_boundary_detected`` (False) as the counting test's, arrays that agree, no cut squares."""
+    flagged = bool(d.get("false_boundary_detected", False))
+    return FalseBoundaryTest({str(k): int(v) for k, v in (d.get("detected") or {}).items()}, int(d.get("expected", -1)),
+                             tuple(int(i) for i in d.get("expected_ids") or ()), bool(d.get("counting_test", flagged)),
+                             bool(d.get("arrays_disagree", False)),
+                             {str(k): int(v) for k, v in (d.get("cut_squares") or {}).items()})
 
 
 def load_reconstruction(recon_dir: Path) -> ReconFiles:

@@ -28,8 +28,15 @@ def _value(v):
 
 
 def file_form(v):
-    """``v`` as a file holds it: a record (anything with ``to_dict``) as its dict, a mapping as a
-    dict and a tuple or list as a list of their items' file forms, a NaN or infinite number as None."""
+    """``v`` as a file holds it: a record (anything with ``to_dict``, or a type with a codec in
+    ``bench.io.codecs``) as its dict, a mapping as a dict and a tuple or list as a list of their items'
+    file forms, a NaN or infinite number as None."""
+    from platebench.bench.io.codecs import _load  # noqa: PLC0415  (the codecs import the records)
+    from platebench.bench.io.codecs.base import encode  # noqa: PLC0415
+
+    _load()  # every codec registered, so that the check below sees them all
+    if encode.dispatch(type(v)) is not encode.dispatch(object):
+        return encode(v)
     if hasattr(v, "to_dict"):
         return v.to_dict()
     if isinstance(v, Mapping):
@@ -348,12 +355,13 @@ class MethodFigures(Record):
 
 
 def score_record(d: Mapping[str, Any]):
-    """The paper pipeline's score.json as an ``evaluation.score.Score`` (``Score.from_dict``);
+    """The paper pipeline's score.json as an ``evaluation.score.Score`` (``decode(Score, d)``);
     ValueError naming what is missing or malformed."""
-    from platebench.evaluation.score import Score  # noqa: PLC0415  (its geometry imports only for a score)
+    from platebench.bench.io.codecs import decode  # noqa: PLC0415  (its geometry imports only for a score)
+    from platebench.evaluation.score import Score  # noqa: PLC0415
 
     try:
-        return Score.from_dict(dict(d))
+        return decode(Score, dict(d))
     except (KeyError, TypeError, ValueError) as e:
         raise ValueError(f"not a score record: {type(e).__name__} {e}") from None
 

@@ -27,7 +27,8 @@ def _mapping(d: Any) -> Mapping[str, Any]:
 class CameraVisibility(Record):
     """Ground truth's visibility of the true boundary from one camera: the fraction (0..1, by arc
     length) it sees, whether part of it is hidden (a false boundary), the hidden runs of boundary
-    points and the point counts (``scenes.render.ground_truth.BoundaryVisibility.to_dict``)."""
+    points and the point counts (a ``scenes.render.ground_truth.BoundaryVisibility``'s form,
+    ``bench/io/codecs/scenes.py``)."""
 
     visible_fraction: float | None = None
     false_boundary: bool | None = None
@@ -48,10 +49,11 @@ def boundary_hidden(vis: Mapping[str, CameraVisibility]) -> bool:
 
 @dataclass(frozen=True)
 class FalseBoundaryRecord(Record):
-    """A method's false-boundary verdict as its files hold it
-    (``reconstruction.paper.false_boundary.FalseBoundaryTest.to_dict``): whole squares detected per
-    image, the squares expected and their ids, the counting test (paper IV-B), the arrays that
-    disagree (paper II, Fig. 2), the verdict (either of the two) and the cut squares per image."""
+    """A method's false-boundary verdict as its files hold it (a
+    ``reconstruction.paper.false_boundary.FalseBoundaryTest``'s form, ``bench/io/codecs/reconstruction.py``):
+    whole squares detected per image, the squares expected and their ids, the counting test (paper
+    IV-B), the arrays that disagree (paper II, Fig. 2), the verdict (either of the two) and the cut
+    squares per image."""
 
     detected: Mapping[str, int] = field(default_factory=dict)
     expected: int | None = None

@@ -35,6 +35,7 @@ from platebench.bench.io.atomic import (
     write_json,
     write_text,
 )
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.io.images import (
     DatasetError,
     check_ply,
@@ -62,8 +63,8 @@ LAYOUT_VERSION = 1
 
 
 def calib_dict(rig: StereoRig, projector: Projector) -> dict:
-    return {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
-            "projector": projector.to_dict(), "frames": "OpenCV camera frames, x_cam = R x_world + t; "
+    return {"left": encode(rig.left), "right": encode(rig.right), "baseline_m": rig.baseline_m,
+            "projector": encode(projector), "frames": "OpenCV camera frames, x_cam = R x_world + t; "
             "world right-handed +Z up; metres; pixel centres at integers"}
 
 
@@ -101,7 +102,7 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
             write_exr(d / "images" / f"{name}.exr", s.radiance[name])
         pattern = s.scene.projector.pattern
         write_png(d / "pattern.png", np.rint(pattern.image * 255).astype(np.uint8))
-        write_json(d / "pattern.json", pattern.features_json())
+        write_json(d / "pattern.json", encode(pattern))
         write_json(d / "calib.json", calib_dict(rig, s.scene.projector))
         write_bytes(d / "plate.ply", _mesh_ply_bytes(s.plate.mesh))
         np.save(d / "boundary.npy", np.asarray(s.plate.boundary, np.float64))
@@ -117,14 +118,14 @@ def write_sample(out: Path, s, overwrite: bool = False, into: bool = False) -> P
             disp = np.where(s.gt["left"].mask, rig.disparity(s.gt["left"].depth64), np.inf).astype(np.float32)
         else:
             disp = pair_disparity(s.gt["left"], s.scene.rig)
-            write_json(d / "gt" / "cameras.json", {"left": s.scene.rig.left.to_dict(),
-                                                   "right": s.scene.rig.right.to_dict(),
+            write_json(d / "gt" / "cameras.json", {"left": encode(s.scene.rig.left),
+                                                   "right": encode(s.scene.rig.right),
                                                    "what": "the cameras really posed (realism); calib.json holds "
                                                            "the rig the method is told"})
         write_pfm(d / "gt" / "disp0GT.pfm", disp)
         write_text(d / "calib.txt", calib_txt(rig, disp))
-        write_json(d / "gt" / "visibility.json", {c: v.to_dict() for c, v in s.visibility.items()})
-        meta = {"layout_version": LAYOUT_VERSION, "config": s.config.to_dict(), "variant": s.variant,
+        write_json(d / "gt" / "visibility.json", {c: encode(v) for c, v in s.visibility.items()})
+        meta = {"layout_version": LAYOUT_VERSION, "config": encode(s.config), "variant": s.variant,
                 "packages": package_versions(), "timings_s": s.timings_s,
                 "false_boundary_gt": any(v.false_boundary for v in s.visibility.values()),
                 "images": {n: hashlib.sha256(s.digital[n].tobytes()).hexdigest() for n in IMAGE_NAMES}}
@@ -183,10 +184,10 @@ def load_calibration(sample_dir: Path) -> Calibration:
     path = Path(sample_dir) / "calib.json"
     d = read_json(path)
     try:
-        left, right = Camera.from_dict(d["left"]), Camera.from_dict(d["right"])
+        left, right = decode(Camera, d["left"]), decode(Camera, d["right"])
         rig = StereoRig(left, right, float(d["baseline_m"]))
         p = d["projector"]
-        return Calibration(rig, Camera.from_dict(p), p.get("kind", "pinhole"), p.get("cutoff_rad"))
+        return Calibration(rig, decode(Camera, p), p.get("kind", "pinhole"), p.get("cutoff_rad"))
     except (KeyError, ValueError, TypeError, AttributeError, IndexError) as e:
         raise _bad(path, e, "bad calibration") from None
 
@@ -199,7 +200,7 @@ def load_pattern(sample_dir: Path) -> Pattern:
     try:
         if not isinstance(d.get("features"), list):
             raise ValueError("'features' must be a list of feature objects")
-        feats = tuple(Feature.from_dict(f) for f in d["features"])
+        feats = tuple(decode(Feature, f) for f in d["features"])
         fmap = np.full(img.shape, -1, np.int32)
         for f in feats:  # rebuild ownership from the corners (square features)
             (u0, v0), (u1, v1) = f.corners[0], f.corners[2]
@@ -249,7 +250,7 @@ def load_true_cameras(sample_dir: Path):
         return None
     d = read_json(path)
     try:
-        return PosedPair(Camera.from_dict(d["left"]), Camera.from_dict(d["right"]))
+        return PosedPair(decode(Camera, d["left"]), decode(Camera, d["right"]))
     except (KeyError, ValueError, TypeError, AttributeError, IndexError) as e:
         raise _bad(path, e, "bad camera poses") from None
 

@@ -82,7 +82,7 @@ class MethodRun:
 @dataclass(frozen=True)
 class SampleResult:
     """One sweep sample's result (``result.json``, format ``RESULT_FORMAT``): its identity and
-    configuration (``config``: ``SampleConfig.to_dict()``; ``params``: the spec's axis values), its
+    configuration (``config``: a ``SampleConfig``'s form; ``params``: the spec's axis values), its
     status ("ok" or "failed"), the error that failed it and in which phase ("render", "method",
     "executor"), the renderer variant, ground truth's false boundary (True when part of the true
     boundary is hidden from a camera; None when not rendered), one ``MethodRun`` per method, the

@@ -329,7 +329,8 @@ def _recon_dir(ds: Path, sample_id: str, method: str) -> Path:
 
 def _has_map_files(recon: Path) -> bool:
     """Whether a method's folder holds what its error map is drawn from (the paper's points.csv, or
-    another method's output file) beside its sample."""
+    another method's output file, whose scored ``error_map.npz`` the map reads: a folder without it gets
+    the "unavailable" figure) beside its sample."""
     if not (recon.parent.parent / "sample" / "plate.ply").is_file():
         return False
     return (recon / "points.csv").is_file() or P.output_file(recon) is not None

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.config.axes import PARAMETERS, parameter_columns
+from platebench.bench.io.codecs import encode
 from platebench.bench.io.records import compare_methods, score_record
 from platebench.bench.io.report_records import FalseBoundaryRecord, RunTimings, boundary_hidden, visibility_records
 from platebench.bench.report import plots as P
@@ -64,7 +65,7 @@ def _flatten(d: dict, prefix: str = "") -> dict:
 
 def is_reference(config: dict) -> bool:
     """Whether a sample's configuration is the paper's reference experiment (the default plate and scene)."""
-    ref = SampleConfig().to_dict()
+    ref = encode(SampleConfig())
     return all(config.get(k) == ref[k] for k in ("plate", "scene", "sensor"))
 
 
@@ -288,7 +289,7 @@ def score_section(path: Path, out_dir: Path) -> dict:
     notes = [f"plausibility: {h}" for h in doc.get("hints") or []]
     plots = []
     if sample is not None and output is not None:
-        name = P.plot_output_error_map(sample, output, Path(out_dir) / "error_map.png", kind=kind,
+        name = P.plot_output_error_map(sample, path, Path(out_dir) / "error_map.png", kind=kind,
                                        title=f"{method} ({kind}) against {sample.name}'s ground truth").name
         plots.append({"file": name, "caption": f"Error map of {method}'s {kind} output: {P.OUTPUT_MAP_CAPTION}"})
     else:

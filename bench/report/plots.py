@@ -41,7 +41,7 @@ from platebench.evaluation.stats import ErrorStats
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
            "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "scored_per_point", "bend_bins",
-           "compare_error_figure", "plot_output_error_map",
+           "compare_error_figure", "plot_output_error_map", "output_error_map_file",
            "output_file", "plot_accuracy_study", "LeftOut", "drawn"]
 
 DPI = 100
@@ -52,7 +52,6 @@ _FLAG_LABELS = {"detected": "detected (either symptom)", "counting_test": "count
 # bars of its own (the methods that report it), so that sparse and dense figures are never side by side
 _BAR_METRICS = tuple(n for n, f in METRIC_FIELDS.items() if f.metadata["unit"] == "mm")
 _MIN_COLOUR_RANGE_MM = 1e-3  # a colour scale spans at least this (mm): an exact method's zero errors still get one
-_MAX_MAP_POINTS = 20_000  # a point cloud's or mesh's error map draws at most this many points (seeded sample)
 
 
 @dataclass
@@ -989,40 +988,46 @@ def output_file(where) -> tuple[str, Path] | None:
     return (kind, where) if kind else None
 
 
+def output_error_map_file(where) -> Path:
+    """The scored error map (``bench.io.error_map_files.ERROR_MAP_FILE``) of a method's output: ``where``
+    is a reconstruction directory or its output file (``method_outputs.OUTPUT_FILES``; the error map
+    in that directory), the error map file itself, or a score document ``F.score.json`` that
+    ``platebench evaluate`` wrote (``F.error_map.npz`` beside it)."""
+    from platebench.bench.io.error_map_files import ERROR_MAP_FILE, error_map_beside  # noqa: PLC0415
+    from platebench.bench.io.method_outputs import OUTPUT_FILES  # noqa: PLC0415
+
+    where = Path(where)
+    if where.is_dir():
+        return where / ERROR_MAP_FILE
+    if where.name in OUTPUT_FILES.values():
+        return where.parent / ERROR_MAP_FILE
+    return where if where.suffix == ".npz" else error_map_beside(where)
+
+
 def plot_output_error_map(sample_dir, where, path, kind: str | None = None, title: str | None = None) -> Path:
-    """Error map of another method's output against a sample's ground truth (``where``: the output
-    file, or a reconstruction directory holding it; ``kind`` overrides the kind the name says).
+    """Error map of another method's output against a sample's ground truth, drawn from its scored error
+    map (``output_error_map_file(where)``, written when the output was scored; ``kind``: the kind the
+    panel names, default the file's).
 
     Disparity and depth maps: the left view, cropped to the plate, coloured by the signed depth
     error Z_est - Z_gt (mm; a disparity through Z = f B / (d + doffs)); plate pixels without an
     estimate dark grey. Point clouds and meshes: a top view in world X/Y (mm) of the points (the
-    mesh's vertices) coloured by their exact distance to the true surface (mm), the true outline in
-    black. Files that cannot be read give a figure saying so."""
-    from platebench.bench.io.field_truth import load_field_truth  # noqa: PLC0415
-    from platebench.bench.io.method_outputs import read_depth, read_disparity, read_mesh, read_points  # noqa: PLC0415
-    from platebench.evaluation.error_maps import depth_error_map, point_distance_map  # noqa: PLC0415
+    mesh's vertices) coloured by their exact distance to the true surface (mm), the true outline
+    (``sample_dir``'s boundary.npy) in black. A missing or damaged error map gives a figure saying so."""
+    from platebench.bench.io.error_map_files import read_error_map  # noqa: PLC0415
 
     fig = _figure(7.5, 5.4)
     ax = fig.add_subplot(111)
-    found = output_file(where)
+    file = output_error_map_file(where)
     try:
-        if found is None:
-            raise ValueError(f"{where}: no method output (disparity, depth, points or mesh) found")
-        kind, file = (kind or found[0]), found[1]
-        truth = load_field_truth(Path(sample_dir))
-        if kind in ("disparity", "depth"):
-            if kind == "disparity":
-                d = read_disparity(file).astype(np.float64) + truth.pair.doffs_px
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    z = np.where(np.isfinite(d) & (d > 0), truth.pair.fb / d, np.nan)
-            else:
-                z = read_depth(file).astype(np.float64)
-            if z.shape != truth.shape:
-                raise ValueError(f"{file}: {z.shape[1]}x{z.shape[0]} px, the sample is "
-                                 f"{truth.shape[1]}x{truth.shape[0]}")
-            mask = truth.mask
-            scored = depth_error_map(z, truth.depth, mask)
-            err = scored.error_m * 1e3
+        if not file.is_file():
+            raise ValueError(f"{file.name} missing")
+        m = read_error_map(file)
+        kind = kind or m.kind
+        if m.is_map:
+            err, mask = m.error_m.astype(np.float64) * 1e3, m.plate
+            if not mask.any():
+                raise ValueError(f"{file.name}: no plate pixel")
             vs, us = np.nonzero(mask)
             v0, v1 = max(vs.min() - 5, 0), min(vs.max() + 6, mask.shape[0])
             u0, u1 = max(us.min() - 5, 0), min(us.max() + 6, mask.shape[1])
@@ -1031,16 +1036,13 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
             ax.imshow(np.where(mask, 0.45, 0.05)[v0:v1, u0:u1], cmap="gray", vmin=0, vmax=1, interpolation="nearest")
             im = ax.imshow(err[v0:v1, u0:u1], cmap="coolwarm", vmin=-lim, vmax=lim, interpolation="nearest")
             fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="Z_est - Z_gt (mm)")
-            e = scored.errors
             ax.set_title(f"left view, {kind}: depth error over the plate's pixels, median "
-                         f"{e.median_m * 1e3:.3g} / RMS {e.rms_m * 1e3:.3g} mm, coverage "
-                         f"{scored.coverage_frac:.3f}", fontsize=8)
+                         f"{m.median_m * 1e3:.3g} / RMS {m.rms_m * 1e3:.3g} mm, coverage "
+                         f"{m.coverage_frac:.3f}", fontsize=8)
             ax.set_xticks([])
             ax.set_yticks([])
-        elif kind in ("points", "mesh"):
-            scored = point_distance_map(read_points(file) if kind == "points" else read_mesh(file).vertices,
-                                        truth.mesh, _MAX_MAP_POINTS, seed=0)
-            P, dist = scored.points, scored.distance_m * 1e3
+        else:
+            P, dist = m.points_m, m.distance_m * 1e3
             boundary = Path(sample_dir) / "boundary.npy"
             if boundary.is_file():
                 b = np.load(boundary) * 1e3
@@ -1052,9 +1054,7 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
             ax.set_xlabel("world X (mm)")
             ax.set_ylabel("world Y (mm)")
             ax.set_title(f"{kind} ({len(P)} shown): distance to the true surface, median "
-                         f"{scored.errors.median_m * 1e3:.3g} / RMS {scored.errors.rms_m * 1e3:.3g} mm", fontsize=8)
-        else:
-            raise ValueError(f"{file}: kind {kind!r} has no error map")
+                         f"{m.median_m * 1e3:.3g} / RMS {m.rms_m * 1e3:.3g} mm", fontsize=8)
     except (OSError, ValueError) as e:  # missing or damaged files (DatasetError is a ValueError)
         _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
     import textwrap  # noqa: PLC0415

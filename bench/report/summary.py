@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from platebench.bench.config.axes import PARAMETERS, axis_column
+from platebench.bench.io.codecs import encode
 from platebench.bench.io.sweep_records import BEND_COLUMN, TRUTH_COLUMN
 from platebench.bench.report.inputs import FLAG_COLUMNS, NUMBER_COLUMNS, TEXT_COLUMNS
 from platebench.bench.report.values import flag
@@ -264,5 +265,5 @@ def precision_recall(rows, verdict: str, truth: str = TRUTH_COLUMN) -> dict:
     (``evaluation.detection.detection_score``)."""
     frame = rows if isinstance(rows, pd.DataFrame) else pd.DataFrame(list(rows or []))
     if verdict not in frame.columns or truth not in frame.columns:
-        return detection_score([], []).to_dict()
-    return detection_score(frame[truth].map(flag).tolist(), frame[verdict].map(flag).tolist()).to_dict()
+        return encode(detection_score([], []))
+    return encode(detection_score(frame[truth].map(flag).tolist(), frame[verdict].map(flag).tolist()))

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from platebench.tolerances import tol
 
 if TYPE_CHECKING:
-    from platebench.bench.run.sensing import SensingResult
+    from platebench.bench.io.sensing_records import SensingResult
 
 __all__ = ["format_score_table", "format_field_table", "format_calibration_table", "acquisition_lines",
            "step_lines", "summary_lines", "realism_lines", "grid_text", "legend_lines", "table_lines"]
@@ -55,7 +55,7 @@ def _visible_pct(gv: dict) -> str:
 
 def step_lines(s: SensingResult) -> list[str]:
     """One line per step of the loop, from the typed records."""
-    from platebench.bench.run.sensing import ActiveRecord, StageRecord, ViewRecord  # noqa: PLC0415
+    from platebench.bench.io.sensing_records import ActiveRecord, StageRecord, ViewRecord  # noqa: PLC0415
     from platebench.reconstruction.strategy.planner import Decision  # noqa: PLC0415
 
     out = []
@@ -88,7 +88,7 @@ def step_lines(s: SensingResult) -> list[str]:
 def summary_lines(s: SensingResult) -> list[str]:
     """The verdict, the detectors, the outcome, the counts and the time."""
     from platebench.bench.io.records import loop_verdict_text  # noqa: PLC0415
-    from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
+    from platebench.bench.io.sensing_records import OUTCOME_TEXT  # noqa: PLC0415
 
     f = s.final
     lines = [loop_verdict_text(f.outcome, f.boundary_verified, s.cures, f.verdict_reason)]
@@ -159,11 +159,12 @@ def realism_lines(s: SensingResult) -> list[str]:
 
 def grid_text(desc: dict | None) -> str:
     """A square grid's description (``Pattern.description``) as 'ROWSxCOLS@PX (row gap GAP px)'."""
+    from platebench.bench.io.codecs import decode  # noqa: PLC0415
     from platebench.scenes.pattern import SquareGridLayout  # noqa: PLC0415
 
     if not desc or desc.get("kind") != "square_grid":
         return "-" if not desc else str(desc.get("kind"))
-    g = SquareGridLayout.from_dict(desc)
+    g = decode(SquareGridLayout, desc)
     return f"{g.rows}x{g.cols}@{g.square_px} (row gap {g.gap_y_px} projector px)"
 
 
@@ -183,7 +184,7 @@ def _yn(v):
 def legend_lines(short: dict, outcomes=()) -> list[str]:
     """The per-plate table's columns in words (``table_lines``); ``short``: detector name -> its column;
     ``outcomes``: the outcome classes the table shows, each explained (``OUTCOME_TEXT``)."""
-    from platebench.bench.run.sensing import OUTCOME_TEXT  # noqa: PLC0415
+    from platebench.bench.io.sensing_records import OUTCOME_TEXT  # noqa: PLC0415
 
     return ["columns: outcome: the plate's class (below); cur: cures the loop applied; vws: poses it measured "
             "from (stage 2, verification views, cures);",
@@ -201,7 +202,9 @@ def legend_lines(short: dict, outcomes=()) -> list[str]:
 def table_lines(study) -> list[str]:
     """The per-plate table, outcome counts, detector scores and targets of a ``bench.run.sensing.study.StudyResult``
     as text lines."""
-    from platebench.bench.run.sensing.study import StudyRealism, detector_scores  # noqa: PLC0415
+    from platebench.bench.io.codecs import decode  # noqa: PLC0415
+    from platebench.bench.io.sensing_records import StudyRealism  # noqa: PLC0415
+    from platebench.bench.run.sensing.study import detector_scores  # noqa: PLC0415
     from platebench.reconstruction.strategy.detectors import DETECTORS  # noqa: PLC0415
 
     short = {"counting_test": "cnt", "arrays_disagree": "arr", "viewpoint_consistency": "vpc",
@@ -232,7 +235,7 @@ def table_lines(study) -> list[str]:
     for d, s in detector_scores(rows)["all"].items():
         out.append(f"detector {d:22s} precision {_num(s.precision)}, recall {_num(s.recall)} (TP {s.true_positive}, "
                    f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
-    rz = StudyRealism.from_dict(study.settings)
+    rz = decode(StudyRealism, study.settings)
     if rz.realism:
         out.append(f"realism {rz.realism}: " + ", ".join(rz.realism_sources) + "; each plate's draw: "
                    + (rz.realism_seeds or "") + f"; corner noise of the calibration views {rz.corner_noise_px or 0:.3f} px")

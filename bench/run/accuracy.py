@@ -68,6 +68,7 @@ from platebench.bench.io.accuracy_records import (
     ConfigSummary,
     ErrorStats,
 )
+from platebench.bench.io.codecs import encode
 from platebench.bench.run.realism import RealismSetup, realise
 from platebench.bench.run.render import render_images
 from platebench.evaluation.accuracy import (
@@ -255,7 +256,7 @@ def run_accuracy_study(settings: AccuracySettings, progress=None) -> AccuracyStu
         cfg = with_realism(start, conf.realism)
         scene = cfg.scene.build()
         rig = scene.rig
-        key = json.dumps([cfg.scene.to_dict(), cfg.sensor.to_dict()], sort_keys=True)
+        key = json.dumps([encode(cfg.scene), encode(cfg.sensor)], sort_keys=True)
         robot = conf.realism.robot
         if robot is not None and robot not in unit_robots:
             unit_robots[robot] = RealismSetup.unit_robot_model(robot)

@@ -42,6 +42,7 @@ import numpy as np
 import trimesh
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.codecs import encode
 from platebench.bench.io.calibration_records import (
     CalibrationEstimate,
     CalibrationReport,
@@ -306,8 +307,8 @@ def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = Board
     true_rays = projector_feature_rays(projector.camera, projector.pattern)
     setup = CalibrationSetup(width_px=W, height_px=H, f_px=rig.left.f_px, fy_px=float(rig.left.K[1, 1]),
                              baseline_m=rig.baseline_m, distance_m=cfg.scene.distance_m, spp=cfg.render.spp,
-                             seed=cfg.render.seed, board=board.to_dict(),
-                             board_poses=tuple(p.to_dict() for p in images.poses),
+                             seed=cfg.render.seed, board=encode(board),
+                             board_poses=tuple(encode(p) for p in images.poses),
                              registration_pose=images.poses[0].name, target_z_m=tuple(images.target_z_m),
                              target_size_m=TARGET_SIZE_M, plate_plane_z_m=PLATE_PLANE_Z_M)
     camera_figures = {}
@@ -323,12 +324,12 @@ def run_calibration(cfg: SampleConfig = SampleConfig(), board: BoardSpec = Board
                 true_max_distortion_displacement_px=_max_distortion_px(true_cam.K, true_dist, W, H),
                 lens_model_error_max_px=_lens_model_error_px(cal.K, cal.dist, true_cam))
     estimate = CalibrationEstimate(
-        stereo=stereo[chosen], rays=sl.to_dict(), distortion_model=chosen, distortion_model_choice=distortion_model,
+        stereo=stereo[chosen], rays=encode(sl), distortion_model=chosen, distortion_model_choice=distortion_model,
         reprojection_rms_px={k: {c: cal.rms_px for c, cal in cams.items()} for k, cams in cameras.items()},
         distortion_explained_px={c: distortion_explained_px(cameras["fixed_distortion"][c],
                                                             cameras["free_distortion"][c]) for c in ("left", "right")})
-    truth = {"left": rig.left.to_dict(), "right": rig.right.to_dict(), "baseline_m": rig.baseline_m,
-             "projector": projector.to_dict(),
+    truth = {"left": encode(rig.left), "right": encode(rig.right), "baseline_m": rig.baseline_m,
+             "projector": encode(projector),
              "rays": {"origins_m": true_rays.origins.tolist(), "directions": true_rays.directions.tolist(),
                       "ids": true_rays.ids.tolist()}}
     report = CalibrationReport(
@@ -401,6 +402,6 @@ def calibration_json(result: CalibrationResult, comparison: dict | None = None) 
     out["units"] = ("metres, radians, pixels unless a key names another unit; camera dicts (K, R, t) in the "
                     "OpenCV convention of calib.json (x_cam = R x_world + t, t in metres)")
     if comparison is not None:
-        out["reconstruction"] = {name: {"metrics": MetricsRow.from_score(s).columns(), "score": s.to_dict()}
+        out["reconstruction"] = {name: {"metrics": MetricsRow.from_score(s).columns(), "score": encode(s)}
                                  for name, s in comparison.items()}
     return out

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.points import read_points_csv
@@ -256,7 +257,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     entries = resolve_methods(methods)
     inputs = load_inputs(sample_dir)
     gt = load_ground_truth(sample_dir)
-    cfg = SampleConfig.from_dict(gt.meta["config"])
+    cfg = decode(SampleConfig, gt.meta["config"])
     rig = inputs.calibration.rig
     notes, rows = [], []
     truth = load_field_truth(sample_dir) if any(m != "paper" for m in methods) else None
@@ -396,6 +397,6 @@ def comparison_json(cmp: Comparison) -> dict:
         "units": "depth errors in mm, disparity metrics in px / %, times in s; n_images = exposures per camera",
         "methods": {r.name: {"status": r.status, "error": r.error, "kind": r.kind, "description": r.description,
                              "n_images": r.n_images, "time_s": r.time_s, "render_s": r.render_s,
-                             **(r.score.to_dict() if r.score is not None else {}),
+                             **(encode(r.score) if r.score is not None else {}),
                              "figures": r.figures.to_dict(), "notes": list(r.notes)} for r in cmp.rows}})
 

@@ -19,11 +19,13 @@ KINDS = ("disparity", "depth", "points", "mesh")  # the output kinds a file is r
 @dataclass(frozen=True)
 class FileScore:
     """A scored file: its score (``evaluation.field_scores``: ``DisparityScore``, ``DepthScore``,
-    ``PointCloudScore`` or ``MeshScore``), the plausibility hints, and the score JSON (units in every key)."""
+    ``PointCloudScore`` or ``MeshScore``), the plausibility hints, the score JSON (units in every key) and
+    its error map (``bench.io.error_map_files.StoredErrorMap``)."""
 
     score: object
     hints: tuple[str, ...]
     document: dict
+    error_map: object = None
 
 
 def _read(kind: str, path: Path, disparity_scale: float | None):
@@ -51,7 +53,9 @@ def score_file(kind: str, path: Path, sample_dir: Path, name: str, disparity_sca
     ``coverage_radius_m`` (metres): the point-cloud metrics' thresholds. A damaged file raises its
     reader's error."""
     from platebench.bench.io.field_truth import load_field_truth  # noqa: PLC0415
+    from platebench.bench.io.error_map_files import StoredErrorMap  # noqa: PLC0415
     from platebench.bench.run.plugins import score_document, score_output  # noqa: PLC0415
+    from platebench.evaluation.error_maps import output_error_map  # noqa: PLC0415
     from platebench.evaluation.field_scores import score_point_cloud  # noqa: PLC0415
     from platebench.evaluation.plausibility import plausibility_hints  # noqa: PLC0415
 
@@ -67,4 +71,5 @@ def score_file(kind: str, path: Path, sample_dir: Path, name: str, disparity_sca
     doc = score_document(name, kind, score, sample_dir)
     doc["input"] = str(path)
     doc["hints"] = list(hints)  # plausibility: is the file what its flag says?
-    return FileScore(score, hints, doc)
+    error_map = StoredErrorMap.of(kind, output_error_map(kind, getattr(output, kind), truth))
+    return FileScore(score, hints, doc, error_map)

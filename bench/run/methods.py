@@ -9,9 +9,10 @@ function ``run(ctx: MethodContext) -> MethodOutput`` that reads the sample's ima
 * "paper": the paper's pipeline, its reconstruction written as ``platebench reconstruct`` writes it and
   scored with ``bench.run.score.score_files``;
 * an isolated entry (a plug-in): in a process of its own with a time limit (``bench.run.plugin_host``;
-  whatever it does is that method's failure on that sample), its output and ``score.json`` written;
+  whatever it does is that method's failure on that sample), its output, its scored error map
+  (``bench.io.error_map_files``) and ``score.json`` written;
 * any other entry: in this process through ``compare`` (its projector sequence rendered with the worker's
-  renderer), its ``score.json`` and, for a disparity, ``disparity.pfm`` written.
+  renderer), its ``score.json`` and, for a disparity, ``disparity.pfm`` and its scored error map written.
 
 A plug-in found by name is registered once, so a sweep's spec validation, ``compare`` and every worker
 (local or Dask) resolve the same name the same way. Finding one imports nothing of it
@@ -27,11 +28,13 @@ from typing import Callable
 import numpy as np
 
 from platebench.bench.io.atomic import staged_directory, write_json
+from platebench.bench.io.codecs import encode
+from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.images import write_pfm
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.run.compare import compare_sample
 from platebench.bench.run.paper_method import reconstruct_dir
-from platebench.bench.run.outputs import jsonable
+from platebench.bench.run.outputs import jsonable, score_row, write_error_map
 from platebench.bench.run.plugins import find_method, plugin_names, run_plugin
 from platebench.bench.run.score import score_files
 from platebench.errors import UserValueError
@@ -123,7 +126,7 @@ def _run_paper(ctx: MethodContext) -> MethodOutput:
     write_reconstruction(ctx.recon_dir, rec, ctx.sample_dir, image_checksums(inputs.images), overwrite=True)
     t1 = time.perf_counter()
     score = score_files(ctx.sample_dir, ctx.recon_dir)
-    write_json(ctx.recon_dir / "score.json", score.to_dict())
+    write_json(ctx.recon_dir / "score.json", encode(score))
     return MethodOutput(MetricsRow.from_score(score), t1 - t0, time.perf_counter() - t1)
 
 
@@ -143,15 +146,16 @@ def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
         with staged_directory(ctx.recon_dir, overwrite=True) as d:
             doc = {"method": name, "kind": row.kind, "description": row.description, "n_images": row.n_images,
                    "time_s": row.time_s, "render_s": row.render_s, "notes": list(row.notes) + list(cmp.notes),
-                   "scores": row.score.to_dict(), "figures": row.figures.to_dict()}
+                   "scores": encode(row.score), "figures": row.figures.to_dict()}
             write_json(d / "score.json", jsonable(doc))
             res = row.result
             if res is not None and getattr(res, "disparity", None) is not None:
                 disp = np.asarray(res.disparity, np.float32)
                 write_pfm(d / "disparity.pfm", np.where(np.isfinite(disp), disp, np.inf).astype(np.float32))
+                write_error_map(d, "disparity", load_field_truth(ctx.sample_dir))
         render_s = _finite(row.render_s) or 0.0
         recon_s = _finite(row.time_s)
-        return MethodOutput(row.score.metrics_row(),
+        return MethodOutput(score_row(row.score),
                             recon_s if recon_s is not None else wall - render_s,
                             max(wall - render_s - (recon_s or 0.0), 0.0), render_s)
     return run

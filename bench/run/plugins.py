@@ -61,7 +61,14 @@ import numpy as np
 from platebench.bench.io.atomic import staged_directory, write_json
 from platebench.bench.io.field_truth import load_field_truth
 from platebench.bench.io.sample_files import load_inputs
-from platebench.bench.run.outputs import jsonable, metrics_row, score_document, score_output, write_output
+from platebench.bench.run.outputs import (
+    jsonable,
+    metrics_row,
+    score_document,
+    score_output,
+    write_error_map,
+    write_output,
+)
 from platebench.errors import UserValueError
 from platebench.evaluation.field_scores import FieldTruth
 from platebench.evaluation.metrics_row import MetricsRow
@@ -333,7 +340,7 @@ def run_plugin(fn, name: str, sample_dir: Path, recon_dir: Path | None = None,
                truth: FieldTruth | None = None, time_limit_s: float | None = None) -> PluginRun:
     """Run plug-in ``fn`` (a ``Plugin``, or a function importable by reference) on a written sample in
     its own process (``call_plugin``), score it, and (with ``recon_dir``) write its output and
-    ``score.json`` there (staged: the directory appears complete or not at all). ``PluginError`` (one
+    ``score.json`` there, with its scored error map (``bench.run.outputs.write_error_map``) (staged: the directory appears complete or not at all). ``PluginError`` (one
     line) for anything the plug-in got wrong, ``FieldScoreError`` for an output that cannot be scored."""
     out, recon_s = call_plugin(fn, name, sample_dir, time_limit_s)
     t1 = time.perf_counter()
@@ -344,6 +351,7 @@ def run_plugin(fn, name: str, sample_dir: Path, recon_dir: Path | None = None,
     if recon_dir is not None:
         with staged_directory(Path(recon_dir), overwrite=True) as d:
             write_output(d, out)
+            write_error_map(d, out.kind, truth)
             write_json(d / "score.json", score_document(name, out.kind, score, sample_dir,
                                                         {"recon_s": recon_s, "eval_s": t2 - t1}, out.metrics))
     return PluginRun(out, score, row, recon_s, t2 - t1)

@@ -20,6 +20,7 @@ import numpy as np
 
 from platebench.bench import interrupts
 from platebench.bench.config import RigPose, SampleConfig
+from platebench.bench.io.codecs import decode
 from platebench.bench.io.realism_records import DrawReport
 from platebench.bench.run.realism import realise_sample
 from platebench.plates import Plate, build_plate
@@ -126,7 +127,7 @@ def posed_scene(scene: SceneSpec, distance_m: float, pose: dict) -> SceneSpec:
     (from +X around +Z; ``pose``: a sweep sample's pose table, ``config.RigPose``), its mid-baseline
     point ``distance_m`` from the plate centre, looking at it; the baseline stays as close to the
     reference baseline direction as the tilt allows."""
-    p = RigPose.from_dict(pose)
+    p = decode(RigPose, pose)
     tilt = math.radians(p.tilt_deg)
     az = math.radians(p.azimuth_deg)
     center = distance_m * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])

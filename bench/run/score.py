@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from platebench.bench.io.codecs import decode
 from platebench.bench.io.images import DatasetError
 from platebench.bench.io.recon_files import load_reconstruction
 from platebench.bench.io.sample_files import (
@@ -21,6 +22,7 @@ from platebench.bench.io.sample_files import (
     read_json,
 )
 from platebench.evaluation.score import (
+    BoundaryTruth,
     ReconstructionData,
     SampleTruth,
     Score,
@@ -43,7 +45,7 @@ def truth_from_sample(sample) -> SampleTruth:
     return SampleTruth(sample.plate.mesh, np.asarray(sample.plate.boundary),
                        {c: g.mask for c, g in sample.gt.items()}, {c: g.feature for c, g in sample.gt.items()},
                        sample.scene.rig, sample.scene.projector.camera, ids, centres,
-                       {c: v.to_dict() for c, v in sample.visibility.items()}, sample.gt["left"].points)
+                       {c: BoundaryTruth.of(v) for c, v in sample.visibility.items()}, sample.gt["left"].points)
 
 
 def truth_from_files(sample_dir: Path) -> tuple[SampleTruth, dict]:
@@ -56,14 +58,14 @@ def truth_from_files(sample_dir: Path) -> tuple[SampleTruth, dict]:
     ids, centres = _feature_table(load_pattern(sample_dir))
     rig = load_true_cameras(sample_dir) or calib.rig  # the cameras really posed (realism), else calib.json's
     truth = SampleTruth(gt.mesh, gt.boundary, gt.mask, gt.feature, rig, calib.projector_camera, ids, centres,
-                        gt.visibility, gt.points["left"])
+                        {c: decode(BoundaryTruth, v) for c, v in gt.visibility.items()}, gt.points["left"])
     return truth, gt.meta
 
 
 def recon_data(rec) -> ReconstructionData:
     """A pipeline ``Reconstruction`` as evaluation's ``ReconstructionData``."""
     return ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,
-                              rec.surface_vertices, rec.false_boundary.to_dict(),
+                              rec.surface_vertices, rec.false_boundary,
                               rec.cut.points, rec.cut.uv_left, rec.cut.uv_right, rec.surface_faces)
 
 
@@ -119,7 +121,7 @@ def score_files(sample_dir: Path, recon_dir: Path) -> Score:
     check_made_from(sample_dir, recon_dir, rec.meta, meta)
     data = ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,
                               None if rec.surface is None else np.asarray(rec.surface.vertices),
-                              rec.meta.get("false_boundary", {}), rec.cut_points, rec.cut_uv_left, rec.cut_uv_right,
+                              rec.false_boundary, rec.cut_points, rec.cut_uv_left, rec.cut_uv_right,
                               None if rec.surface is None else np.asarray(rec.surface.faces))
     return score_reconstruction(truth, data)
 

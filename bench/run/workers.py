@@ -7,6 +7,7 @@ import contextlib
 import os
 import sys
 
+from platebench.bench.run.extensions import load_extensions
 from platebench.scenes.render import runtime
 
 
@@ -34,9 +35,11 @@ def die_with_parent(parent_pid: int | None) -> None:
 
 
 def pool_worker_init(parent_pid: int | None = None, render_threads: int | None = None) -> None:
-    """Initializer of a process pool's workers: ``die_with_parent`` and ``set_render_threads``."""
+    """Initializer of a process pool's workers: ``die_with_parent``, ``set_render_threads`` and the
+    installed packages' families, metrics and cure rules (``bench.run.extensions.load_extensions``)."""
     set_render_threads(render_threads)
     die_with_parent(parent_pid)
+    load_extensions()
 
 
 def stop_pool(pool) -> None:

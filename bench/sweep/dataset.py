@@ -77,6 +77,7 @@ from platebench.bench.io.layout import (  # noqa: F401  (re-exported: the datase
     SPEC_COPY,
     VERSION,
 )
+from platebench.bench.io.codecs import encode
 from platebench.bench.io.dataset_state import dataset_lock, live_state  # noqa: F401  (re-exported)
 from platebench.bench.io.sweep_records import SampleResult, table_rows
 from platebench.bench.io.outputs import file_sha256, foreign_entries, guard_output
@@ -345,7 +346,7 @@ def manifest_dict(spec, results: dict, executor: dict | None, started: str, stat
         samples.append(entry)
     return {"format": FORMAT, "version": VERSION, "state": state, "writer": {"host": HOST, "pid": os.getpid()},
             "created_utc": started,
-            "updated_utc": now_utc(), "spec": spec.to_dict(), "spec_text": spec.text,
+            "updated_utc": now_utc(), "spec": encode(spec), "spec_text": spec.text,
             "packages": packages if packages is not None else package_versions(), "executor": executor or {},
             "counts": counts,
             "layout": {"samples": f"{SAMPLES}/<id>/sample", "recon": f"{SAMPLES}/<id>/recon/<method>",

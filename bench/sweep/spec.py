@@ -25,11 +25,14 @@ from typing import Any, Callable
 import numpy as np
 
 from platebench.bench.config import NOISE_PRESETS, ConfigError, SampleConfig, read_toml_text
+from platebench.bench.config.sample_config import PlateSize
 from platebench.bench.config.axes import AXES as AXIS_INFO
 from platebench.bench.config.presets import with_realism
 from platebench.bench.config.realism import CAMERA_SOURCES, MAX_SCALE, REALISM_PRESETS, Realism, RealismError, realism_preset
 from platebench.bench.config.realism import SOURCES as _SOURCES
 from platebench.bench.config.ranges import RangeError, expand_range
+from platebench.bench.io.codecs import base as codec_base
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.run.methods import get_method, method_names
 from platebench.bench.run.plugins import check_time_limit
 from platebench.errors import UserValueError
@@ -61,7 +64,7 @@ def family_defaults(family: str, length_m: float, width_m: float) -> dict:
     radians; the family's own ``DeformationFamily.defaults``)."""
     if family not in FAMILIES:
         raise SpecError(f"family = {family!r} is unknown: allowed {', '.join(FAMILIES)}")
-    return FAMILIES[family].defaults(length_m, width_m).to_dict()
+    return encode(FAMILIES[family].defaults(length_m, width_m))
 
 
 # ----------------------------------------------------------------------------- axes
@@ -126,22 +129,9 @@ def _set_path(*path):
     return apply
 
 
-@dataclass(frozen=True)
-class _PlateSize:
-    """A plate's length and width (m), as a sample's configuration table holds them while the
-    sweep's axes change it (its deformation may not fit the new size yet)."""
-
-    length_m: float
-    width_m: float
-
-    @classmethod
-    def from_dict(cls, plate: dict) -> "_PlateSize":
-        return cls(plate["length_m"], plate["width_m"])
-
-
 def _apply_family(d: dict, v, state: dict) -> None:
     plate = d["plate"]
-    size = _PlateSize.from_dict(plate)
+    size = decode(PlateSize, plate)
     new = family_defaults(v, size.length_m, size.width_m)
     old = _deformation(d)
     for k in ("angle_rad", "direction", "axis_rad"):
@@ -173,8 +163,8 @@ def _apply_pose(name: str):
 
 def _apply_realism(d: dict, v, state: dict) -> None:
     """A realism preset: its camera (resolution, sensor) and its table; the draw (seed) is kept."""
-    cfg = SampleConfig.from_dict(copy.deepcopy(d))
-    new = with_realism(cfg, realism_preset(v).with_seed(cfg.realism.seed)).to_dict()
+    cfg = decode(SampleConfig, copy.deepcopy(d))
+    new = encode(with_realism(cfg, realism_preset(v).with_seed(cfg.realism.seed)))
     d.clear()
     d.update(new)
 
@@ -185,7 +175,7 @@ def _apply_source(source: str):
     ignored for that sample)."""
     def apply(d: dict, v, state: dict) -> None:
         try:
-            r = Realism.from_dict(copy.deepcopy(d.get("realism") or {}))
+            r = decode(Realism, copy.deepcopy(d.get("realism") or {}))
             if (r.robot is None and source in ("robot_repeatability", "robot_accuracy", "hand_eye")) or \
                     (r.camera == "ideal" and source in CAMERA_SOURCES):
                 raise _NotApplicable  # the ideal preset has no robot and no camera hardware
@@ -196,7 +186,7 @@ def _apply_source(source: str):
                         scales=scales)
         except RealismError as e:
             raise ConfigError(str(e)) from None
-        new = with_realism(SampleConfig.from_dict(copy.deepcopy(d)), r).to_dict()  # the camera follows its sources
+        new = encode(with_realism(decode(SampleConfig, copy.deepcopy(d)), r))  # the camera follows its sources
         d.clear()
         d.update(new)
     return apply
@@ -395,7 +385,7 @@ class SamplePlan:
 
     @property
     def config_dict(self) -> dict:
-        return self.config.to_dict()
+        return encode(self.config)
 
 
 @dataclass(frozen=True)
@@ -427,13 +417,17 @@ class SweepSpec:
             h.update(f"{s.sample_id}:{s.config_sha256}\n".encode())
         return h.hexdigest()
 
-    def to_dict(self) -> dict:
-        return {"name": self.name, "description": self.description, "mode": self.mode,
-                "methods": list(self.methods), "seed": self.seed, "count": self.count,
-                "seed_per_sample": self.seed_per_sample, "method_time_limit_s": self.method_time_limit_s,
-                "base": self.base,
-                "axes": {k: v for k, v in self.axes}, "n_samples": len(self.samples),
-                "ignored_axes": self.ignored, "duplicates_dropped": self.duplicates, "sha256": self.sha256}
+
+@codec_base.encode.register(SweepSpec)
+def _(x: SweepSpec) -> dict:
+    """The spec as the dataset manifest (dataset.json's ``spec``) holds it; registered beside the type, as
+    ``bench.io`` does not import ``bench.sweep``."""
+    return {"name": x.name, "description": x.description, "mode": x.mode,
+            "methods": list(x.methods), "seed": x.seed, "count": x.count,
+            "seed_per_sample": x.seed_per_sample, "method_time_limit_s": x.method_time_limit_s,
+            "base": x.base,
+            "axes": {k: v for k, v in x.axes}, "n_samples": len(x.samples),
+            "ignored_axes": x.ignored, "duplicates_dropped": x.duplicates, "sha256": x.sha256}
 
 
 def config_sha256(config_dict: dict, pose: dict | None, methods) -> str:
@@ -453,7 +447,7 @@ def _check_pose(where: str, pose: dict) -> None:
 
 
 def _validate(d: dict, state: dict, cache: dict | None = None) -> SampleConfig:
-    cfg = SampleConfig.from_dict(copy.deepcopy(d))
+    cfg = decode(SampleConfig, copy.deepcopy(d))
     pose = state.get("pose")
     key = json.dumps([d["scene"], pose], sort_keys=True, default=str)
     if cache is not None and key in cache:
@@ -589,13 +583,13 @@ def _seeding(sweep: dict, mode: str) -> tuple[int, bool, int | None]:
 def _base(doc: dict) -> dict:
     """The [base] table as a full, valid sample config dict."""
     try:
-        base_cfg = SampleConfig.from_dict(copy.deepcopy(doc.get("base", {})))
+        base_cfg = decode(SampleConfig, copy.deepcopy(doc.get("base", {})))
         base_cfg.scene.build()
     except ValueError as e:
         msg = str(e).splitlines()[0]
         raise SpecError(f"base: {msg}" if not msg.startswith("unknown key config.") else
                         "unknown key base." + msg[len("unknown key config."):]) from None
-    return base_cfg.to_dict()
+    return encode(base_cfg)
 
 
 def _plans(mode: str, axes_doc: dict, seed: int, count: int | None) -> tuple[list, list[tuple[dict, list]]]:
@@ -637,7 +631,7 @@ def _samples(base: dict, plans, mode: str, methods: tuple, seed_per_sample: bool
         for k in ign:
             ignored[k] = ignored.get(k, 0) + 1
         pose = state.get("pose")
-        digest = config_sha256(cfg.to_dict(), pose, methods)
+        digest = config_sha256(encode(cfg), pose, methods)
         if digest in seen:
             duplicates += 1
             continue

@@ -18,6 +18,8 @@ Each worker process keeps one ``PlateRenderer`` (module global) and passes it ba
 samples of one process run one at a time (run Dask workers with ``--nthreads 1``).
 
 The methods a sample runs come from the registry ``reconstruction.methods`` (``bench.run.methods.get_method``).
+Each task first loads the installed packages' families, metrics and cure rules in its process
+(``bench.run.extensions.load_extensions``, once per process), so that a spawned or Dask worker knows them.
 """
 from __future__ import annotations
 
@@ -32,10 +34,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from platebench.bench.config import SampleConfig
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.io.fs_errors import environmental
 from platebench.bench.io.layout import RECON, SAMPLE, method_folder
 from platebench.bench.io.sample_files import write_sample
 from platebench.bench.io.sweep_records import MethodRun, SampleResult, SampleTimings
+from platebench.bench.run.extensions import load_extensions
 from platebench.bench.run.methods import MethodContext, get_method
 from platebench.bench.run.render import posed_scene, render_sample
 from platebench.bench.run.workers import die_with_parent, set_render_threads
@@ -50,7 +54,7 @@ class SampleTask:
     dataset: str  # absolute path of the dataset directory (shared with the workers)
     sample_id: str
     index: int
-    config: dict  # SampleConfig.to_dict()
+    config: dict  # a SampleConfig's form
     pose: dict | None
     methods: tuple
     config_sha256: str
@@ -64,7 +68,7 @@ def tasks_from_spec(spec, dataset: Path, redo_failed: bool = False,
     """The spec's samples as tasks; ``method_time_limit_s`` (a flag) overrides the spec's own limit."""
     ds = str(Path(dataset).resolve())
     limit = method_time_limit_s if method_time_limit_s is not None else spec.method_time_limit_s
-    return [SampleTask(ds, p.sample_id, p.index, p.config.to_dict(), p.pose, tuple(spec.methods), p.config_sha256,
+    return [SampleTask(ds, p.sample_id, p.index, encode(p.config), p.pose, tuple(spec.methods), p.config_sha256,
                        p.params, redo_failed, limit) for p in spec.samples]
 
 
@@ -112,6 +116,7 @@ def pose_supported() -> str | None:
 
 def run_sample(task: SampleTask) -> SampleResult:
     """Make one sample into a private staging directory and return its result (see module doc)."""
+    load_extensions()
     with _LOCK:
         return _run_sample(task)
 
@@ -129,7 +134,7 @@ def _render(task: SampleTask) -> tuple:
     """(the sample in memory or None, its error text or None, seconds) with this process's renderer."""
     t = time.perf_counter()
     try:
-        cfg = SampleConfig.from_dict(task.config)
+        cfg = decode(SampleConfig, task.config)
         kwargs = {}
         if task.pose:
             kwargs["scene"] = posed_scene(cfg.scene.build(), cfg.scene.distance_m, task.pose)
@@ -231,6 +236,7 @@ def needs_renderer(task: SampleTask) -> bool:
 def render_stage(task: SampleTask) -> RenderedTask:
     """The first of a sample's two stages, on the worker that owns the renderer (the GPU): the sample
     rendered in memory, nothing written. A sample with a method that renders is made whole here."""
+    load_extensions()
     with _LOCK:
         if needs_renderer(task):
             return RenderedTask(None, None, 0.0, _run_sample(task), worker_info())
@@ -243,6 +249,7 @@ def finish_stage(task: SampleTask, rendered: RenderedTask) -> SampleResult:
     run the methods, return the sample's result (as ``run_sample`` does)."""
     if rendered.result is not None:
         return rendered.result
+    load_extensions()
     with _LOCK:
         t0 = time.perf_counter() - rendered.render_s
         stage = make_attempt_dir(Path(task.dataset), task.sample_id)

@@ -122,11 +122,6 @@ class CameraCalibration:
     views: tuple[int, ...]
     fix_distortion: bool
 
-    def to_dict(self) -> dict:
-        return {"K": self.K.tolist(), "dist_k1_k2_p1_p2_k3": self.dist.tolist(), "rms_px": self.rms_px,
-                "per_view_rms_px": self.per_view_rms_px.tolist(), "views": list(self.views),
-                "fix_distortion": self.fix_distortion}
-
 
 def _view_rms(obj, img, rvec, tvec, K, dist) -> float:
     proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
@@ -284,29 +279,6 @@ class StereoCalibration:
         """(N,3) world points from matched pixels (``model`` as in ``triangulate_camera``)."""
         pc = self.triangulate_camera(uv_left, uv_right, model)
         return (pc - self.t_world) @ self.R_world
-
-    def to_dict(self) -> dict:
-        return {"K_left": self.K_left.tolist(), "K_right": self.K_right.tolist(),
-                "dist_left": self.dist_left.tolist(), "dist_right": self.dist_right.tolist(),
-                "R_right_from_left": self.R.tolist(), "T_right_from_left_m": np.ravel(self.T).tolist(),
-                "baseline_m": self.baseline_m, "R_world_left": self.R_world.tolist(),
-                "t_world_left_m": np.ravel(self.t_world).tolist(), "width": self.width, "height": self.height,
-                "stereo_rms_px": self.rms_px, "registration_rms_m": self.registration_rms_m,
-                "triangulation_model": self.model,
-                "conventional_deviation": self.conventional_deviation()}
-
-    @classmethod
-    def from_dict(cls, d) -> "StereoCalibration":
-        """The calibration ``to_dict`` wrote (its derived figures, baseline and deviation, are
-        computed again; the per-view RMS is not in the file)."""
-        return cls(np.array(d["K_left"], float), np.array(d["K_right"], float), np.array(d["dist_left"], float),
-                   np.array(d["dist_right"], float), np.array(d["R_right_from_left"], float),
-                   np.array(d["T_right_from_left_m"], float), np.array(d["R_world_left"], float),
-                   np.array(d["t_world_left_m"], float), int(d["width"]), int(d["height"]),
-                   float("nan") if d.get("stereo_rms_px") is None else float(d["stereo_rms_px"]),
-                   registration_rms_m=float("nan") if d.get("registration_rms_m") is None
-                   else float(d["registration_rms_m"]),
-                   model=str(d.get("triangulation_model", "general")))
 
 
 def stereo_calibrate(det_left, det_right, cal_left: CameraCalibration, cal_right: CameraCalibration,

@@ -34,15 +34,6 @@ class FeatureRays:
     directions: np.ndarray
     ids: np.ndarray
 
-    def to_dict(self) -> dict:
-        return {"ray_origins_m": self.origins.tolist(), "ray_directions": self.directions.tolist(),
-                "ids": self.ids.tolist()}
-
-    @classmethod
-    def from_dict(cls, d) -> "FeatureRays":
-        """The rays of ``to_dict`` (or of a structured-light calibration's, which holds them)."""
-        return cls(np.array(d["ray_origins_m"], float), np.array(d["ray_directions"], float), np.array(d["ids"], int))
-
 
 @dataclass(frozen=True)
 class FalseBoundaryTest:
@@ -60,11 +51,6 @@ class FalseBoundaryTest:
     @property
     def false_boundary_detected(self) -> bool:
         return self.counting_test or self.arrays_disagree
-
-    def to_dict(self) -> dict:
-        return {"detected": self.detected, "expected": self.expected, "expected_ids": list(self.expected_ids),
-                "counting_test": self.counting_test, "arrays_disagree": self.arrays_disagree,
-                "false_boundary_detected": self.false_boundary_detected, "cut_squares": dict(self.cut)}
 
 
 def rays_on_plane(rays: FeatureRays, plane: BoundaryPlane) -> np.ndarray:

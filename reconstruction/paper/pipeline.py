@@ -94,9 +94,6 @@ class CutSquares:
     def __len__(self) -> int:
         return len(self.points)
 
-    def to_dict(self) -> dict:
-        return {"count": len(self), "feature_id": [int(i) for i in self.feature_id], "reasons": list(self.reasons)}
-
 
 @dataclass(frozen=True)
 class Reconstruction:

@@ -61,10 +61,6 @@ class Fig6Check:
     condition_2_ok: bool
     violations: tuple[str, ...] = ()
 
-    def to_dict(self) -> dict:
-        return {"condition_1_ok": self.condition_1_ok, "condition_2_ok": self.condition_2_ok,
-                "violations": list(self.violations)}
-
 
 def check_fig6(squares: tuple[Square, ...], groups: list[list[int]], image_name: str) -> Fig6Check:
     """Check the two Fig. 6 conditions on detected squares; describe each violation."""

@@ -59,12 +59,6 @@ class StructuredLightCalibration:
     projector_center: np.ndarray  # least-squares common point of the rays (world, metres)
     center_miss_m: np.ndarray  # (F,) distance of each ray to that point
 
-    def to_dict(self) -> dict:
-        return {**self.rays.to_dict(), "residual_rms_m": self.residual_rms_m.tolist(),
-                "projector_center_m": self.projector_center.tolist(), "center_miss_m": self.center_miss_m.tolist(),
-                "planes": [{"offset_m": p.plane_offset_m, "normal": p.plane_normal.tolist(),
-                            "flatness_rms_m": p.flatness_rms_m} for p in self.planes]}
-
 
 def label_squares(squares, pattern: Pattern, name: str = "image") -> np.ndarray:
     """(F,2) centroid of each pattern feature's square, in the pattern's feature order.

@@ -74,11 +74,6 @@ class ActivePoints:
     rejected: int
     row_spacing_m: float = float("nan")  # the grid's row spacing at the points' range (``row_spacing``)
 
-    def to_dict(self) -> dict:
-        return {"points": int(len(self.points)), "matched": self.matched, "rejected_off_ray": self.rejected,
-                "row_spacing_mm": round(self.row_spacing_m * 1e3, 2) if np.isfinite(self.row_spacing_m) else None,
-                "ray_distance_max_mm": round(float(self.ray_distance_m.max()) * 1e3, 3) if len(self.points) else None}
-
     @classmethod
     def empty(cls, view: str) -> "ActivePoints":
         return cls(view, np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0, int), np.zeros(0), 0, 0)

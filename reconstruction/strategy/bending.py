@@ -33,10 +33,6 @@ class BendingCurve:
     def chord_m(self) -> float:
         return float(np.linalg.norm(self.B - self.A))
 
-    def to_dict(self) -> dict:
-        return {"A_m": self.A.tolist(), "B_m": self.B.tolist(), "chord_m": self.chord_m,
-                "a_deg": float(np.degrees(self.a_rad)), "b_deg": float(np.degrees(self.b_rad))}
-
 
 def bending_curve(profile: np.ndarray, up: np.ndarray, end_fraction: float = 0.12) -> BendingCurve:
     """End points and end-tangent angles of a bending curve given as an ordered (N,3) polyline.

@@ -44,9 +44,6 @@ class DetectorResult:
     unit: str
     detail: str
 
-    def to_dict(self) -> dict:
-        return {"fired": self.fired, "measure": self.measure, "unit": self.unit, "detail": self.detail}
-
 
 def paper_tests(false_boundary) -> list[DetectorResult]:
     """The paper's counting test and Fig. 2 symptom from the stage-3 ``FalseBoundaryTest``."""

@@ -125,13 +125,6 @@ class PoseSpread:
         quadrature (``registration``'s candidate matches)."""
         return np.hypot(tol_m, POSE_SPREAD_SIGMAS * self.across_m(distance_m))
 
-    def to_dict(self) -> dict:
-        """The file form (mm, mrad), with the matching distance it gives ``SPREAD_REPORT_DISTANCE_M``
-        from the camera."""
-        return {"translation_rms_mm": round(self.translation_m * 1e3, 4),
-                "rotation_rms_mrad": round(self.rotation_rad * 1e3, 4),
-                "match_tol_mm_at_0.40_m": round(float(self.match_tol_m(SPREAD_REPORT_DISTANCE_M)) * 1e3, 3)}
-
 
 @dataclass(frozen=True)
 class ViewOutline:
@@ -451,11 +444,11 @@ class Gap:
     direction: np.ndarray  # (3,) unit, from the piece into the gap
     view: str  # the pose whose outline the piece belongs to
 
-    def to_dict(self) -> dict:
-        return {"position_mm": (self.position_m * 1e3).round(2).tolist(),
-                "direction": self.direction.round(4).tolist(), "piece_from": self.view,
-                "what": f"boundary not verified beyond ({', '.join(f'{x:.1f}' for x in self.position_m * 1e3)}) "
-                        f"mm, where the piece seen from {self.view} stops"}
+    @property
+    def what(self) -> str:
+        """The gap in words: where the piece stops (millimetres, world frame) and from which pose."""
+        return (f"boundary not verified beyond ({', '.join(f'{x:.1f}' for x in self.position_m * 1e3)}) "
+                f"mm, where the piece seen from {self.view} stops")
 
 
 @dataclass(frozen=True)
@@ -468,11 +461,6 @@ class UnconfirmedRun:
     start_m: np.ndarray
     end_m: np.ndarray
     covered: bool  # True when confirmed pieces of other poses run along it (within LINK_M)
-
-    def to_dict(self) -> dict:
-        return {"view": self.view, "length_mm": round(self.length_m * 1e3, 1),
-                "start_mm": (self.start_m * 1e3).round(1).tolist(), "end_mm": (self.end_m * 1e3).round(1).tolist(),
-                "covered_by_other_poses": self.covered}
 
 
 @dataclass(frozen=True)
@@ -492,15 +480,6 @@ class BoundaryVerdict:
     @property
     def confirmed_length_m(self) -> float:
         return float(sum(p.length_m for p in self.pieces))
-
-    def to_dict(self) -> dict:
-        return {"boundary_verified": self.verified, "reason": self.reason, "components": self.components,
-                "pieces": [{"view": p.view, "length_mm": round(p.length_m * 1e3, 1), "closed": p.closed}
-                           for p in self.pieces],
-                "gaps": [g.to_dict() for g in self.gaps],
-                "unconfirmed_outline": [u.to_dict() for u in self.unconfirmed],
-                "refuted_points": int(sum(int(np.count_nonzero(r)) for r in self.refuted)),
-                "merged_points": int(len(self.merged))}
 
 
 def _end_direction(P: np.ndarray, at_start: bool) -> np.ndarray:

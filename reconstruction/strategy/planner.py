@@ -115,10 +115,6 @@ class PlannedView:
     method: str
     reason: str
 
-    def to_dict(self) -> dict:
-        return {"name": self.name, "purpose": self.purpose, "method": self.method, "reason": self.reason,
-                "pose": self.pose.to_dict()}
-
 
 @dataclass(frozen=True)
 class Decision:
@@ -129,11 +125,6 @@ class Decision:
     reason: str
     gaps_targeted: int = 0
     gaps_predicted_seen: int = 0  # gaps the view is predicted to see past or to confirm the edge beyond
-
-    def to_dict(self) -> dict:
-        return {"decision": self.kind, "reason": self.reason, "gaps_targeted": self.gaps_targeted,
-                "gaps_predicted_seen": self.gaps_predicted_seen,
-                **({"view": self.view.to_dict()} if self.view is not None else {})}
 
 
 def sensing_axes(bent_dir, plane_normal) -> tuple[np.ndarray, np.ndarray]:
@@ -547,7 +538,7 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
         return Decision("stop", None, f"not verified ({verdict.reason}) but no piece end to look past")
     if len(done) >= max_views:
         return Decision("stop", None, f"view budget spent ({len(done)} poses); {len(gaps)} gap(s) remain: "
-                        + "; ".join(g.to_dict()["what"] for g in gaps[:3]), len(gaps))
+                        + "; ".join(g.what for g in gaps[:3]), len(gaps))
     beyonds = [beyond_gap(g, done, verdict.confirmed) for g in gaps]
     targets = _targets(gaps, beyonds, done, model, front)
     if reach is not None and camera is not None:
@@ -578,7 +569,7 @@ def decide(verdict: BoundaryVerdict, done: list[ViewOutline], done_poses: list[S
             break
     if best is None:
         return Decision("stop", None, "no reachable pose is predicted to see past the unverified boundary ("
-                        + "; ".join(g.to_dict()["what"] for g in gaps[:3])
+                        + "; ".join(g.what for g in gaps[:3])
                         + (f"; {len(gaps) - 3} more" if len(gaps) > 3 else "") + ")", len(gaps))
     pose = best.pose
     if best.method == "multi-view":  # the paper's cures keep their own baselines

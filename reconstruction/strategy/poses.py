@@ -55,11 +55,6 @@ class SensorPose:
         half = self.baseline_dir * baseline_m / 2
         return np.array([self.center - half, self.center + half])
 
-    def to_dict(self) -> dict:
-        return {"center_m": self.center.tolist(), "target_m": self.target.tolist(),
-                "view_dir": self.view_dir.tolist(), "baseline_dir": self.baseline_dir.tolist(),
-                "distance_m": self.distance_m, "reason": self.reason}
-
 
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, float)

@@ -67,9 +67,6 @@ class PoseShifts:
         """(V,) the length of each pose's shift, millimetres."""
         return np.array([np.linalg.norm(s) * 1e3 for s in self.shifts_m.values()])
 
-    def to_dict(self) -> dict:
-        return {n: [round(float(x) * 1e3, 3) for x in s] for n, s in self.shifts_m.items()}
-
 
 def _pair_matches(P, Q, Q_idx, tree, vk: ViewOutline, vj: ViewOutline, walk, tol_k, usable_k):
     """Indices (into P, into Q) of the candidate matches of pose k's points ``P`` in pose j's

@@ -108,11 +108,6 @@ class BoardSpec:
         """(N,3) chessboard (ChArUco) corners in the board frame, indexed by ChArUco id."""
         return np.asarray(self.board().getChessboardCorners(), float).reshape(-1, 3)
 
-    def to_dict(self) -> dict:
-        return {"squares_x": self.squares_x, "squares_y": self.squares_y, "square_m": self.square_m,
-                "marker_m": self.marker_m, "dictionary": self.dictionary,
-                "texels_per_square": self.texels_per_square, "margin_squares": self.margin_squares}
-
 
 @dataclass(frozen=True)
 class BoardPose:
@@ -124,9 +119,6 @@ class BoardPose:
 
     def to_world(self, pts_board) -> np.ndarray:
         return np.atleast_2d(np.asarray(pts_board, float)) @ np.asarray(self.R_wb).T + np.asarray(self.p_wb)
-
-    def to_dict(self) -> dict:
-        return {"name": self.name, "R_wb": np.asarray(self.R_wb).tolist(), "p_wb_m": np.asarray(self.p_wb).tolist()}
 
 
 def _rot(axis: str, a: float) -> np.ndarray:

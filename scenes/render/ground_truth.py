@@ -48,9 +48,6 @@ class HiddenRun:
     count: int
     length_m: float
 
-    def to_dict(self) -> dict:
-        return {"start": self.start, "end": self.end, "count": self.count, "length_m": self.length_m}
-
 
 @dataclass(frozen=True)
 class BoundaryVisibility:
@@ -60,12 +57,6 @@ class BoundaryVisibility:
     visible_fraction: float  # by arc length
     hidden_segments: tuple[HiddenRun, ...]  # cyclic index runs of hidden points
     false_boundary: bool
-
-    def to_dict(self) -> dict:
-        return {"visible_fraction": self.visible_fraction,
-                "hidden_segments": [h.to_dict() for h in self.hidden_segments],
-                "false_boundary": self.false_boundary, "n_points": int(self.visible.size),
-                "n_visible": int(self.visible.sum())}
 
 
 def _triangle_hits(origin, dirs, tri):

@@ -3,23 +3,22 @@ from measured geometry, and a verdict that says whether the whole boundary was v
 
 * ``loop``: ``run_sensing`` and its stages;
 * ``sensor``: the simulated robot (renders a pose; ground truth beside it, for scoring only);
-* ``records``: options, frozen records (``sensing.json``) and outcome classes;
+* ``records``: options and outcome classes (the frozen records of ``sensing.json``: ``bench.io.sensing_records``);
 * ``scoring``: the loop's results against ground truth.
 """
-from platebench.bench.run.sensing.loop import run_sensing, write_multiview
-from platebench.bench.run.sensing.records import (
+from platebench.bench.io.sensing_records import (
     HIDDEN_BELOW,
     OUTCOME_TEXT,
     OUTCOMES,
     ActiveRecord,
     FinalRecord,
-    SensingOptions,
     SensingResult,
     StageRecord,
     ViewRecord,
     hidden,
-    outcome_class,
 )
+from platebench.bench.run.sensing.loop import run_sensing, write_multiview
+from platebench.bench.run.sensing.records import SensingOptions, outcome_class
 from platebench.bench.run.sensing.scoring import merged_accuracy
 from platebench.bench.run.sensing.sensor import SimulatedSensor
 from platebench.reconstruction.strategy.poses import PoseError

@@ -25,8 +25,8 @@ say when it is not sure.
 Decisions are pure functions of measurements in ``reconstruction.strategy``; the simulated robot
 (``sensor``) renders, and holds the ground truth for scoring only: each step's ``gt_visibility``
 and, at the end, the visibility of the true boundary from the final poses, the accuracy and the
-outcome class (``records.OUTCOMES``). Under a real rig (``cfg.realism``) the loop knows only the
-commanded poses and the estimated hand/eye and calibration (``sensor`` module doc); sensing.json's
+outcome class (``bench.io.sensing_records.OUTCOMES``). Under a real rig (``cfg.realism``) the loop
+knows only the commanded poses and the estimated hand/eye and calibration (``sensor`` module doc); sensing.json's
 ``acquisition`` records the draw and how far each move really landed (``acquisition_record``).
 """
 from __future__ import annotations
@@ -41,20 +41,19 @@ import numpy as np
 
 from platebench.bench.config import SampleConfig
 from platebench.bench.io.atomic import write_bytes, write_json
+from platebench.bench.io.codecs import encode
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.io.sample_files import write_sample
-from platebench.bench.run.render import RenderedSample
-from platebench.bench.run.sensing.records import (
+from platebench.bench.io.sensing_records import (
     ActiveRecord,
     FinalRecord,
-    SensingOptions,
     SensingResult,
     StageRecord,
     ViewRecord,
-    gt_visibility_dict,
     hidden,
-    outcome_class,
 )
+from platebench.bench.run.render import RenderedSample
+from platebench.bench.run.sensing.records import SensingOptions, gt_visibility_dict, outcome_class
 from platebench.bench.run.sensing.scoring import (
     final_visibility,
     merged_accuracy,
@@ -271,7 +270,7 @@ def stage2_verification(sensor: SimulatedSensor, first: FirstStages, rays_for) -
                              rowcol=pattern_rowcol(shot.scene.projector.pattern))
     o = first.view2.outline
     record = ViewRecord(view, len(o.points), o.method, gt_visibility_dict(first.view2.gt_visibility), None,
-                        active.to_dict())
+                        encode(active))
     return replace(first, records=first.records + (record,), rec_verify=rec, scene_verify=shot.measured)
 
 
@@ -464,9 +463,9 @@ class Measurements:
                        f"at only {share:.0%} of the boundary, and confirmed only where a pose sees that front: "
                        f"{again.reason}: not verified (an edge seen only from behind the sheet confirms "
                        "like one seen from the front)"), share, tuple(
-            [g_.to_dict() for g_ in again.gaps]
+            [encode(g_) for g_ in again.gaps]
             + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline not confirmed from the plate's known front",
-                **u.to_dict()} for u in again.unconfirmed if not u.covered])
+                **encode(u)} for u in again.unconfirmed if not u.covered])
 
 
 SPARSE_FRONT_NOTE = "when the front is not asked for"  # in a verdict the sparse front check overturned
@@ -530,7 +529,7 @@ def _record(view: PlannedView, pv: PassiveView, into: Measurements, steps: list)
     o = pv.outline
     steps.append(ViewRecord(view, 0 if o is None else len(o.points), "" if o is None else o.method,
                             gt_visibility_dict(pv.gt_visibility), pv.error,
-                            None if pv.active is None else pv.active.to_dict()))
+                            None if pv.active is None else encode(pv.active)))
     into.add(pv)
 
 
@@ -630,8 +629,8 @@ def final_record(sensor: SimulatedSensor, first: FirstStages, m: Measurements, c
     # (outline stretches no other pose confirmed are then occluding contours; sensing.json's
     # verdict lists them all under "unconfirmed_outline").
     unverified = front_parts if verdict.verified else tuple(
-        [g_.to_dict() for g_ in verdict.gaps]
-        + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline no other pose confirmed", **u.to_dict()}
+        [encode(g_) for g_ in verdict.gaps]
+        + [{"what": f"{u.view}: {u.length_m * 1e3:.0f} mm of outline no other pose confirmed", **encode(u)}
            for u in verdict.unconfirmed if not u.covered])
     outcome = outcome_class(hidden(gt_first), hidden(gt_final), verified, bool(cures) or not verified)
     reach_vis = verif_vis = unconfirmable = None
@@ -679,7 +678,7 @@ def run_sensing(cfg: SampleConfig, out: Path | None, options: SensingOptions = S
     result = SensingResult(cfg, tuple(steps), dets, verif, cures, m.verdict, final, tuple(notes),
                            time.perf_counter() - t0, tuple(m.outlines), sensor.patterns, acquisition_record(sensor, m))
     if out is not None:
-        write_json(Path(out) / "sensing.json", result.to_dict())
+        write_json(Path(out) / "sensing.json", encode(result))
         write_multiview(Path(out) / "multiview.npz", m.outlines, m.verdict, np.asarray(sensor.plate.boundary),
                         m.merged())
     return result
@@ -697,7 +696,7 @@ def acquisition_record(sensor: SimulatedSensor, m: Measurements | None = None) -
         return None
     shifts = None if m is None or d.pose_spread is None else \
         PoseShifts({v.name: np.asarray(s, float) for v, s in zip(m.views, m.shifts)})
-    return {"realism": d.realism.to_dict(), "estimates": d.report, "moves": list(sensor.moves),
+    return {"realism": encode(d.realism), "estimates": d.report, "moves": list(sensor.moves),
             "pose_spread": d.pose_spread, "registration": shifts}
 
 

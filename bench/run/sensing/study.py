@@ -17,7 +17,6 @@ import traceback
 import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -26,9 +25,12 @@ from platebench.bench.config.sensing import DEFAULT_BENDS_DEG, REFERENCE_ASPECT,
 from platebench.bench.io.atomic import write_json, write_text
 from platebench.bench.io.outputs import output_dir
 from platebench.bench.io.records import LFormulaRow, StudyRow, StudyTargets, file_form
+from platebench.bench.io.codecs import base as codec_base
+from platebench.bench.io.codecs import encode
+from platebench.bench.io.sensing_records import OUTCOMES
 from platebench.bench.run.journal import StudyJournal, case_key, code_digest
 from platebench.bench.run.sensing.loop import run_sensing
-from platebench.bench.run.sensing.records import OUTCOMES, SensingOptions
+from platebench.bench.run.sensing.records import SensingOptions
 from platebench.evaluation.detection import detection_score
 from platebench.plates import CylindricalBend, PlateSpec, build_plate
 from platebench.plates.spec import FAMILIES, Fold, Twist
@@ -361,9 +363,9 @@ def detector_scores(rows: list[StudyRow]) -> dict:
 
 
 def detector_scores_dict(scores: dict) -> dict:
-    """``detector_scores`` as study.json holds it (each score's ``to_dict``)."""
-    return {"all": {d: s.to_dict() for d, s in scores["all"].items()},
-            **{part: {k: {d: s.to_dict() for d, s in v.items()} for k, v in scores[part].items()}
+    """``detector_scores`` as study.json holds it (each score's ``encode``)."""
+    return {"all": {d: encode(s) for d, s in scores["all"].items()},
+            **{part: {k: {d: encode(s) for d, s in v.items()} for k, v in scores[part].items()}
                for part in ("by_family", "by_bend")}}
 
 
@@ -415,35 +417,9 @@ def targets(rows: list[StudyRow]) -> StudyTargets:
 
 
 @dataclass(frozen=True)
-class StudyRealism:
-    """The real rig a study measured with (its part of the study's settings; all None: ideal): the
-    realism preset's name, the error sources on, how each plate's draw is seeded, the corner noise
-    of the calibration views (px per axis, measured once for every plate) and the sources scaled from
-    their sourced magnitude (``--realism-scale``; written only when some are)."""
-
-    realism: str | None = None
-    realism_sources: tuple = ()
-    realism_seeds: str | None = None
-    corner_noise_px: float | None = None
-    realism_scales: tuple = ()  # ((source, factor), ...): sources not at their sourced magnitude
-
-    def to_dict(self) -> dict:
-        out = {"realism": self.realism, "realism_sources": list(self.realism_sources),
-               "realism_seeds": self.realism_seeds, "corner_noise_px": self.corner_noise_px}
-        return {**out, "realism_scales": dict(self.realism_scales)} if self.realism_scales else out
-
-    @classmethod
-    def from_dict(cls, settings: Mapping) -> "StudyRealism":
-        """The realism part of a study's settings (the other settings are left alone)."""
-        return cls(settings.get("realism"), tuple(settings.get("realism_sources") or ()),
-                   settings.get("realism_seeds"), settings.get("corner_noise_px"),
-                   tuple((settings.get("realism_scales") or {}).items()))
-
-
-@dataclass(frozen=True)
 class StudyResult:
     """Per-plate rows (``StudyRow``), the outcome counts, the detectors' scores and the targets;
-    ``to_dict`` is study.json."""
+    its form (``encode``) is study.json."""
 
     rows: tuple[StudyRow, ...]
     settings: dict
@@ -474,13 +450,17 @@ class StudyResult:
         return dict(sorted(outcome_counts([r for r in rows if split_by_bend(r)], lambda r: f"{r.bend_deg:g}").items(),
                            key=lambda kv: float(kv[0])))
 
-    def to_dict(self) -> dict:
-        return {"kind": "false-boundary sensing study", "rows": [r.to_dict() for r in self.rows],
-                "outcomes": self.outcomes(), "outcomes_by_family": self.outcomes("family"),
-                "outcomes_by_bend": self.outcomes("bend"),
-                "detectors": detector_scores_dict(detector_scores(list(self.rows))),
-                "targets": self.targets.to_dict(), "settings": self.settings, "time_s": self.time_s,
-                **file_form(self.extra)}
+
+@codec_base.encode.register(StudyResult)
+def _(x: StudyResult) -> dict:
+    """study.json; registered beside the type, as ``bench.io`` does not import ``bench.run`` (its
+    outcome counts, detector scores and targets are computed here)."""
+    return {"kind": "false-boundary sensing study", "rows": [r.to_dict() for r in x.rows],
+            "outcomes": x.outcomes(), "outcomes_by_family": x.outcomes("family"),
+            "outcomes_by_bend": x.outcomes("bend"),
+            "detectors": detector_scores_dict(detector_scores(list(x.rows))),
+            "targets": x.targets.to_dict(), "settings": x.settings, "time_s": x.time_s,
+            **file_form(x.extra)}
 
 
 def run_study(cases: list[StudyCase], base: SampleConfig, options: SensingOptions = SensingOptions(),
@@ -577,7 +557,7 @@ def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite
     Each finished plate's row goes to the journal beside it (``bench.run.journal``) at once, so an
     interrupted study keeps them; ``resume``: reuse the journal's rows of plates still to run.
     ``options``: the sensing loop's (each plate's working distance set from its case).
-    Returns the study (``StudyResult``; study.json is its ``to_dict``)."""
+    Returns the study (``StudyResult``; study.json is its form, ``encode``)."""
     settings = dict(settings or {})
     header = {"version": __version__, "code": code_digest(), "l_bends_deg": list(l_bends_deg),
               **{k: v for k, v in settings.items() if k != "workers"}}
@@ -590,7 +570,7 @@ def write_study(out: Path, cases: list[StudyCase], base: SampleConfig, overwrite
             result = run_study(cases, base, options, progress=progress, settings=settings, l_bends_deg=l_bends_deg,
                                workers=workers, done=done,
                                record=lambda i, row: journal.record(keys[i], row.to_dict()))
-            write_json(stage / "study.json", result.to_dict())
+            write_json(stage / "study.json", encode(result))
             write_text(stage / "study.csv", study_csv(list(result.rows)))
         finally:
             journal.close(remove=False)
