@@ -138,6 +138,22 @@ def test_a_sweeps_error_maps_are_checksummed_and_drawn(tmp_path):
     assert "dataset_error_map_0000_sgbm" in text and "error map unavailable" not in text
 
 
+def test_the_compare_figure_draws_the_maps_scored_with_the_outputs(tiny_sample_dir):
+    """``compare``'s rows carry each dense output's error map, scored with it: the same statistics as the
+    row's score (median, RMS, coverage over the plate's pixels), error NaN off the plate; the figure draws them."""
+    from platebench.bench.run.compare import compare_sample
+
+    cmp = compare_sample(tiny_sample_dir, ("sgbm", "graycode"))
+    for row in cmp.rows:
+        m, f = row.error_map, row.figures
+        assert m is not None and m.error_m.shape == cmp.gt_mask.shape, row.name
+        assert np.all(np.isnan(m.error_m[~cmp.gt_mask])), row.name
+        assert m.errors.median_m * 1e3 == pytest.approx(f.depth_median_mm, rel=1e-9), row.name
+        assert m.errors.rms_m * 1e3 == pytest.approx(f.depth_rms_mm, rel=1e-9), row.name
+        assert m.coverage_frac == pytest.approx(f.coverage_frac, rel=1e-9), row.name
+    assert P.compare_error_figure(cmp).startswith(PNG_SIG)
+
+
 def test_the_report_imports_no_error_map_scoring():
     """The report draws the scored error maps: no module of bench/report imports evaluation.error_maps or
     the ground truth's loader to score an output."""

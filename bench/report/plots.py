@@ -1066,10 +1066,11 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
 
 
 def compare_error_figure(cmp) -> bytes:
-    """PNG: signed depth error (mm) per dense method on the plate's bounding box."""
+    """PNG: signed depth error (mm) per dense method on the plate's bounding box, drawn from each row's
+    ``error_map`` (scored with its output by ``bench.run.compare``)."""
     import io  # noqa: PLC0415
 
-    dense = [r for r in cmp.rows if r.result is not None]
+    dense = [r for r in cmp.rows if r.error_map is not None]
     n = max(len(dense), 1)
     fig = _figure(3.6 * n, 4.4)
     axes = fig.subplots(1, n, squeeze=False)
@@ -1082,8 +1083,7 @@ def compare_error_figure(cmp) -> bytes:
     else:
         v0, v1, u0, u1 = 0, mask.shape[0], 0, mask.shape[1]
     for ax, r in zip(axes[0], dense):
-        res = r.result
-        err = np.where(res.valid & mask, (res.depth.astype(np.float64) - cmp.gt_depth) * 1e3, np.nan)
+        err = r.error_map.error_m * 1e3  # NaN off the plate and where there is no estimate
         a = np.abs(err[np.isfinite(err)])
         lim = float(np.percentile(a, 95)) if a.size else 1.0
         lim = max(lim, _MIN_COLOUR_RANGE_MM)

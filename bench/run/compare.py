@@ -58,6 +58,7 @@ from platebench.bench.run.plugins import find_method, plugin_names, run_plugin
 from platebench.bench.run.score import check_made_from
 from platebench.errors import UserValueError
 from platebench.evaluation.dense import SparseDepthScore, score_points_depth
+from platebench.evaluation.error_maps import DepthErrorMap, depth_error_map
 from platebench.evaluation.field_scores import DepthScore, DisparityScore, MeshScore, PointCloudScore
 from platebench.evaluation.pixel_coverage import coverage_of_mesh
 from platebench.plates import build_plate
@@ -105,10 +106,13 @@ class MethodRow:
     render_s: float
     score: object = None
     notes: tuple = ()
-    result: object = None  # a dense result (.depth, .valid, left view) for the error figure; None otherwise
+    result: object = None  # a peer's dense result (``.disparity``, left view) that its folder keeps; None otherwise
     kind: str | None = "disparity"  # None for a method that failed
     status: str = "ok"  # "ok" or "failed"
     error: str | None = None  # a failed method's one-line error
+    # the signed depth error of a disparity or depth output over the left view's plate pixels, scored
+    # with the output (``evaluation.error_maps``); what the compare figure draws; None for other kinds
+    error_map: DepthErrorMap | None = None
 
     @property
     def figures(self) -> MethodFigures:
@@ -141,14 +145,6 @@ def method_figures(row: MethodRow) -> MethodFigures:
                              accuracy_rms_mm=s.accuracy.rms_m * mm, surface_rms_mm=s.accuracy.rms_m * mm,
                              coverage_frac=s.coverage_frac)
     raise TypeError(f"{row.name}: no figures for a score of type {type(s).__name__}")
-
-
-@dataclass(frozen=True)
-class DenseView:
-    """A plug-in's dense output as the error figure reads it: (H, W) depth (metres) and validity."""
-
-    depth: np.ndarray
-    valid: np.ndarray
 
 
 @dataclass
@@ -213,14 +209,10 @@ def _plugin_row(entry: MethodEntry, sample_dir: Path, truth, time_limit_s: float
         run = run_plugin(fn, name, sample_dir, truth=truth, time_limit_s=time_limit_s)
     except Exception as e:  # noqa: BLE001  (recorded, as a sweep records it; interrupts go on up)
         return _failed_row(entry, e)
-    view = None
-    if run.output.kind in ("disparity", "depth"):
-        z = _implied_depth(run.output, truth)
-        view = DenseView(z, np.isfinite(z))
     n_images = run.output.metrics.get("n_images", 2)
     n_images = int(n_images) if isinstance(n_images, (int, float)) and np.isfinite(n_images) else 2
     return MethodRow(name, entry.description, n_images, run.time_recon_s, 0.0, run.score, tuple(run.output.notes),
-                     view, run.output.kind)
+                     None, run.output.kind, error_map=_depth_error(run.output, truth))
 
 
 def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
@@ -308,9 +300,9 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
         score = score_output(out, truth, what=f"{name} {out.kind}")
         n_images = entry.exposures(given)
         view = (dense_result(name, out.disparity, rig, n_images, {"total_s": time_s}, out.notes)
-                if out.kind == "disparity" else _dense_view(out, truth))
+                if out.kind == "disparity" else None)
         rows.append(MethodRow(name, entry.description, n_images, time_s, render_s, score, tuple(out.notes), view,
-                              out.kind))
+                              out.kind, error_map=_depth_error(out, truth)))
     if "paper" in methods:
         row = _paper_row(sample_dir, recon_dir, rig, gt, notes)
         if row is not None:
@@ -373,12 +365,12 @@ class _Captures:
                 cap.render_s * len(idx) / n_host)
 
 
-def _dense_view(out, truth) -> DenseView | None:
-    """What the error figure reads of a depth output (None for points and meshes)."""
-    if out.kind != "depth":
+def _depth_error(out, truth) -> DepthErrorMap | None:
+    """The depth error map of a disparity or depth output against the true depth of the left view
+    (``evaluation.error_maps.depth_error_map``); None for points and meshes."""
+    if out.kind not in ("disparity", "depth"):
         return None
-    z = _implied_depth(out, truth)
-    return DenseView(z, np.isfinite(z))
+    return depth_error_map(_implied_depth(out, truth), truth.depth, truth.mask)
 
 
 def _implied_depth(out, truth) -> np.ndarray:
