@@ -8,7 +8,7 @@ naming the bad value (or file, or key) and what is allowed.
 """
 from __future__ import annotations
 
-__all__ = ["PlateBenchError", "UserValueError", "SamplesFailedError", "WorkerImportError"]
+__all__ = ["PlateBenchError", "UserValueError", "RegistrationError", "SamplesFailedError", "WorkerImportError"]
 
 
 class PlateBenchError(Exception):
@@ -17,6 +17,11 @@ class PlateBenchError(Exception):
 
 class UserValueError(PlateBenchError, ValueError):
     """A bad value (a flag, a key, an argument): one line naming it and the allowed range."""
+
+
+class RegistrationError(UserValueError):
+    """A name given to a registry (``plates.spec.register_family``, ``evaluation.metrics_row.register_metric``,
+    ``reconstruction.strategy.cures.register_cure_rule``) that is registered already or not allowed."""
 
 
 class SamplesFailedError(PlateBenchError):

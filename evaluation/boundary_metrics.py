@@ -57,7 +57,7 @@ __all__ = [
     "contour_pixels_distance",
 ]
 
-_UNITS = {"m": ("mm", 1e3), "px": ("px", 1.0)}
+BOUNDARY_UNITS = {"m": ("mm", 1e3), "px": ("px", 1.0)}  # a boundary's unit -> (file key suffix, scale)
 _MAX_SAMPLES = 2_000_000
 
 
@@ -340,8 +340,8 @@ def polyline_distance(
             input unit. Default: 1/4000 of the shorter of the two total lengths.
         unit: "m" (inputs in metres, report mm) or "px" (report px).
     """
-    if unit not in _UNITS:
-        raise ValueError(f"unit: expected one of {sorted(_UNITS)}, got {unit!r}")
+    if unit not in BOUNDARY_UNITS:
+        raise ValueError(f"unit: expected one of {sorted(BOUNDARY_UNITS)}, got {unit!r}")
     est = _as_polylines(estimated, "estimated", closed)
     gt = _as_polylines(truth, "truth", closed, dim=est[0].shape[1])
     L_est, L_gt = _length(est, closed), _length(gt, closed)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from platebench.evaluation.field_scores import AbsErrors
+from platebench.evaluation.field_scores import AbsErrors, implied_depth
 from platebench.evaluation.point_metrics import point_to_surface_distance
 
 if TYPE_CHECKING:
@@ -75,20 +75,12 @@ def point_distance_map(points_m, mesh: trimesh.Trimesh, max_points: int | None =
     return PointDistanceMap(P, dist, AbsErrors.of(dist, signed=False), finite)
 
 
-def implied_depth(disparity_px, fb: float, doffs_px: float) -> np.ndarray:
-    """(H, W) z-depth (metres) of a left-view disparity map (px): Z = f B / (d + doffs), ``fb`` the
-    focal length times the baseline (px m), ``doffs_px`` the principal points' offset; NaN where there
-    is no estimate (non-finite) or d + doffs <= 0."""
-    d = np.asarray(disparity_px, np.float64) + doffs_px
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(np.isfinite(d) & (d > 0), fb / d, np.nan)
-
-
 def output_error_map(kind: str, values, truth, max_points: int | None = MAX_MAP_POINTS,
                      seed: int = 0) -> DepthErrorMap | PointDistanceMap:
     """The error map of a method's output of ``kind`` against ``truth`` (an
     ``evaluation.field_scores.FieldTruth``): a ``DepthErrorMap`` of a disparity (``values`` (H, W) px,
-    through ``implied_depth``) or a depth map ((H, W) metres) on the true plate's pixels; a
+    through ``field_scores.implied_depth``, the depth its score is made of) or a depth map ((H, W)
+    metres) on the true plate's pixels; a
     ``PointDistanceMap`` of points ((N, 3) world, metres) or a mesh's vertices (``values`` a
     trimesh.Trimesh), at most ``max_points`` of them (``point_distance_map``). ``ValueError`` for a map
     of another shape than the truth's or an unknown kind."""

@@ -77,7 +77,8 @@ if TYPE_CHECKING:
 
 __all__ = ["FieldScoreError", "KINDS", "FieldTruth", "AbsErrors", "DepthScore", "DisparityScore",
            "PointCloudScore", "MeshScore", "score_depth", "score_disparity", "score_point_cloud", "score_mesh",
-           "DEPTH_BAD_MM", "OUTLIER_M", "COVERAGE_RADIUS_M", "SAMPLE_SPACING_M", "MESH_THRESHOLDS_M"]
+           "implied_depth", "DEPTH_BAD_MM", "OUTLIER_M",
+           "COVERAGE_RADIUS_M", "SAMPLE_SPACING_M", "MESH_THRESHOLDS_M"]
 
 KINDS = ("disparity", "depth", "points", "mesh")
 DEPTH_BAD_MM: tuple[float, ...] = (0.1, 0.5, 1.0, 2.0)
@@ -85,15 +86,15 @@ OUTLIER_M = 2e-3  # the paper's depth bound (section V-D)
 COVERAGE_RADIUS_M = 1e-3
 SAMPLE_SPACING_M = 0.5e-3
 MESH_THRESHOLDS_M: tuple[float, ...] = (0.1e-3, 0.2e-3, 0.5e-3, 1e-3, 2e-3)
-MM = 1e3
+MM = 1e3  # millimetres per metre: the unit of every figure the file forms hold
 
 
 class FieldScoreError(UserValueError):
     """A method's output cannot be scored (wrong size, nothing finite, wrong shape): one line."""
 
 
-def _key(x: float) -> str:
-    """0.5 -> '0_5', 2.0 -> '2_0' (threshold in a key)."""
+def threshold_key(x: float) -> str:
+    """0.5 -> '0_5', 2.0 -> '2_0' (a threshold in a file form's key)."""
     return f"{x:g}".replace(".", "_") if not float(x).is_integer() else f"{x:.1f}".replace(".", "_")
 
 
@@ -260,6 +261,17 @@ class DisparityScore:
     doffs_px: float
 
 
+def implied_depth(disparity_px, fb: float, doffs_px: float) -> np.ndarray:
+    """(H, W) z-depth (metres) of a left-view disparity map (px): Z = f B / (d + doffs), ``fb`` the
+    focal length times the baseline (px m), ``doffs_px`` the principal points' offset. An estimate is
+    a finite d > 0 (ETH3D's rule) with d + doffs > 0; NaN elsewhere. The depth a disparity is scored
+    by (``score_disparity``) and drawn by (``evaluation.error_maps``)."""
+    d = np.asarray(disparity_px, np.float64)
+    s = d + doffs_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(d) & (d > 0) & (s > 0), fb / s, np.nan)
+
+
 def score_disparity(disparity_px, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM,
                     what: str = "disparity map") -> DisparityScore:
     """Score a left-view disparity map (H, W) in px (module doc)."""
@@ -267,9 +279,7 @@ def score_disparity(disparity_px, truth: FieldTruth, *, bad_mm=DEPTH_BAD_MM,
     est = np.where(np.isfinite(d) & (d > 0), d, np.inf)  # ETH3D's and the implied depth's estimates
     mb = middlebury_metrics(d, truth.disparity, truth.nonocc, max_disparity_px=ndisp_for(truth.disparity))
     eth = eth3d_metrics(est, truth.disparity, truth.nonocc)
-    s = d + truth.pair.doffs_px
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(np.isfinite(est) & (s > 0), truth.pair.fb / s, np.nan)
+    z = implied_depth(d, truth.pair.fb, truth.pair.doffs_px)
     return DisparityScore(mb, eth, _score_depth_values(z, truth, bad_mm), int(truth.nonocc.sum()),
                           truth.pair.doffs_px)
 

@@ -19,11 +19,11 @@ cloud's projected points, a mesh's true rays that hit it). The share of the true
 a lateral radius of an estimate is another figure, ``surface_coverage_frac`` (an extra column).
 
 ``from_score`` flattens the paper pipeline's typed ``Score``; the other kinds' scores
-(``evaluation.field_scores``) build theirs with ``metrics_row()``.
+(``evaluation.field_scores``) are flattened by the bench (``bench.run.outputs.score_row``).
 
 Registered metrics. A further figure of every scored sample is one ``Metric`` given to
 ``register_metric``: its column name, label, unit, kind and how it is computed from a score. Every
-row built from a score (``MetricsRow.from_score``, ``field_scores``' ``metrics_row()``) then holds
+row built from a score (``MetricsRow.from_score``, ``bench.run.outputs.score_row``) then holds
 its value among the extra columns (``registered_figures``), so it appears in a sweep's results table
 after the shared columns, and ``metric_label``/``metric_unit``/``is_metric`` know it.
 """
@@ -33,6 +33,8 @@ import math
 import re
 from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Mapping
+
+from platebench.errors import RegistrationError
 
 __all__ = ["MetricsRow", "METRIC_FIELDS", "EXTRA_FAMILIES", "metric_unit", "metric_label", "is_metric",
            "Metric", "METRICS", "register_metric", "registered_figures"]
@@ -157,14 +159,15 @@ METRICS: dict[str, Metric] = {}
 
 def register_metric(metric: Metric) -> Metric:
     """Add ``metric`` to ``METRICS``; returns it. TypeError when it is not a ``Metric`` with a
-    callable ``compute`` and a kind of ``METRIC_KINDS``; ValueError when its name is empty, a shared
-    column, of a family of ``EXTRA_FAMILIES`` (a figure the scores already give) or registered already."""
+    callable ``compute`` and a kind of ``METRIC_KINDS``; ``RegistrationError`` (a ValueError) when its
+    name is empty, a shared column, of a family of ``EXTRA_FAMILIES`` (a figure the scores already give)
+    or registered already."""
     if not isinstance(metric, Metric) or not callable(metric.compute) or metric.kind not in METRIC_KINDS:
         raise TypeError(f"{metric!r} is not a Metric with a callable compute and a kind of {', '.join(METRIC_KINDS)}")
     name = metric.name
     if not isinstance(name, str) or not name or name in METRIC_FIELDS or name == "extra" \
             or _family(name) is not None or name in METRICS:
-        raise ValueError(f"metric name {name!r} is not allowed: a new, non-empty name (not a shared column, "
+        raise RegistrationError(f"metric name {name!r} is not allowed: a new, non-empty name (not a shared column, "
                          "an extra column's family or a registered metric)")
     METRICS[name] = metric
     return metric

@@ -30,7 +30,7 @@ import numbers
 from dataclasses import dataclass, field, is_dataclass
 from typing import Any, ClassVar
 
-from platebench.errors import UserValueError
+from platebench.errors import RegistrationError, UserValueError
 
 from .surfaces import arc, height_field, ruled_frame
 
@@ -227,7 +227,7 @@ def register_family(cls: type[DeformationFamily]) -> type[DeformationFamily]:
 
     Raises TypeError when ``cls`` is not a frozen dataclass deriving from ``DeformationFamily``,
     leaves an abstract method (``surface``, ...) undefined, or has layout "strips" without its
-    own ``ruling``; ValueError when its key is registered already."""
+    own ``ruling``; ``RegistrationError`` (a ValueError) when its key is registered already."""
     if not (isinstance(cls, type) and issubclass(cls, DeformationFamily)):
         raise TypeError(f"{cls!r} is not a DeformationFamily subclass")
     if not is_dataclass(cls) or not cls.__dataclass_params__.frozen:
@@ -238,7 +238,7 @@ def register_family(cls: type[DeformationFamily]) -> type[DeformationFamily]:
     if cls.layout == "strips" and cls.ruling is DeformationFamily.ruling:
         raise TypeError(f"deformation family {cls.__name__} has layout 'strips' but no ruling")
     if cls.family in FAMILIES:
-        raise ValueError(f"deformation family {cls.family!r} is registered already "
+        raise RegistrationError(f"deformation family {cls.family!r} is registered already "
                          f"(by {FAMILIES[cls.family].__name__})")
     FAMILIES[cls.family] = cls
     return cls
@@ -468,8 +468,7 @@ class Dome(DeformationFamily):
         _check(self, "sag_m", -math.inf, math.inf, allowed="a finite number of metres")
 
     def max_curvature_per_m(self, length_m: float, width_m: float) -> float:
-        half_diag = 0.5 * math.hypot(length_m, width_m)
-        return 2.0 * abs(self.sag_m) / (half_diag**2 + self.sag_m**2)
+        return abs(self.sphere_curvature_per_m(length_m, width_m))
 
     def sphere_curvature_per_m(self, length_m: float, width_m: float) -> float:
         """Signed sphere curvature c (1/m) on an L x W plate: positive for a dome, negative for a bowl."""

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 import numpy as np
 
 from platebench.errors import UserValueError
+from platebench.scenes.naming import IMAGE_NAMES
 from platebench.scenes.pattern import Pattern
 
 if TYPE_CHECKING:
@@ -46,7 +47,6 @@ __all__ = ["MethodInputs", "Disparity", "Depth", "Points", "Mesh", "OUTPUT_KINDS
            "method_entry", "method_names", "builtin_names", "default_names", "MethodOutputError", "check_output",
            "checked_metrics", "checked_notes", "output_noun"]
 
-IMAGE_NAMES = ("left_passive", "right_passive", "left_active", "right_active")
 OUTPUT_KIND_NAMES = ("disparity", "depth", "points", "mesh")
 
 

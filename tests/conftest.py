@@ -47,4 +47,4 @@ def record_tables(dataset) -> None:
     from platebench.bench.io.layout import RESULTS_CSV, RESULTS_PARQUET
     from platebench.bench.io.table_checksums import write_table_checksums
     d = Path(dataset)
-    write_table_checksums(d, tuple(n for n in (RESULTS_CSV, RESULTS_PARQUET) if (d / n).is_file()))
+    write_table_checksums(d, {n: (d / n).read_bytes() for n in (RESULTS_CSV, RESULTS_PARQUET) if (d / n).is_file()})

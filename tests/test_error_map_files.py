@@ -154,18 +154,52 @@ def test_the_compare_figure_draws_the_maps_scored_with_the_outputs(tiny_sample_d
     assert P.compare_error_figure(cmp).startswith(PNG_SIG)
 
 
+def test_a_disparity_map_and_its_score_count_the_same_estimates_whatever_doffs(tiny_sample_dir):
+    """The error map of a disparity takes its estimates by the score's rule (``field_scores.implied_depth``:
+    finite d > 0 with d + doffs > 0): with doffs != 0, a plate pixel of d <= 0 < d + doffs counts in
+    neither, and the map's statistics are the score's."""
+    import dataclasses
+
+    from platebench.bench.io.field_truth import load_field_truth
+    from platebench.evaluation.error_maps import output_error_map
+    from platebench.evaluation.field_scores import score_disparity
+
+    base = load_field_truth(tiny_sample_dir)
+    for doffs in (-3.0, 3.0):
+        truth = dataclasses.replace(base, pair=dataclasses.replace(base.pair, doffs_px=doffs))
+        with np.errstate(divide="ignore"):
+            d = np.where(truth.mask, truth.pair.fb / truth.depth - doffs, np.inf) * 1.001
+        vs, us = np.nonzero(truth.mask)
+        d[vs[::7], us[::7]] = -doffs / 2  # d < 0 < d + doffs, or d + doffs < 0 < d
+        m, s = output_error_map("disparity", d, truth), score_disparity(d, truth)
+        assert m.errors.count == s.depth.errors.count < truth.mask.sum(), doffs
+        assert m.errors.median_m == pytest.approx(s.depth.errors.median_m, rel=1e-12), doffs
+        assert m.errors.rms_m == pytest.approx(s.depth.errors.rms_m, rel=1e-12), doffs
+        assert m.coverage_frac == pytest.approx(s.depth.coverage_frac, rel=1e-12), doffs
+
+
 def test_the_report_imports_no_error_map_scoring():
-    """The report draws the scored error maps: no module of bench/report imports evaluation.error_maps or
-    the ground truth's loader to score an output."""
+    """The report draws the scored error maps and per-point errors: no module of bench/report imports
+    evaluation.error_maps, the ground truth's loader or bench.run.score to score an output, in any
+    import form (``import X``, ``from X import Y``, ``from X.Y import Z``)."""
     import ast
     from pathlib import Path
+
+    banned = ("platebench.evaluation.error_maps", "platebench.bench.io.field_truth", "platebench.bench.run.score")
+
+    def names(node) -> list[str]:
+        if isinstance(node, ast.Import):
+            return [a.name for a in node.names]
+        if isinstance(node, ast.ImportFrom) and node.module:
+            return [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        return []
 
     report = Path(P.__file__).parent
     for path in sorted(report.glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom):
-                assert node.module not in ("platebench.evaluation.error_maps", "platebench.bench.io.field_truth"), \
-                    (path.name, node.module)
+            for name in names(node):
+                assert not any(name == b or name.startswith(b + ".") for b in banned), (path.name, name)
+                assert "score_files" not in name.split("."), (path.name, name)
 
 
 def test_where_the_report_looks_for_an_error_map(tmp_path):

@@ -141,7 +141,17 @@ def test_an_installed_family_and_metric_reach_a_sweeps_spawned_worker(toys, tmp_
      "from platebench.reconstruction.strategy.cures import CURE_RULES, register_cure_rule\n"
      "register_cure_rule(CURE_RULES['cure 1'])\n",
      "entry point 'again = clash_cure' of group platebench.cure_rules (distribution broken-ext) registers a name "
-     "that is registered already (ValueError: cure rule 'cure 1' is registered already)"),
+     "that is registered already or not allowed (RegistrationError: cure rule 'cure 1' is registered already)"),
+    ("[platebench.metrics]\ntwice = twice_metric\n",
+     "from platebench.evaluation.metrics_row import Metric, register_metric\n"
+     "m = Metric('twice_frac', 'a metric given twice', 'fraction', lambda score: None)\n"
+     "register_metric(m)\nregister_metric(m)\n",
+     "entry point 'twice = twice_metric' of group platebench.metrics (distribution broken-ext) registers a name "
+     "that is registered already or not allowed (RegistrationError: metric name 'twice_frac' is not allowed: a new, "
+     "non-empty name (not a shared column, an extra column's family or a registered metric))"),
+    ("[platebench.metrics]\nvalue = value_metric\n", "raise ValueError('this value is not allowed')\n",
+     "entry point 'value = value_metric' of group platebench.metrics (distribution broken-ext) failed while "
+     "it was imported (ValueError: this value is not allowed)"),
     ("[platebench.families]\nraises = raising_family\n", "raise RuntimeError('no family here')\n",
      "entry point 'raises = raising_family' of group platebench.families (distribution broken-ext) failed while "
      "it was imported (RuntimeError: no family here)"),

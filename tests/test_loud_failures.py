@@ -138,10 +138,23 @@ def test_compare_and_evaluate_refuse_a_reconstruction_of_another_sample(work, tm
 def test_check_made_from_is_the_one_check():
     import inspect
 
-    from platebench.bench.cli import compare
-    from platebench.bench.run import score
-    assert "check_made_from(" in inspect.getsource(score.score_files)
-    assert "check_made_from(" in inspect.getsource(compare._check_paper_recon)
+    from platebench.bench.run import compare, score
+    for fn in (score.score_files, compare.paper_reconstruction):
+        assert "check_made_from(" in inspect.getsource(fn) and "verify_reconstruction(" in inspect.getsource(fn)
+
+
+def test_compare_refuses_an_edited_reconstruction_as_evaluate_does(work, tmp_path):
+    r = tmp_path / "r1"
+    shutil.copytree(work / "r1", r)
+    data = bytearray((r / "points.csv").read_bytes())
+    at = next(i for i in range(len(data) - 1, -1, -1) if chr(data[i]).isdigit())  # a digit of the last point
+    data[at] = ord("1") if data[at] != ord("1") else ord("2")
+    (r / "points.csv").write_bytes(bytes(data))
+    p = run_cli("compare", work / "s1", "--methods", "paper", "--recon", r, "--out", tmp_path / "c")
+    line = one_line(p, str(r / "points.csv"), "differs from the checksum")
+    assert not (tmp_path / "c").exists()
+    q = run_cli("evaluate", work / "s1", r, "--out", tmp_path / "score.json")
+    assert one_line(q) == line  # one check for both
 
 
 @pytest.mark.render

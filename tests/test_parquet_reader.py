@@ -15,20 +15,44 @@ import pytest
 from platebench.bench.io.parquet import read_parquet
 
 REPO = Path(__file__).resolve().parents[1]
-PRODUCT = ("plates", "scenes", "reconstruction", "evaluation", "bench")
-SCANNER_CALLS = {"read_table", "read_parquet", "ParquetDataset", "dataset"}
+SCANNED = ("plates", "scenes", "reconstruction", "evaluation", "bench", "tools")
+SCANNER_READS = {"pyarrow.parquet.read_table", "pyarrow.parquet.read_pandas", "pyarrow.parquet.ParquetDataset",
+                 "pandas.read_parquet", "pyarrow.dataset.dataset"}
+
+
+def _dotted(node: ast.AST) -> str:
+    """``a.b.c`` of a Name/Attribute chain ('' for anything else)."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    return ".".join([node.id, *reversed(parts)]) if isinstance(node, ast.Name) else ""
 
 
 def scanner_reads(tree: ast.AST) -> list[int]:
-    """Lines of ``tree`` that call a Parquet reader that may use Arrow's scanner."""
-    return [n.lineno for n in ast.walk(tree)
-            if isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute) and n.func.attr in SCANNER_CALLS
-            and isinstance(n.func.value, ast.Name) and n.func.value.id in {"pq", "pd", "pandas", "ds", "pa"}]
+    """Lines of ``tree`` that call a Parquet reader that may use Arrow's scanner (``SCANNER_READS``),
+    however it was imported (``import pyarrow.parquet as pq``, ``from pyarrow import parquet``,
+    ``from pyarrow.parquet import read_table``, or the full dotted name)."""
+    alias = {}
+    for n in ast.walk(tree):
+        if isinstance(n, ast.Import):
+            alias.update({a.asname or a.name.split(".")[0]: a.name if a.asname else a.name.split(".")[0]
+                          for a in n.names})
+        elif isinstance(n, ast.ImportFrom) and n.module:
+            alias.update({a.asname or a.name: f"{n.module}.{a.name}" for a in n.names})
+    lines = []
+    for n in ast.walk(tree):
+        if isinstance(n, ast.Call) and (name := _dotted(n.func)):
+            head, _, rest = name.partition(".")
+            full = ".".join(p for p in (alias.get(head, head), rest) if p)
+            if full in SCANNER_READS:
+                lines.append(n.lineno)
+    return sorted(lines)
 
 
-def test_the_product_reads_parquet_only_through_read_parquet():
+def test_the_package_and_its_tools_read_parquet_only_through_read_parquet():
     found = []
-    for d in PRODUCT:
+    for d in SCANNED:
         for p in (REPO / d).rglob("*.py"):
             if p == REPO / "bench" / "io" / "parquet.py":
                 continue
@@ -36,9 +60,16 @@ def test_the_product_reads_parquet_only_through_read_parquet():
     assert found == [], f"read Parquet with bench.io.parquet.read_parquet: {found}"
 
 
-def test_the_rule_finds_a_planted_scanner_read():
-    planted = "import pyarrow.parquet as pq\nimport pandas as pd\nt = pq.read_table('x')\nf = pd.read_parquet('y')\n"
-    assert scanner_reads(ast.parse(planted)) == [3, 4]
+@pytest.mark.parametrize("planted, lines", [
+    ("import pyarrow.parquet as pq\nimport pandas as pd\nt = pq.read_table('x')\nf = pd.read_parquet('y')\n", [3, 4]),
+    ("import pyarrow.parquet\nt = pyarrow.parquet.read_table('x')\n", [2]),
+    ("from pyarrow.parquet import read_table as rt\nt = rt('x')\n", [2]),
+    ("from pyarrow import parquet\nimport pyarrow.dataset as ds\nt = parquet.ParquetDataset('x')\nd = ds.dataset('y')\n",
+     [3, 4]),
+    ("import pyarrow.parquet as pq\nt = pq.ParquetFile('x').read(use_threads=False)\npq.write_table(t, 'y')\n", []),
+])
+def test_the_rule_finds_a_planted_scanner_read_however_it_is_imported(planted, lines):
+    assert scanner_reads(ast.parse(planted)) == lines
 
 
 @pytest.mark.parametrize("as_bytes", [True, False])

@@ -351,7 +351,7 @@ def test_peers_that_render_their_own_patterns_run_on_a_pair_a_robot_took(tmp_pat
     assert not any("differs" in n for n in cmp.notes), cmp.notes
     row = next(x for x in cmp.rows if x.name == "phase")
     f = row.figures
-    assert row.result is not None and f.coverage_frac > 0.8, (row.notes, f)
+    assert row.output is not None and f.coverage_frac > 0.8, (row.notes, f)
     assert 0.05 < f.error_rms_mm < 30.0, f
 
 

@@ -424,7 +424,7 @@ def test_report_renders_in_headless_chromium(tmp_path):
 
 
 @pytest.mark.render
-def test_error_map_on_a_real_tiny_sample(tmp_path):
+def test_error_map_on_a_real_tiny_sample(tmp_path, monkeypatch):
     from platebench.bench.config import SampleConfig, SceneParams
     from platebench.bench.io.recon_files import image_checksums, write_reconstruction
     from platebench.bench.io.sample_files import load_inputs, write_sample
@@ -447,7 +447,14 @@ def test_error_map_on_a_real_tiny_sample(tmp_path):
     rdir = write_reconstruction(ds / "samples" / "0000" / "recon" / "paper", rec, sdir,
                                 image_checksums(inputs.images))
 
-    data = P.error_map_data(sdir, rdir)
+    # unevaluated: the report does not score, it says so
+    notes = []
+    monkeypatch.setattr(P, "_empty", lambda ax, text: notes.append(text))
+    P.plot_error_map(sdir, rdir, tmp_path / "unscored.png")
+    assert notes == [f"error map unavailable: {P.NOT_EVALUATED}"] * 2
+    monkeypatch.undo()
+    from platebench.bench.run.score import score_files
+    data = P.error_map_data(sdir, rdir, score_files(sdir, rdir).per_point)
     assert len(data.centres) == len(rec.points) > 0
     assert np.all(np.isfinite(data.centre_err_mm)) and np.all(data.centre_err_mm >= 0)
     assert (data.centre_kind == "3d").sum() > 0  # identities from the GT feature map

@@ -208,7 +208,7 @@ def test_the_checker_leaves_what_is_not_scoring_alone():
 
 def test_the_scored_per_point_errors_are_written_and_read_back_exactly():
     """What the report's error map draws is what was scored: score.json's ``per_point`` section reads back as
-    the same errors (millimetres in the file, metres in the record), to the last bit."""
+    the same errors: in millimetres, as the file holds them, to the last bit (metres are those divided by 1000)."""
     import json
 
     import numpy as np

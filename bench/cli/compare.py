@@ -22,16 +22,17 @@ directory) holding ``points.csv`` (world x, y, z in metres) and optionally
 their left-image projection and by distance to the true plate surface. Without such
 files the row is left out, with a note.
 
-A reconstruction is scored only against the sample it was made from (``bench.run.score.check_made_from``,
-the check ``platebench evaluate`` makes): one made from other images is refused, as is a ``--recon``
-that is not a reconstruction directory.
+A reconstruction is scored only as ``platebench reconstruct`` wrote it and against the sample it was
+made from (``bench.run.compare.paper_reconstruction``: the checks ``platebench evaluate`` makes): one
+whose files differ from its stamp's checksums or made from other images is refused, as is a
+``--recon`` that is not a reconstruction directory.
 
 Outputs (``--out``, default ``SAMPLE_DIR/compare``): ``compare.json`` (every figure)
 and ``compare.png`` (signed depth-error map per method).
 
 What the flags name is checked before the output path: the methods (built in, installed or
-``module:function``), ``--recon``, the SGBM search range; whether the reconstruction was made from the
-sample right after it; all of it before any render. Exit status
+``module:function``), ``--recon``, the SGBM search range; the paper row's reconstruction is checked by
+``compare_sample`` before any render. Exit status
 (``bench/cli/main.py``): 0 when every method gave its row; 1 when a method failed (recorded in
 compare.json) or no method gave a row, with one summary line on stderr; 2 refused.
 """
@@ -46,6 +47,7 @@ from typing import TYPE_CHECKING
 from platebench.bench.files import require_dir
 from platebench.bench.io.atomic import write_bytes, write_json
 from platebench.bench.io.outputs import check_output, output_dir
+from platebench.bench.report.text import num_text as _num
 from platebench.errors import UserValueError
 
 if TYPE_CHECKING:
@@ -93,10 +95,6 @@ def format_table(cmp: Comparison) -> str:
     return "\n".join(lines)
 
 
-def _num(x) -> str:
-    return "-" if x is None or x != x else f"{x:.4f}"
-
-
 
 
 
@@ -105,7 +103,7 @@ def _num(x) -> str:
 
 # ----------------------------------------------------------------------------- CLI
 def _recon_inputs(sample: Path, recon: Path | None) -> list[Path]:
-    """What compare reads of the paper's reconstruction (``bench.run.compare.find_paper_reconstruction``):
+    """What compare reads of the paper's reconstruction (``bench.run.compare.paper_reconstruction``):
     the --recon folder, else the points.csv and recon.json beside the sample or in its recon/."""
     if recon is not None:
         return [Path(recon)]
@@ -133,18 +131,6 @@ def _check_recon_flag(recon: Path | None) -> None:
         if not (recon / "points.csv").is_file():
             raise UserValueError(f"{recon / 'points.csv'}: file is missing (--recon is the directory 'platebench "
                                  "reconstruct' wrote for this sample)")
-
-
-def _check_paper_recon(sample: Path, recon: Path | None) -> None:
-    """The paper row's reconstruction (``--recon``, or the one beside the sample) must have been made from
-    this sample (``bench.run.score.check_made_from``, the check of ``platebench evaluate``)."""
-    from platebench.bench.run.compare import find_paper_reconstruction  # noqa: PLC0415
-    from platebench.bench.run.score import check_made_from  # noqa: PLC0415
-
-    found = find_paper_reconstruction(sample, recon)
-    if found is not None:
-        _points, meta, d = found
-        check_made_from(sample, d, meta)
 
 
 def _check_sgbm_range(sample: Path, depth_range_m, method: str) -> None:
@@ -233,8 +219,6 @@ def run(args) -> int:
     rule = {"overwrite": args.overwrite, "inputs": [args.sample, *_recon_inputs(args.sample, args.recon)],
             "slots": [Path(args.sample) / "compare"]}
     check_output(out, "comparison", **rule)
-    if "paper" in args.methods:  # the pair, once the output rule has been checked
-        _check_paper_recon(Path(args.sample), args.recon)
     with output_dir(out, "comparison", **rule) as stage, bar(len(args.methods) + 1, "compare", unit="method") as pbar:
         def say(msg):  # progress on a terminal only: a failure's one line stands alone on stderr
             if pbar.n < pbar.total - 1:

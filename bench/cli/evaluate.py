@@ -89,10 +89,16 @@ def _kind(args) -> tuple[str | None, Path | None]:
 
 
 def _out(args, kind: str, path: Path) -> Path:
-    """The score JSON's path after the output rule (``bench.io.outputs``), checked before any scoring."""
+    """The score JSON's path after the output rule (``bench.io.outputs``), checked before any scoring;
+    for a file, the error map beside it (``bench.io.error_map_files.error_map_beside``) too."""
     slot = path / "score.json" if kind == "recon" else path.with_name(f"{path.stem}.score.json")
     out = args.out or slot
     check_output(out, "score", overwrite=args.overwrite, inputs=[args.sample_dir, path], slots=[slot])
+    if kind != "recon":
+        from platebench.bench.io.error_map_files import error_map_beside  # noqa: PLC0415
+
+        check_output(error_map_beside(out), "error map", overwrite=args.overwrite, inputs=[args.sample_dir, path],
+                     slots=[error_map_beside(slot)])
     return out
 
 

@@ -13,9 +13,9 @@ __all__ = ["config_from_args", "realism_camera_at_width", "refuse_robot_errors",
 
 
 def config_from_args(args, cfg: SampleConfig) -> SampleConfig:
-    """The ``SampleConfig`` of an argparse namespace holding the sample flags: ``cfg``, ``--config``'s file
-    (``bench.io.config_files.load_config``, the lens checked at the size asked for), then the camera or
-    realism preset, then each flag given.
+    """The ``SampleConfig`` of an argparse namespace holding the sample flags: ``cfg`` (the caller's
+    configuration, ``--config``'s file as ``bench.io.config_files.load_config`` reads it at the size asked
+    for: this layer does not read files), then the camera or realism preset, then each flag given.
     Raises ``UserValueError`` when both ``--camera`` and ``--realism`` are given, or ``--realism-seed``
     is outside 0 to 2^31-1; the configuration's own checks raise theirs."""
     if getattr(args, "camera", None) and getattr(args, "realism", None):

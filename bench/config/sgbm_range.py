@@ -1,9 +1,8 @@
 """The SGBM peer's disparity search checked against a sample's rig before any render (``platebench
 compare``): OpenCV runs a search only when ``width - (minDisparity + numDisparities) > blockSize // 2``
-(numDisparities a positive multiple of 16, ``reconstruction.peers.sgbm.disparity_range``)."""
+(numDisparities a positive multiple of 16, ``reconstruction.peers.sgbm.disparity_range``; blockSize
+``reconstruction.peers.sgbm.BLOCK_SIZE``)."""
 from __future__ import annotations
-
-import inspect
 
 from platebench.errors import UserValueError
 
@@ -14,9 +13,9 @@ def check_sgbm_range(rig, depth_range_m: tuple[float, float] | None, method: str
     """Raise ``UserValueError`` when the SGBM search for ``depth_range_m`` (nearest, farthest depth in
     metres; None: the rig's default range) cannot run on ``rig``'s images (a ``scenes.rig.StereoRig``),
     naming the method (``sgbm`` or ``sgbm-passive``), the range asked for and the nearest depth allowed."""
-    from platebench.reconstruction.peers.sgbm import default_depth_range, disparity_range, sgbm  # noqa: PLC0415
+    from platebench.reconstruction.peers.sgbm import BLOCK_SIZE, default_depth_range, disparity_range  # noqa: PLC0415
 
-    block = inspect.signature(sgbm).parameters["block_size"].default
+    block = BLOCK_SIZE
     try:
         rng = depth_range_m if depth_range_m is not None else default_depth_range(rig)
         d_min, n_disp = disparity_range(rig, rng)

@@ -104,15 +104,25 @@ def _perf_file(path: Path) -> bool:
     return _dict_with(path, generator="platebench perf")
 
 
-def _npz_images(path: Path) -> bool:
+def _npz_names(path: Path) -> list[str]:
+    """The member names of the ``.npz`` (zip) file ``path``; [] when it is none."""
     import zipfile  # noqa: PLC0415
 
     try:
         with zipfile.ZipFile(path) as z:
-            names = z.namelist()
+            return z.namelist()
     except (OSError, zipfile.BadZipFile, ValueError):
-        return False
+        return []
+
+
+def _npz_images(path: Path) -> bool:
+    names = _npz_names(path)
     return bool(names) and all(n.endswith(".npy") for n in names) and any(n.startswith("seed1_") for n in names)
+
+
+def _error_map_file(path: Path) -> bool:
+    """An error map ``platebench evaluate`` writes beside its score (``bench.io.error_map_files``)."""
+    return {"kind.npy", "count.npy", "median_m.npy", "rms_m.npy"} <= set(_npz_names(path))
 
 
 @dataclass(frozen=True)
@@ -156,6 +166,7 @@ KINDS: dict[str, OutputKind] = {k.label: k for k in (
     OutputKind("leaderboard", "benchmark leaderboard", "leaderboard.json",
                lambda p: _dict_with(p, format="platebench-leaderboard")),
     OutputKind("score", "evaluate", "", _score_file, directory=False),
+    OutputKind("error map", "evaluate", "", _error_map_file, directory=False),
     OutputKind("perf figures", "perf", "", _perf_file, directory=False),
     OutputKind("perf images", "perf variants --save", "", _npz_images, directory=False),
 )}

@@ -27,7 +27,7 @@ from platebench.bench.io.atomic import (
     write_json,
     write_text,
 )
-from platebench.bench.io.codecs import encode
+from platebench.bench.io.codecs import decode, encode
 from platebench.bench.io.images import DatasetError, check_ply, read_npy
 from platebench.bench.io.outputs import write_stamp
 from platebench.bench.io.sample_files import read_json
@@ -132,18 +132,7 @@ class ReconFiles:
     @property
     def false_boundary(self) -> FalseBoundaryTest:
         """recon.json's ``false_boundary`` section as the counting test it records."""
-        return _false_boundary(self.meta.get("false_boundary") or {})
-
-
-def _false_boundary(d) -> FalseBoundaryTest:
-    """A ``FalseBoundaryTest`` from recon.json's ``false_boundary`` section (``encode``'s layout). A key the
-    section lacks reads as: no squares detected, ``expected`` -1 (unknown), the test's flag
-    ``false_boundary_detected`` (False) as the counting test's, arrays that agree, no cut squares."""
-    flagged = bool(d.get("false_boundary_detected", False))
-    return FalseBoundaryTest({str(k): int(v) for k, v in (d.get("detected") or {}).items()}, int(d.get("expected", -1)),
-                             tuple(int(i) for i in d.get("expected_ids") or ()), bool(d.get("counting_test", flagged)),
-                             bool(d.get("arrays_disagree", False)),
-                             {str(k): int(v) for k, v in (d.get("cut_squares") or {}).items()})
+        return decode(FalseBoundaryTest, self.meta.get("false_boundary") or {})
 
 
 def load_reconstruction(recon_dir: Path) -> ReconFiles:

@@ -31,11 +31,9 @@ def file_form(v):
     """``v`` as a file holds it: a record (anything with ``to_dict``, or a type with a codec in
     ``bench.io.codecs``) as its dict, a mapping as a dict and a tuple or list as a list of their items'
     file forms, a NaN or infinite number as None."""
-    from platebench.bench.io.codecs import _load  # noqa: PLC0415  (the codecs import the records)
-    from platebench.bench.io.codecs.base import encode  # noqa: PLC0415
+    from platebench.bench.io.codecs import encode, has_codec  # noqa: PLC0415  (the codecs import the records)
 
-    _load()  # every codec registered, so that the check below sees them all
-    if encode.dispatch(type(v)) is not encode.dispatch(object):
+    if has_codec(type(v)):
         return encode(v)
     if hasattr(v, "to_dict"):
         return v.to_dict()

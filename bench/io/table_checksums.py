@@ -7,8 +7,10 @@ entry per table written. A table read without its entry, or whose bytes do not g
 (``DatasetError``) with the table's path."""
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
+from typing import Mapping
 
 from platebench.bench.files import file_sha256
 from platebench.bench.io.atomic import write_text
@@ -18,11 +20,11 @@ from platebench.bench.io.layout import RESULTS_CHECKSUMS
 FORMAT = "platebench-results-checksums"
 
 
-def write_table_checksums(dataset: Path, names: tuple[str, ...]) -> None:
-    """Record (atomically) the sha256 of the tables ``names`` in ``dataset``, as they are on disk now."""
-    d = Path(dataset)
-    doc = {"format": FORMAT, "sha256": {n: file_sha256(d / n) for n in names}}
-    write_text(d / RESULTS_CHECKSUMS, json.dumps(doc, indent=1) + "\n")
+def write_table_checksums(dataset: Path, tables: Mapping[str, bytes]) -> None:
+    """Record (atomically) in ``dataset`` the sha256 of each table, given as name -> the bytes written
+    to ``dataset / name``."""
+    doc = {"format": FORMAT, "sha256": {n: hashlib.sha256(b).hexdigest() for n, b in tables.items()}}
+    write_text(Path(dataset) / RESULTS_CHECKSUMS, json.dumps(doc, indent=1) + "\n")
 
 
 def recorded_table_checksums(dataset: Path) -> dict[str, str] | None:

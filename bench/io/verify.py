@@ -24,7 +24,8 @@ from platebench.bench.io.images import DatasetError
 from platebench.bench.io.layout import FORMAT, MANIFEST, RESULT, SAMPLE, SAMPLES
 from platebench.bench.io.outputs import STAMP, file_sha256, read_stamp
 
-__all__ = ["Checksums", "sample_checksums", "verify_sample", "verify_inputs", "refuse_linked_inputs", "refuse_links",
+__all__ = ["Checksums", "sample_checksums", "stamp_checksums", "verify_reconstruction", "verify_sample",
+           "verify_inputs", "refuse_linked_inputs", "refuse_links",
            "find_links", "file_sha256", "dataset_manifest"]
 
 
@@ -65,10 +66,26 @@ def sample_checksums(sample_dir: Path, manifest: dict | None = None) -> Checksum
         res = _json(d.parent / RESULT)
         if isinstance(res, dict) and isinstance(res.get("files"), dict) and res["files"]:
             return Checksums(_under(res["files"], SAMPLE), f"{d.parent / RESULT}", sid)
+    return stamp_checksums(d, "sample")
+
+
+def stamp_checksums(directory: Path, kind: str) -> Checksums | None:
+    """The checksums the stamp of ``directory`` records (``bench.io.outputs.STAMP``: ``platebench render``
+    writes a "sample" stamp, ``platebench reconstruct`` a "reconstruction" one), or None when it has no
+    stamp of that ``kind``."""
+    d = Path(directory)
     st = read_stamp(d)
-    if st is not None and st.get("kind") == "sample":
+    if st is not None and st.get("kind") == kind:
         return Checksums({k: v for k, v in st["files"].items() if isinstance(k, str)}, f"{d / STAMP}", d.name)
     return None
+
+
+def verify_reconstruction(recon_dir: Path) -> None:
+    """Refuse (one-line ``DatasetError`` naming the file) a file of a reconstruction directory that is
+    missing, is a link or differs from the checksum its stamp records (``stamp_checksums``, kind
+    "reconstruction"); a directory without such a stamp records nothing to compare. What every reader
+    that scores a reconstruction checks first (``platebench evaluate``, ``platebench compare``)."""
+    verify_sample(recon_dir, stamp_checksums(recon_dir, "reconstruction"), then="refusing to score it")
 
 
 def _under(files: dict, folder: str) -> dict:

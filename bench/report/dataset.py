@@ -17,7 +17,8 @@ from platebench.bench.io.layout import RECON, method_folder
 from platebench.bench.io.sweep_records import BEND_COLUMN, VERDICT_COLUMN
 from platebench.bench.report import plots as P
 from platebench.bench.report import summary as S
-from platebench.bench.report.inputs import load_results, read_manifest, records, sample_folder
+from platebench.bench.report.experiment import scored_errors
+from platebench.bench.report.inputs import load_recon, load_results, read_manifest, records, sample_folder
 from platebench.bench.report.page import Page
 from platebench.bench.report.values import fmt
 from platebench.evaluation.metrics_row import METRIC_FIELDS, metric_label, metric_unit
@@ -378,7 +379,13 @@ def _error_maps(page: Page, ds: Path, frame: pd.DataFrame, prefix: str) -> list[
         desc = ", ".join(_describe(k, r.get(k)) for k in _DESCRIBE if r.get(k) is not None)
         name, sample = f"{prefix}error_map_{_safe(sid)}_{_safe(meth)}", recon.parent.parent / "sample"
         if (recon / "points.csv").is_file():
+            try:
+                per_point = scored_errors(load_recon(recon)[1])
+            except (OSError, ValueError) as e:  # a damaged recon.json or score.json
+                page.leave_out(f"{str(e).splitlines()[0]}: the error map of sample {sid} is not shown")
+                continue
             out.append(page.plot(name, P.plot_error_map, sample, recon, title=f"sample {sid}, {meth}: {desc}",
+                                 per_point=per_point,
                                  caption=f"Sample {sid} ({desc}), method {meth}; {_PAPER_MAP_CAPTION}"))
         else:
             out.append(page.plot(name, P.plot_output_error_map, sample, recon, title=f"sample {sid}, {meth}: {desc}",

@@ -33,7 +33,7 @@ from platebench.bench.report.values import finite, fmt
 from platebench.evaluation.metrics_row import MetricsRow, metric_label, metric_unit
 
 __all__ = ["recon_section", "sample_section", "compare_section", "score_section", "is_reference", "score_figures",
-           "warned_figures"]
+           "warned_figures", "scored_errors"]
 
 _TITLES = {p.name: p.title for p in PARAMETERS}
 # key figures of the paper's score.json (read back as a ``Score``): its results columns
@@ -202,6 +202,17 @@ def _recon_facts(meta: dict) -> list[tuple[str, object]]:
             ("reconstruction time (s)", RunTimings.of(meta).total_s)]
 
 
+def scored_errors(score: dict | None):
+    """The per-point errors (``evaluation.score.PerPointErrors``) of a parsed score.json of the
+    paper's pipeline; None when not evaluated, another method's document, or without them."""
+    if not score or not _is_paper_score(score):
+        return None
+    try:
+        return score_record(score).per_point
+    except ValueError:  # not the paper's score.json layout
+        return None
+
+
 def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True) -> dict:
     """A reconstruction with its score (when evaluated) and the sample it came from (its details
     only when ``show_sample``; a link otherwise, for a sample several reconstructions share)."""
@@ -222,6 +233,7 @@ def recon_section(page: Page, recon: Path, prefix: str, show_sample: bool = True
         notes.append(f"the sample of {page.rel(recon)} was not found (recon.json names {meta.get('sample_dir')!r})")
     elif (recon / "points.csv").is_file():
         rec["plots"].append(page.plot(f"{prefix}error_map", P.plot_error_map, sample, recon,
+                                      per_point=scored_errors(score),
                                       caption="Top view of the plate in world X/Y (mm). Left: the reconstructed "
                                               "surface coloured by its exact distance to the ground-truth mesh (mm), "
                                               "black = true boundary, red dashed = reconstructed boundary. Right: "

@@ -40,7 +40,7 @@ from platebench.evaluation.stats import ErrorStats
 
 __all__ = ["plot_error_vs_bend", "plot_detection_vs_bend", "plot_hidden_fraction_vs_bend",
            "plot_cure_success_vs_bend", "plot_l_formula", "plot_error_map", "plot_method_comparison",
-           "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "scored_per_point", "bend_bins",
+           "plot_metric_vs_axis", "ErrorMapData", "error_map_data", "scored_per_point", "NOT_EVALUATED", "bend_bins",
            "compare_error_figure", "plot_output_error_map", "output_error_map_file",
            "output_file", "plot_accuracy_study", "LeftOut", "drawn"]
 
@@ -811,13 +811,18 @@ class ErrorMapData:
     centre_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="<U7"))
 
 
-def error_map_data(sample_dir, recon_dir) -> ErrorMapData:
-    """What the error map shows (``ErrorMapData``), from a sample directory and a reconstruction
-    directory (metres in, millimetres out): the GT outline, the reconstructed surface's vertices
-    and faces with their exact distance to the GT mesh, the reconstructed boundary, and the square
-    centres with their 3D error against the true centre, or, where the identity is unknown, their
-    distance to the true surface (``centre_kind`` says which). The errors are the score's
-    (``evaluation.score.PerPointErrors``, ``scored_per_point``)."""
+NOT_EVALUATED = "not evaluated (run 'platebench evaluate')"
+
+
+def error_map_data(sample_dir, recon_dir, per_point=None) -> ErrorMapData:
+    """What the error map shows (``ErrorMapData``), from a sample directory, a reconstruction
+    directory and the per-point errors its score.json holds (``per_point``: the parsed
+    ``evaluation.score.PerPointErrors``, metres; millimetres out): the GT outline, the reconstructed
+    surface's vertices and faces with their exact distance to the GT mesh, the reconstructed
+    boundary, and the square centres with their 3D error against the true centre, or, where the
+    identity is unknown, their distance to the true surface (``centre_kind`` says which). Raises
+    ``ValueError`` (``NOT_EVALUATED``) when ``per_point`` is None or does not fit the reconstruction
+    (``scored_per_point``), and what reading the files raises (``OSError``, ``DatasetError``)."""
     from platebench.bench.io.images import read_npy  # noqa: PLC0415
     from platebench.bench.io.recon_files import load_reconstruction  # noqa: PLC0415
 
@@ -826,7 +831,7 @@ def error_map_data(sample_dir, recon_dir) -> ErrorMapData:
         else None
     rec = load_reconstruction(recon_dir)
     has_surface = rec.surface is not None and len(rec.surface.vertices) > 0
-    per = scored_per_point(sample_dir, recon_dir, len(rec.points), len(rec.surface.vertices) if has_surface else 0)
+    per = scored_per_point(per_point, len(rec.points), len(rec.surface.vertices) if has_surface else 0)
     out = dict(gt_boundary=gt_boundary, rec_boundary=rec.boundary if len(rec.boundary) else None, centres=rec.points,
                feature_id=rec.feature_id)
     mm = 1e3
@@ -839,32 +844,21 @@ def error_map_data(sample_dir, recon_dir) -> ErrorMapData:
     return ErrorMapData(**out)
 
 
-def scored_per_point(sample_dir, recon_dir, n_points: int, n_vertices: int):
-    """The per-point errors of a reconstruction (``evaluation.score.PerPointErrors``, metres) as
-    scored: read from its score.json (written by ``platebench evaluate`` and the sweep) when that
-    holds them for ``n_points`` centres and ``n_vertices`` surface vertices; otherwise (not evaluated
-    yet) the score of ``bench.run.score.score_files``. Raises what scoring raises (``DatasetError``,
-    a ``ValueError``, on files that cannot be read or a reconstruction not made from the sample)."""
-    from platebench.bench.io.records import score_record  # noqa: PLC0415
-    from platebench.bench.io.sample_files import read_json  # noqa: PLC0415
+def scored_per_point(per_point, n_points: int, n_vertices: int):
+    """``per_point`` (the ``evaluation.score.PerPointErrors`` of a parsed score.json, metres) when it
+    holds errors for ``n_points`` centres and ``n_vertices`` surface vertices; a reconstruction
+    without centres or surface needs none. Raises ``ValueError`` (``NOT_EVALUATED``) when it is None
+    (not evaluated) or scores another reconstruction. The report never scores."""
     from platebench.evaluation.score import PerPointErrors  # noqa: PLC0415
 
-    def fits(per) -> bool:
-        surf = per.surface_distance_m
-        return len(per.centre_error_m) == n_points and (len(surf) if surf is not None else 0) == n_vertices
-
-    path = Path(recon_dir) / "score.json"
-    if path.is_file():
-        try:
-            per = score_record(read_json(path)).per_point
-        except ValueError:  # not the paper's score.json layout
-            per = None
-        if per is not None and fits(per):
-            return per
-    from platebench.bench.run.score import score_files  # noqa: PLC0415
-
-    per = score_files(Path(sample_dir), Path(recon_dir)).per_point
-    return per if per is not None else PerPointErrors(np.zeros(0), np.zeros(0, bool))
+    if per_point is None:
+        if n_points == 0 and n_vertices == 0:
+            return PerPointErrors(np.zeros(0), np.zeros(0, bool))
+        raise ValueError(NOT_EVALUATED)
+    surf = per_point.surface_distance_m
+    if len(per_point.centre_error_m) != n_points or (len(surf) if surf is not None else 0) != n_vertices:
+        raise ValueError(f"score.json scores another reconstruction: {NOT_EVALUATED}")
+    return per_point
 
 
 def _outline(ax, d: ErrorMapData) -> None:
@@ -940,15 +934,18 @@ def _same_window(axes, d: ErrorMapData) -> None:
         ax.grid(True, alpha=0.25)
 
 
-def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: ErrorMapData | None = None) -> Path:
+def plot_error_map(sample_dir, recon_dir, path, title: str | None = None, data: ErrorMapData | None = None,
+                   per_point=None) -> Path:
     """Error map over the plate, top view in world X/Y (mm): left, the reconstructed surface
     coloured by its exact distance to the ground-truth mesh (mm), with the true boundary (black)
     and the reconstructed one (red dashed); right, the triangulated square centres coloured by
-    their 3D error (mm) over the true outline. Files that cannot be read give a figure saying so."""
+    their 3D error (mm) over the true outline. Drawn from ``data``, or else from the scored
+    per-point errors ``per_point`` (the parsed score.json's, ``error_map_data``). Without them
+    (not evaluated), or with files that cannot be read, a figure saying so."""
     fig = _figure(11.0, 4.6)
     a1, a2 = fig.subplots(1, 2)
     try:
-        d = data if data is not None else error_map_data(sample_dir, recon_dir)
+        d = data if data is not None else error_map_data(sample_dir, recon_dir, per_point)
     except (OSError, ValueError) as e:  # missing or damaged sample / reconstruction files
         for ax in (a1, a2):
             _empty(ax, f"error map unavailable: {str(e).splitlines()[0][:120]}")
@@ -1066,11 +1063,12 @@ def plot_output_error_map(sample_dir, where, path, kind: str | None = None, titl
 
 
 def compare_error_figure(cmp) -> bytes:
-    """PNG: signed depth error (mm) per dense method on the plate's bounding box, drawn from each row's
-    ``error_map`` (scored with its output by ``bench.run.compare``)."""
+    """PNG: signed depth error (mm) per dense method (a disparity or depth output) on the plate's bounding
+    box, drawn from each row's ``error_map`` (a depth error map, scored with its output by
+    ``bench.run.compare``); point clouds and meshes are not drawn."""
     import io  # noqa: PLC0415
 
-    dense = [r for r in cmp.rows if r.error_map is not None]
+    dense = [r for r in cmp.rows if r.kind in ("disparity", "depth") and r.error_map is not None]
     n = max(len(dense), 1)
     fig = _figure(3.6 * n, 4.4)
     axes = fig.subplots(1, n, squeeze=False)

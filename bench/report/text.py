@@ -12,7 +12,8 @@ if TYPE_CHECKING:
     from platebench.bench.io.sensing_records import SensingResult
 
 __all__ = ["format_score_table", "format_field_table", "format_calibration_table", "acquisition_lines",
-           "step_lines", "summary_lines", "realism_lines", "grid_text", "legend_lines", "table_lines"]
+           "step_lines", "summary_lines", "realism_lines", "grid_text", "legend_lines", "table_lines",
+           "num_text"]
 
 
 def format_score_table(score) -> str:
@@ -169,12 +170,13 @@ def grid_text(desc: dict | None) -> str:
 
 
 # ----------------------------------------------------------------------------- the false-boundary study
-def _num(v, spec=".2f"):
-    return "-" if v is None else format(v, spec)
+def num_text(x, spec: str = ".4f") -> str:
+    """``x`` formatted by ``spec``; "-" for None and NaN (no value); an infinity as "inf" / "-inf"."""
+    return "-" if x is None or math.isnan(x) else format(x, spec)
 
 
 def _percent(frac):
-    return _num(None if frac is None else frac * 100, ".0f")
+    return num_text(None if frac is None else frac * 100, ".0f")
 
 
 def _yn(v):
@@ -218,10 +220,10 @@ def table_lines(study) -> list[str]:
             continue
         out.append(f"{r.case:38s} {r.outcome:12s} {r.cures:3d} {r.views:3d} "
                    + " ".join(f"{_yn(r.fired(d)):>3s}" for d in DETECTORS)
-                   + f" {_num(r.gt_visible_first_frac, '10.3f')} {_num(r.gt_visible_final_frac, '6.3f')} "
+                   + f" {num_text(r.gt_visible_first_frac, '10.3f')} {num_text(r.gt_visible_final_frac, '6.3f')} "
                    f"{_yn(r.gt_reachable):>5s} {_yn(r.gt_verifiable):>5s} "
-                   f"{_num(r.merged_boundary_mean_mm, '6.2f')} "
-                   f"{_num(r.merged_surface_coverage_frac, '5.2f')} {r.time_s:6.1f}")
+                   f"{num_text(r.merged_boundary_mean_mm, '6.2f')} "
+                   f"{num_text(r.merged_surface_coverage_frac, '5.2f')} {r.time_s:6.1f}")
     out += legend_lines(short, {r.outcome for r in rows})
     alarms = [r for r in rows if r.outcome == "false_alarm"]
     if alarms:  # what the loop itself concluded where nothing was hidden (its verdict is no ground truth)
@@ -233,8 +235,8 @@ def table_lines(study) -> list[str]:
     for b, c in study.outcomes("bend").items():
         out.append(f"  bend {b:>4s} " + ", ".join(f"{k} {v}" for k, v in c.items() if v))
     for d, s in detector_scores(rows)["all"].items():
-        out.append(f"detector {d:22s} precision {_num(s.precision)}, recall {_num(s.recall)} (TP {s.true_positive}, "
-                   f"FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
+        out.append(f"detector {d:22s} precision {num_text(s.precision, '.2f')}, recall {num_text(s.recall, '.2f')} "
+                   f"(TP {s.true_positive}, FP {s.false_positive}, FN {s.false_negative}, TN {s.true_negative})")
     rz = decode(StudyRealism, study.settings)
     if rz.realism:
         out.append(f"realism {rz.realism}: " + ", ".join(rz.realism_sources) + "; each plate's draw: "
@@ -261,10 +263,6 @@ def table_lines(study) -> list[str]:
 
 
 # ----------------------------------------------------------------------------- scores
-def _f(x: float, fmt: str = ".4f") -> str:
-    return "-" if x is None or not math.isfinite(x) else format(x, fmt)
-
-
 def format_field_table(score) -> str:
     """A readable summary of a field score (millimetres, pixels, percent)."""
     from platebench.evaluation.field_scores import (  # noqa: PLC0415
@@ -279,42 +277,42 @@ def format_field_table(score) -> str:
         for reg in (score.middlebury.all, score.middlebury.nonocc):
             if reg is None:
                 continue
-            bad = ", ".join(f"bad{t:g} {_f(v, '.2f')} %" for t, v in reg.bad_pct)
-            q = ", ".join(f"A{k} {_f(v, '.3f')}" for k, v in reg.quantiles)
-            lines.append(f"{'middlebury ' + reg.region:16s} {reg.gt_count} px: {bad}; invalid {_f(reg.invalid_pct, '.2f')} "
-                         f"%; avgerr {_f(reg.avgerr)} px, rms {_f(reg.rms)} px; {q} px")
+            bad = ", ".join(f"bad{t:g} {num_text(v, '.2f')} %" for t, v in reg.bad_pct)
+            q = ", ".join(f"A{k} {num_text(v, '.3f')}" for k, v in reg.quantiles)
+            lines.append(f"{'middlebury ' + reg.region:16s} {reg.gt_count} px: {bad}; invalid {num_text(reg.invalid_pct, '.2f')} "
+                         f"%; avgerr {num_text(reg.avgerr)} px, rms {num_text(reg.rms)} px; {q} px")
         for reg in (score.eth3d.all, score.eth3d.nonocc):
             if reg is None:
                 continue
-            bad = ", ".join(f"bad{t:g} {_f(v, '.2f')} %" for t, v in reg.bad_pct)
-            lines.append(f"{'eth3d ' + reg.region:16s} coverage {_f(reg.coverage, '.4f')}; {bad}; avgerr "
-                         f"{_f(reg.avgerr)} px, rms {_f(reg.rms)} px")
+            bad = ", ".join(f"bad{t:g} {num_text(v, '.2f')} %" for t, v in reg.bad_pct)
+            lines.append(f"{'eth3d ' + reg.region:16s} coverage {num_text(reg.coverage, '.4f')}; {bad}; avgerr "
+                         f"{num_text(reg.avgerr)} px, rms {num_text(reg.rms)} px")
         depth = score.depth
     else:
         depth = score if isinstance(score, DepthScore) else None
     if depth is not None:
         e = depth.errors
-        q = ", ".join(f"A{k} {_f(v * 1e3)}" for k, v in e.quantiles_m)
+        q = ", ".join(f"A{k} {num_text(v * 1e3)}" for k, v in e.quantiles_m)
         lines.append(f"{'depth':16s} {depth.estimated_px}/{depth.plate_px} plate px (coverage "
-                     f"{_f(depth.coverage_frac, '.4f')}), {depth.off_plate_px} off the plate; |error| mean "
-                     f"{_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
-                     f"{_f(e.max_m * 1e3)} mm; {q} mm; bias {_f(e.signed_mean_m * 1e3)} mm")
+                     f"{num_text(depth.coverage_frac, '.4f')}), {depth.off_plate_px} off the plate; |error| mean "
+                     f"{num_text(e.mean_m * 1e3)}, median {num_text(e.median_m * 1e3)}, RMS {num_text(e.rms_m * 1e3)}, max "
+                     f"{num_text(e.max_m * 1e3)} mm; {q} mm; bias {num_text(e.signed_mean_m * 1e3)} mm")
     if isinstance(score, PointCloudScore):
         e, c = score.distance, score.surface
         lines.append(f"{'points':16s} {score.count} (+{score.dropped_count} non-finite dropped); distance to the "
-                     f"surface mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS {_f(e.rms_m * 1e3)}, max "
-                     f"{_f(e.max_m * 1e3)} mm")
+                     f"surface mean {num_text(e.mean_m * 1e3)}, median {num_text(e.median_m * 1e3)}, RMS {num_text(e.rms_m * 1e3)}, max "
+                     f"{num_text(e.max_m * 1e3)} mm")
         lines.append(f"{'outliers':16s} {score.outlier_count} beyond {score.outlier_threshold_m * 1e3:g} mm "
-                     f"({_f(100 * score.outlier_frac, '.2f')} %)")
-        lines.append(f"{'coverage':16s} {_f(score.coverage.coverage_frac, '.4f')} ({score.coverage.estimated_px}/"
+                     f"({num_text(100 * score.outlier_frac, '.2f')} %)")
+        lines.append(f"{'coverage':16s} {num_text(score.coverage.coverage_frac, '.4f')} ({score.coverage.estimated_px}/"
                      f"{score.coverage.plate_px} plate px of the left view hold a point)")
-        lines.append(f"{'surface cov.':16s} {_f(c.surface_coverage_frac, '.4f')} of the plate's top within "
+        lines.append(f"{'surface cov.':16s} {num_text(c.surface_coverage_frac, '.4f')} of the plate's top within "
                      f"{c.coverage_radius_m * 1e3:g} mm")
     if isinstance(score, MeshScore):
         for name, e in (("accuracy", score.accuracy), ("completeness", score.completeness)):
-            lines.append(f"{name:16s} mean {_f(e.mean_m * 1e3)}, median {_f(e.median_m * 1e3)}, RMS "
-                         f"{_f(e.rms_m * 1e3)}, max {_f(e.max_m * 1e3)} mm ({e.count} samples)")
-        lines.append(f"{'overall':16s} {_f(score.overall_m * 1e3)} mm (DTU: mean of the two)")
+            lines.append(f"{name:16s} mean {num_text(e.mean_m * 1e3)}, median {num_text(e.median_m * 1e3)}, RMS "
+                         f"{num_text(e.rms_m * 1e3)}, max {num_text(e.max_m * 1e3)} mm ({e.count} samples)")
+        lines.append(f"{'overall':16s} {num_text(score.overall_m * 1e3)} mm (DTU: mean of the two)")
         for t, p, r, f in score.thresholds:
             lines.append(f"{'at ' + format(t * 1e3, 'g') + ' mm':16s} precision {100 * p:.2f} %, recall "
                          f"{100 * r:.2f} %, F-score {100 * f:.2f} %")

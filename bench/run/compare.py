@@ -31,8 +31,10 @@ The stereo matchers that take a pair rather than a pattern sequence of their own
 the active pair (``left_active``/``right_active``: the projected grid gives them texture inside
 the plate) by default; "sgbm-passive" matches the passive pair.
 
-The paper row's reconstruction must have been made from the sample (``bench.run.score.check_made_from``):
-one made from other images is refused (``DatasetError``).
+The paper row's reconstruction is checked before any method runs (``paper_reconstruction``): its files
+must match the checksums its stamp records and it must have been made from the sample
+(``bench.run.score.check_made_from``); an edited one, or one made from other images, is refused
+(``DatasetError``), as ``platebench evaluate`` refuses it.
 """
 from __future__ import annotations
 
@@ -52,44 +54,50 @@ from platebench.bench.io.images import DatasetError
 from platebench.bench.io.points import read_points_csv
 from platebench.bench.io.records import MethodFigures
 from platebench.bench.io.sample_files import load_ground_truth, load_inputs, load_true_cameras, read_mesh
+from platebench.bench.io.verify import verify_reconstruction
 from platebench.bench.run.pattern_sequences import render_pattern_sequence
 from platebench.bench.run.outputs import jsonable, score_output
 from platebench.bench.run.plugins import find_method, plugin_names, run_plugin
 from platebench.bench.run.score import check_made_from
 from platebench.errors import UserValueError
 from platebench.evaluation.dense import SparseDepthScore, score_points_depth
-from platebench.evaluation.error_maps import DepthErrorMap, depth_error_map
+from platebench.evaluation.error_maps import DepthErrorMap, PointDistanceMap, output_error_map
 from platebench.evaluation.field_scores import DepthScore, DisparityScore, MeshScore, PointCloudScore
 from platebench.evaluation.pixel_coverage import coverage_of_mesh
 from platebench.plates import build_plate
 from platebench.reconstruction.methods import MethodEntry, MethodInputs, builtin_names, check_output
-from platebench.reconstruction.peers.graycode import dense_result
 from platebench.scenes.naming import image_seed
 from platebench.scenes.render.renderer import PlateRenderer
 from platebench.scenes.scene_spec import RenderSettings
 from platebench.tolerances import tol
 from platebench.bench.io.report_records import RunTimings
 
-__all__ = ["PAPER_ROW", "MethodRow", "Comparison", "compare_sample", "resolve_methods", "find_paper_reconstruction",
+__all__ = ["PAPER_ROW", "MethodRow", "Comparison", "compare_sample", "resolve_methods", "paper_reconstruction",
            "comparison_json"]
 
 PAPER_ROW = "paper's projected squares (read from platebench reconstruct output)"  # the paper row's description
 
 
-def find_paper_reconstruction(sample_dir: Path, recon_dir: Path | None):
-    """(points (N,3), recon.json dict, directory) of a ``platebench reconstruct`` output, or None."""
+def paper_reconstruction(sample_dir: Path, recon_dir: Path | None) -> tuple[Path, dict] | None:
+    """(directory, recon.json dict or {}) of the paper row's ``platebench reconstruct`` output: ``recon_dir``,
+    else the first of the sample's parent directory and ``SAMPLE_DIR/recon`` that holds ``points.csv``;
+    None when none does. Checked before it is read: its files against the checksums its stamp records
+    (``bench.io.verify.verify_reconstruction``, the check of ``platebench evaluate``) and that it was made
+    from the sample (``bench.run.score.check_made_from``); ``DatasetError`` (one line naming the file)
+    otherwise. Reads recon.json and the stamped files' bytes, nothing else."""
     cands = [Path(recon_dir)] if recon_dir is not None else [Path(sample_dir).resolve().parent,
                                                               Path(sample_dir) / "recon"]
     for d in cands:
-        pts_path = d / "points.csv"
-        if pts_path.is_file():
+        if (d / "points.csv").is_file():
+            verify_reconstruction(d)
             meta = {}
             if (d / "recon.json").is_file():
                 try:
                     meta = json.loads((d / "recon.json").read_text())
                 except json.JSONDecodeError as e:
                     raise DatasetError(f"{d / 'recon.json'}: invalid JSON ({e.msg})") from None
-            return read_points_csv(pts_path), meta, d
+            check_made_from(sample_dir, d, meta)
+            return d, meta
     return None
 
 
@@ -106,13 +114,16 @@ class MethodRow:
     render_s: float
     score: object = None
     notes: tuple = ()
-    result: object = None  # a peer's dense result (``.disparity``, left view) that its folder keeps; None otherwise
+    # the output the method returned (``reconstruction.methods``: Disparity, Depth, Points or Mesh); None for
+    # the paper row and a method that failed
+    output: object = None
     kind: str | None = "disparity"  # None for a method that failed
     status: str = "ok"  # "ok" or "failed"
     error: str | None = None  # a failed method's one-line error
-    # the signed depth error of a disparity or depth output over the left view's plate pixels, scored
-    # with the output (``evaluation.error_maps``); what the compare figure draws; None for other kinds
-    error_map: DepthErrorMap | None = None
+    # the output's error map, scored with it (``evaluation.error_maps.output_error_map``): a DepthErrorMap
+    # (signed depth error over the left view's plate pixels) of a disparity or depth output, what the
+    # compare figure draws; a PointDistanceMap of points or a mesh; None for the paper row and a failure
+    error_map: DepthErrorMap | PointDistanceMap | None = None
 
     @property
     def figures(self) -> MethodFigures:
@@ -212,27 +223,26 @@ def _plugin_row(entry: MethodEntry, sample_dir: Path, truth, time_limit_s: float
     n_images = run.output.metrics.get("n_images", 2)
     n_images = int(n_images) if isinstance(n_images, (int, float)) and np.isfinite(n_images) else 2
     return MethodRow(name, entry.description, n_images, run.time_recon_s, 0.0, run.score, tuple(run.output.notes),
-                     None, run.output.kind, error_map=_depth_error(run.output, truth))
+                     run.output, run.output.kind, error_map=_error_map(run.output, truth))
 
 
-def _paper_row(sample_dir: Path, recon_dir, rig, gt, notes: list) -> MethodRow | None:
-    """The paper's row from a ``platebench reconstruct`` output beside the sample (None, with a note,
-    when there is none); its coverage from ``surface.ply`` through the left camera really posed.
-    ``DatasetError`` when that reconstruction was not made from the sample (``check_made_from``)."""
-    found = find_paper_reconstruction(sample_dir, recon_dir)
+def _paper_row(sample_dir: Path, recon_dir, found, rig, gt, notes: list) -> MethodRow | None:
+    """The paper's row from the ``platebench reconstruct`` output ``found`` (``paper_reconstruction``'s,
+    checked) (None, with a note, when there is none); its coverage from ``surface.ply`` through the left
+    camera really posed."""
     if found is None:
         where = recon_dir if recon_dir is not None else f"{sample_dir.resolve().parent} or {sample_dir / 'recon'}"
         notes.append(f"paper row left out: no points.csv from 'platebench reconstruct' in {where} "
                      "(pass --recon DIR)")
         return None
-    pts, meta, d = found
-    check_made_from(sample_dir, d, meta, gt.meta)
+    d, meta = found
+    pts = read_points_csv(d / "points.csv")
     sc = score_points_depth(pts, rig.left, gt.depth["left"], gt.mesh)
     surface = read_mesh(d / "surface.ply") if (d / "surface.ply").is_file() else None
     posed = load_true_cameras(sample_dir)
     eye = (rig if posed is None else posed).left.center
     sc = dataclasses.replace(sc, coverage=coverage_of_mesh(surface, eye, gt.points["left"], gt.mask["left"]))
-    rt = RunTimings.of(meta) if "timings_s" in meta else RunTimings.from_dict(meta.get("timings"))
+    rt = RunTimings.of(meta)
     t_total = float("nan") if rt.total_s is None else float(rt.total_s)
     return MethodRow("paper", PAPER_ROW, int(meta.get("n_images", 2)), t_total, 0.0, sc,
                      (f"read from {d}",), kind="paper")
@@ -247,6 +257,7 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
     say = progress or (lambda msg: None)
     sample_dir = Path(sample_dir)
     entries = resolve_methods(methods)
+    paper = paper_reconstruction(sample_dir, recon_dir) if "paper" in methods else None  # refused before any work
     inputs = load_inputs(sample_dir)
     gt = load_ground_truth(sample_dir)
     cfg = decode(SampleConfig, gt.meta["config"])
@@ -299,12 +310,10 @@ def compare_sample(sample_dir: Path, methods=("graycode", "graycode-subpx", "pha
             raise UserValueError(f"method {name!r} returned a {out.kind} output: it is registered as {entry.output}")
         score = score_output(out, truth, what=f"{name} {out.kind}")
         n_images = entry.exposures(given)
-        view = (dense_result(name, out.disparity, rig, n_images, {"total_s": time_s}, out.notes)
-                if out.kind == "disparity" else None)
-        rows.append(MethodRow(name, entry.description, n_images, time_s, render_s, score, tuple(out.notes), view,
-                              out.kind, error_map=_depth_error(out, truth)))
+        rows.append(MethodRow(name, entry.description, n_images, time_s, render_s, score, tuple(out.notes), out,
+                              out.kind, error_map=_error_map(out, truth)))
     if "paper" in methods:
-        row = _paper_row(sample_dir, recon_dir, rig, gt, notes)
+        row = _paper_row(sample_dir, recon_dir, paper, rig, gt, notes)
         if row is not None:
             rows.insert(0, row)
     return Comparison(sample_dir, rows, notes, scene_reproduced, gt.depth["left"], gt.mask["left"])
@@ -365,22 +374,10 @@ class _Captures:
                 cap.render_s * len(idx) / n_host)
 
 
-def _depth_error(out, truth) -> DepthErrorMap | None:
-    """The depth error map of a disparity or depth output against the true depth of the left view
-    (``evaluation.error_maps.depth_error_map``); None for points and meshes."""
-    if out.kind not in ("disparity", "depth"):
-        return None
-    return depth_error_map(_implied_depth(out, truth), truth.depth, truth.mask)
-
-
-def _implied_depth(out, truth) -> np.ndarray:
-    """(H, W) z-depth (metres) of a disparity or depth output; NaN where there is no estimate."""
-    if out.kind == "depth":
-        z = np.asarray(out.depth, np.float64)
-        return np.where(np.isfinite(z) & (z > 0), z, np.nan)
-    d = np.asarray(out.disparity, np.float64) + truth.pair.doffs_px
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(np.isfinite(d) & (d > 0), truth.pair.fb / d, np.nan)
+def _error_map(out, truth) -> DepthErrorMap | PointDistanceMap:
+    """The error map of an output of any kind against the sample's truth, scored as its score is
+    (``evaluation.error_maps.output_error_map``)."""
+    return output_error_map(out.kind, getattr(out, out.kind), truth)
 
 
 def comparison_json(cmp: Comparison) -> dict:

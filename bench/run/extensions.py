@@ -18,8 +18,9 @@ and by the facade functions of ``platebench.api``. It loads once per process: la
 what the first found.
 
 An entry point whose module cannot be imported, raises while it is imported, or registers a name that
-is registered already stops the caller with ``ExtensionError`` (a ``UserValueError``: one line
-naming the entry point, its group and its distribution; the command line prints it and exits 2).
+is registered already or not allowed (``platebench.errors.RegistrationError``) stops the caller with
+``ExtensionError`` (a ``UserValueError``: one line naming the entry point, its group and its distribution;
+the command line prints it and exits 2).
 The same error is raised again by every later call in that process.
 
 Peer methods have their own group, ``platebench.methods``, resolved by name without importing the
@@ -30,7 +31,7 @@ import threading
 from dataclasses import asdict, dataclass
 from importlib import metadata
 
-from platebench.errors import UserValueError
+from platebench.errors import RegistrationError, UserValueError
 
 __all__ = ["GROUPS", "ExtensionError", "LoadedExtension", "load_extensions", "registry_names"]
 
@@ -39,7 +40,7 @@ GROUPS = ("platebench.families", "platebench.metrics", "platebench.cure_rules")
 
 class ExtensionError(UserValueError):
     """An entry point of ``GROUPS`` could not be loaded (import failure, an error at import, or a name
-    registered already): one line naming it, its group and its distribution."""
+    registered already or not allowed): one line naming it, its group and its distribution."""
 
 
 @dataclass(frozen=True)
@@ -71,10 +72,8 @@ def _first_line(e: BaseException) -> str:
 def _failure(ep, group: str, dist: str, e: BaseException) -> ExtensionError:
     if isinstance(e, ImportError):
         what = "cannot be imported"
-    elif isinstance(e, ValueError) and "registered already" in str(e):
-        what = "registers a name that is registered already"
-    elif isinstance(e, ValueError) and "not allowed" in str(e):
-        what = "registers a name that is not allowed"
+    elif isinstance(e, RegistrationError):
+        what = "registers a name that is registered already or not allowed"
     else:
         what = "failed while it was imported"
     return ExtensionError(f"entry point '{ep.name} = {ep.value}' of group {group} (distribution {dist}) {what} "

@@ -12,7 +12,8 @@ function ``run(ctx: MethodContext) -> MethodOutput`` that reads the sample's ima
   whatever it does is that method's failure on that sample), its output, its scored error map
   (``bench.io.error_map_files``) and ``score.json`` written;
 * any other entry: in this process through ``compare`` (its projector sequence rendered with the worker's
-  renderer), its ``score.json`` and, for a disparity, ``disparity.pfm`` and its scored error map written.
+  renderer), its ``score.json``, its output (``bench.run.outputs.write_output``, the file of its kind) and
+  its scored error map written.
 
 A plug-in found by name is registered once, so a sweep's spec validation, ``compare`` and every worker
 (local or Dask) resolve the same name the same way. Finding one imports nothing of it
@@ -25,16 +26,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
 from platebench.bench.io.atomic import staged_directory, write_json
 from platebench.bench.io.codecs import encode
-from platebench.bench.io.field_truth import load_field_truth
-from platebench.bench.io.images import write_pfm
+from platebench.bench.io.error_map_files import ERROR_MAP_FILE, StoredErrorMap, write_error_map
 from platebench.bench.io.recon_files import image_checksums, write_reconstruction
 from platebench.bench.run.compare import compare_sample
 from platebench.bench.run.paper_method import reconstruct_dir
-from platebench.bench.run.outputs import jsonable, score_row, write_error_map
+from platebench.bench.run.outputs import jsonable, score_row, write_output
 from platebench.bench.run.plugins import find_method, plugin_names, run_plugin
 from platebench.bench.run.score import score_files
 from platebench.errors import UserValueError
@@ -148,11 +146,9 @@ def _peer_runner(name: str) -> Callable[[MethodContext], MethodOutput]:
                    "time_s": row.time_s, "render_s": row.render_s, "notes": list(row.notes) + list(cmp.notes),
                    "scores": encode(row.score), "figures": row.figures.to_dict()}
             write_json(d / "score.json", jsonable(doc))
-            res = row.result
-            if res is not None and getattr(res, "disparity", None) is not None:
-                disp = np.asarray(res.disparity, np.float32)
-                write_pfm(d / "disparity.pfm", np.where(np.isfinite(disp), disp, np.inf).astype(np.float32))
-                write_error_map(d, "disparity", load_field_truth(ctx.sample_dir))
+            if row.output is not None:  # the output and its error map, scored by compare
+                write_output(d, row.output)
+                write_error_map(d / ERROR_MAP_FILE, StoredErrorMap.of(row.kind, row.error_map))
         render_s = _finite(row.render_s) or 0.0
         recon_s = _finite(row.time_s)
         return MethodOutput(score_row(row.score),

@@ -46,7 +46,6 @@ from __future__ import annotations
 import ast
 import contextlib
 import importlib
-import inspect
 import os
 import pickle
 import sys
@@ -292,15 +291,6 @@ def find_method(name: str) -> MethodEntry | None:
     if plugin is None:
         return None
     return add_method(MethodEntry(name, plugin.description, plugin, isolated=True))
-
-
-def describe(fn) -> str:
-    """A method's description: a ``Plugin``'s own (never imported for it), else the first line of the
-    function's docstring (or its qualified name)."""
-    if isinstance(fn, Plugin):
-        return fn.description
-    doc = inspect.getdoc(fn) or ""
-    return doc.splitlines()[0] if doc else f"plug-in {getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', '?')}"
 
 
 def check_time_limit(seconds, what: str = "--method-time-limit-s") -> float:

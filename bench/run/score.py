@@ -21,6 +21,7 @@ from platebench.bench.io.sample_files import (
     load_true_cameras,
     read_json,
 )
+from platebench.bench.io.verify import verify_reconstruction
 from platebench.evaluation.score import (
     BoundaryTruth,
     ReconstructionData,
@@ -99,24 +100,11 @@ def check_made_from(sample_dir: Path, recon_dir: Path, recon_meta: dict | None =
                                "(reconstruct this sample first)")
 
 
-def _verify_reconstruction(recon_dir: Path) -> None:
-    """Refuse (one-line ``DatasetError`` naming the file) a file of a reconstruction directory that differs
-    from the checksum its stamp (``bench.io.outputs.STAMP``, written by ``platebench reconstruct``) records,
-    is missing or is a link; a directory without a stamp records nothing to compare."""
-    from platebench.bench.io.outputs import STAMP, read_stamp  # noqa: PLC0415
-    from platebench.bench.io.verify import Checksums, verify_sample  # noqa: PLC0415
-    st = read_stamp(recon_dir)
-    if st is not None and st.get("kind") == "reconstruction":
-        files = {k: v for k, v in st["files"].items() if isinstance(k, str)}
-        verify_sample(recon_dir, Checksums(files, f"{recon_dir / STAMP}", recon_dir.name),
-                      then="refusing to score it")
-
-
 def score_files(sample_dir: Path, recon_dir: Path) -> Score:
     """Score a reconstruction directory against a sample directory (refused if a file of either differs
     from its recorded checksum, or if the reconstruction was made from other images: ``check_made_from``)."""
     truth, meta = truth_from_files(sample_dir)
-    _verify_reconstruction(Path(recon_dir))
+    verify_reconstruction(Path(recon_dir))
     rec = load_reconstruction(recon_dir)
     check_made_from(sample_dir, recon_dir, rec.meta, meta)
     data = ReconstructionData(rec.points, rec.uv_left, rec.uv_right, rec.feature_id, rec.boundary,

@@ -308,9 +308,10 @@ def write_results(dataset: Path, results: list[SampleResult]) -> list[dict]:
     """Write results.csv and results.parquet (atomically) from the samples' results, then their sha256
     (``bench.io.table_checksums``); returns the rows."""
     rows = [r for res in sorted(results, key=lambda x: x.index or 0) for r in table_rows(res)]
-    write_text(Path(dataset) / RESULTS_CSV, csv_text(rows))
-    write_bytes(Path(dataset) / RESULTS_PARQUET, parquet_bytes(rows))
-    write_table_checksums(Path(dataset), (RESULTS_CSV, RESULTS_PARQUET))
+    tables = {RESULTS_CSV: csv_text(rows).encode(), RESULTS_PARQUET: parquet_bytes(rows)}
+    for name, data in tables.items():
+        write_bytes(Path(dataset) / name, data)
+    write_table_checksums(Path(dataset), tables)
     return rows
 
 

@@ -21,6 +21,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from platebench.errors import RegistrationError
 from platebench.reconstruction.strategy.bending import BendingCurve, tangent_intersection_distance
 from platebench.reconstruction.strategy.poses import SensorPose
 from platebench.reconstruction.strategy.poses import perpendicular as _perp
@@ -89,11 +90,12 @@ CURE_RULES: dict[str, CureRule] = {}
 
 def register_cure_rule(rule: CureRule) -> CureRule:
     """Add ``rule`` to ``CURE_RULES`` (after those registered before it); returns it. TypeError when it
-    is not a ``CureRule`` with a non-empty ``name``; ValueError when its name is registered already."""
+    is not a ``CureRule`` with a non-empty ``name``; ``RegistrationError`` (a ValueError) when its name is
+    registered already."""
     if not isinstance(rule, CureRule) or not isinstance(getattr(rule, "name", None), str) or not rule.name:
         raise TypeError(f"{rule!r} is not a CureRule with a name")
     if rule.name in CURE_RULES:
-        raise ValueError(f"cure rule {rule.name!r} is registered already")
+        raise RegistrationError(f"cure rule {rule.name!r} is registered already")
     CURE_RULES[rule.name] = rule
     return rule
 

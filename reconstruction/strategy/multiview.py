@@ -709,8 +709,7 @@ def verify(views: list[ViewOutline], model=None, confirmed: list[np.ndarray] | N
     ``refuted``: per pose, (N,) points to count as unconfirmed although a pair confirmed them
     (``refutation.refute``); recorded in ``BoundaryVerdict.refuted``.
     ``behind``: per pose, (N,) True where that pose sees its outline point from behind the sheet
-    (``sides``): no piece is bridged, and no outline walked, across such a point (module doc,
-    "Bridges").
+    (``sides``): no piece is bridged, and no outline walked, across such a point.
     ``model`` (a ``surface_model.SurfaceModel``) is accepted for the facing shortcut of ``confirm``
     but not used: the outline membranes cut chords under a bend, so their normals near an
     occluding contour are wrong. Every confirmation needs the turn about the edge's own direction."""

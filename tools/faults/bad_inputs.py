@@ -123,6 +123,46 @@ def _write(rel: str, data):
     return setup
 
 
+# set-up steps the families share: each takes the working directory W
+def _do(*steps):
+    """One set-up step made of ``steps``, run in order."""
+    def setup(w: Path):
+        for step in steps:
+            step(w)
+    return setup
+
+
+def _copy(src: str, dst: str):
+    """W/src copied to W/dst: a folder with its links as links, a file with its metadata."""
+    def step(w: Path):
+        if (w / src).is_dir():
+            shutil.copytree(w / src, w / dst, symlinks=True)
+        else:
+            shutil.copy2(w / src, w / dst)
+    return step
+
+
+def _can_mount() -> bool:
+    """Whether set-up steps may mount file systems (root, with ``mount`` on the PATH)."""
+    return os.geteuid() == 0 and shutil.which("mount") is not None
+
+
+def _mount_tmpfs(rel: str, size: str):
+    """A tmpfs of ``size`` (``mount``'s spelling, e.g. "64k") mounted on W/rel."""
+    def step(w: Path):
+        (w / rel).mkdir(parents=True, exist_ok=True)
+        subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(w / rel)], check=True,
+                       capture_output=True)
+    return step
+
+
+def _umount(rel: str):
+    """W/rel unmounted (lazily; nothing when nothing is mounted there)."""
+    def step(w: Path):
+        subprocess.run(["umount", "-l", str(w / rel)], capture_output=True)
+    return step
+
+
 def _damage(rel: str, how: str):
     """Copy the good sample/recon to a new name and damage one file in it."""
     def setup(w: Path):

@@ -19,14 +19,23 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from tools.faults.bad_inputs import Case, cli, register_cases
+from tools.faults.bad_inputs import (
+    Case,
+    _can_mount,
+    _copy,
+    _do,
+    _mount_tmpfs,
+    _umount,
+    _write,
+    cli,
+    register_cases,
+)
 from tools.faults.run_attacks import write_plugins
 
 R = ["--width", "160", "--height", "120", "--spp", "1"]
@@ -41,30 +50,6 @@ def _cli(*args, check: bool = True, env: dict | None = None):
         p = subprocess.run(cli(*argv), cwd=w, capture_output=True, text=True, env=env)
         if check and p.returncode != 0:
             raise RuntimeError(f"{' '.join(argv[:3])}: exit {p.returncode}: {p.stderr.strip()[-300:]}")
-    return step
-
-
-def _do(*steps):
-    def setup(w: Path):
-        for step in steps:
-            step(w)
-    return setup
-
-
-def _write(rel: str, data):
-    def step(w: Path):
-        p = w / rel
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_bytes(data if isinstance(data, bytes) else data.encode())
-    return step
-
-
-def _copy(src: str, dst: str):
-    def step(w: Path):
-        if (w / src).is_dir():
-            shutil.copytree(w / src, w / dst, symlinks=True)
-        else:
-            shutil.copy2(w / src, w / dst)
     return step
 
 
@@ -150,6 +135,7 @@ def _results_table_edited(name: str):
     def step(w: Path):
         import pyarrow as pa  # noqa: PLC0415
         import pyarrow.parquet as pq  # noqa: PLC0415
+        from platebench.bench.io.parquet import read_parquet  # noqa: PLC0415
         ds = w / "ds"
         if name == "results.csv":
             (ds / "results.parquet").unlink()
@@ -160,7 +146,7 @@ def _results_table_edited(name: str):
             row[i] = "0.001"
             (ds / "results.csv").write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n")
         else:
-            t = pq.read_table(ds / "results.parquet")
+            t = read_parquet(ds / "results.parquet")
             i = t.column_names.index("depth_rms_mm")
             t = t.set_column(i, "depth_rms_mm", pa.array([0.001] * t.num_rows, t.schema.field(i).type))
             pq.write_table(t, ds / "results.parquet")
@@ -187,15 +173,9 @@ def _deleted_cwd() -> dict:
     return {"wrap": ("sh", "-c", 'mkdir -p gone && cd gone && rmdir ../gone && exec "$@"', "sh")}
 
 
-def _can_mount() -> bool:
-    return os.geteuid() == 0 and shutil.which("mount") is not None
-
-
 def _full_tmpfs(rel: str):
-    def step(w: Path):
-        (w / rel).mkdir(parents=True, exist_ok=True)
-        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(w / rel)], check=True,
-                       capture_output=True)
+    """A 64 KiB tmpfs mounted on W/rel and filled up."""
+    def fill(w: Path):
         try:
             with open(w / rel / "filler", "wb") as f:
                 while True:
@@ -203,13 +183,7 @@ def _full_tmpfs(rel: str):
                     f.flush()
         except OSError:  # the disk is full: what the case needs
             pass
-    return step
-
-
-def _umount(rel: str):
-    def step(w: Path):
-        subprocess.run(["umount", "-l", str(w / rel)], capture_output=True)
-    return step
+    return _do(_mount_tmpfs(rel, "64k"), fill)
 
 
 def _silent_wrong() -> list[Case]:

@@ -11,31 +11,26 @@ from __future__ import annotations
 import os
 import shutil
 import struct
-import subprocess
 import zlib
 from pathlib import Path
 
-from tools.faults.bad_inputs import Case, _write, register_cases
+from tools.faults.bad_inputs import (
+    Case,
+    _can_mount,
+    _copy,
+    _do,
+    _mount_tmpfs,
+    _umount,
+    _write,
+    register_cases,
+)
 
 SMALL_RENDER = ["--width", "64", "--height", "48", "--spp", "1"]
-
-
-def _do(*steps):
-    def setup(w: Path):
-        for step in steps:
-            step(w)
-    return setup
 
 
 def _file(rel: str, data: bytes | str = b"mine, not PlateBench's\n"):
     """``rel`` holds ``data`` (default: a user's note)."""
     return _write(rel, data)
-
-
-def _copy(src: str, dst: str):
-    def step(w: Path):
-        shutil.copytree(w / src, w / dst, symlinks=True)
-    return step
 
 
 def _link(rel: str, target: str):
@@ -117,24 +112,6 @@ _PLY_HUGE = b"ply\nformat ascii 1.0\nelement vertex 1000000000000\nproperty floa
             b"property float z\nend_header\n0 0 0\n"
 _PLY_LYING = b"ply\nformat binary_little_endian 1.0\nelement vertex 50000000\nproperty float x\nproperty float y\n" \
              b"property float z\nend_header\n" + b"\0" * 12
-
-
-def _mount_tmpfs(rel: str, size: str):
-    def step(w: Path):
-        (w / rel).mkdir(parents=True, exist_ok=True)
-        subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(w / rel)], check=True,
-                       capture_output=True)
-    return step
-
-
-def _umount(rel: str):
-    def step(w: Path):
-        subprocess.run(["umount", "-l", str(w / rel)], capture_output=True)
-    return step
-
-
-def _can_mount() -> bool:
-    return os.geteuid() == 0 and shutil.which("mount") is not None
 
 
 @register_cases

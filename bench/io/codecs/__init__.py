@@ -39,10 +39,16 @@ def encode(obj: Any, *args: Any, **kwargs: Any) -> dict:
     return base.encode(obj, *args, **kwargs)
 
 
+def has_codec(cls: type) -> bool:
+    """Whether ``encode`` has a function for ``cls`` (or a base class of it)."""
+    _load()
+    return base.encode.dispatch(cls) is not base.encode.dispatch(object)
+
+
 def decode(cls: type[T], d: Any, *args: Any, **kwargs: Any) -> T:
     """``cls`` read back from its form ``d`` (extra arguments go to the type's decoder)."""
     _load()
     return base.decode(cls, d, *args, **kwargs)
 
 
-__all__ = ["encode", "decode", "CODEC_MODULES"]
+__all__ = ["encode", "decode", "has_codec", "CODEC_MODULES"]

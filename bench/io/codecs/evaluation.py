@@ -11,11 +11,19 @@ import math
 import numpy as np
 
 from platebench.bench.io.codecs.base import decode, decoder, encode
-from platebench.evaluation.boundary_metrics import BoundaryScore
+from platebench.evaluation.boundary_metrics import BOUNDARY_UNITS, BoundaryScore
 from platebench.evaluation.dense import SparseDepthScore
 from platebench.evaluation.detection import DetectionScore
 from platebench.evaluation.disparity_metrics import Eth3dRegion, Eth3dScore, MiddleburyRegion, MiddleburyScore
-from platebench.evaluation.field_scores import AbsErrors, DepthScore, DisparityScore, MeshScore, PointCloudScore
+from platebench.evaluation.field_scores import (
+    MM,
+    AbsErrors,
+    DepthScore,
+    DisparityScore,
+    MeshScore,
+    PointCloudScore,
+    threshold_key,
+)
 from platebench.evaluation.pixel_coverage import PixelCoverage
 from platebench.evaluation.point_metrics import MatchScore, PointScore
 from platebench.evaluation.score import (
@@ -36,19 +44,12 @@ from platebench.evaluation.surface_metrics import SurfaceScore
 
 __all__: list[str] = []
 
-MM = 1e3  # millimetres per metre
 MM2 = 1e6  # square millimetres per square metre
-_UNITS = {"m": ("mm", MM), "px": ("px", 1.0)}  # a boundary's unit -> (key suffix, scale)
 
 
 def _thr_key(t: float) -> str:
     """0.5 -> '0_5', 1.0 -> '1_0', 4.0 -> '4_0' (a disparity threshold in a key)."""
     return f"{t:.1f}".replace(".", "_")
-
-
-def _key(x: float) -> str:
-    """0.5 -> '0_5', 2.0 -> '2_0' (a millimetre threshold in a key)."""
-    return f"{x:g}".replace(".", "_") if not float(x).is_integer() else f"{x:.1f}".replace(".", "_")
 
 
 def _mm(x: float | None) -> float | None:
@@ -161,7 +162,7 @@ def _(x: BoundaryScore) -> dict:
     """Keys (mm for metres, px for pixels): ``est_to_gt_{mean,rms,max,p95}_mm``, ``est_to_gt_count``,
     ``gt_to_est_*``, ``mean_sym_mm``, ``rms_sym_mm``, ``hausdorff_mm``, ``length_est_mm``,
     ``length_gt_mm``, ``sample_spacing_mm``."""
-    suf, scale = _UNITS[x.unit]
+    suf, scale = BOUNDARY_UNITS[x.unit]
     out = {}
     out.update(encode(x.est_to_gt, "est_to_gt", suf, scale))
     out.update(encode(x.gt_to_est, "gt_to_est", suf, scale))
@@ -177,7 +178,7 @@ def _(x: BoundaryScore) -> dict:
 @decoder(BoundaryScore)
 def _(d: dict, unit: str = "m") -> BoundaryScore:
     """A boundary in ``unit`` ("m": keys in mm, "px")."""
-    suf, scale = _UNITS[unit]
+    suf, scale = BOUNDARY_UNITS[unit]
 
     def value(name):
         v = d.get(f"{name}_{suf}")
@@ -303,7 +304,7 @@ def _(x: DepthScore) -> dict:
     out = {"plate_px": x.plate_px, "estimated_px": x.estimated_px, "off_plate_px": x.off_plate_px,
            "coverage_frac": x.coverage_frac}
     out.update(encode(x.errors, "depth"))
-    out.update({f"depth_bad_{_key(t)}_mm_pct": v for t, v in x.bad_pct})
+    out.update({f"depth_bad_{threshold_key(t)}_mm_pct": v for t, v in x.bad_pct})
     return out
 
 
@@ -340,7 +341,7 @@ def _(x: MeshScore) -> dict:
     if x.coverage is not None:
         out.update(encode(x.coverage))
     for t, p, r, f in x.thresholds:
-        k = _key(t * MM)
+        k = threshold_key(t * MM)
         out[f"precision_{k}_mm_pct"] = 100.0 * p
         out[f"recall_{k}_mm_pct"] = 100.0 * r
         out[f"fscore_{k}_mm_pct"] = 100.0 * f

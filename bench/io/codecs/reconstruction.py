@@ -47,6 +47,18 @@ def _(x: FalseBoundaryTest) -> dict:
             "false_boundary_detected": x.false_boundary_detected, "cut_squares": dict(x.cut)}
 
 
+@decoder(FalseBoundaryTest)
+def _(d) -> FalseBoundaryTest:
+    """recon.json's ``false_boundary`` section. A key the section lacks reads as: no squares detected,
+    ``expected`` -1 (unknown), the test's flag ``false_boundary_detected`` (False) as the counting test's,
+    arrays that agree, no cut squares."""
+    flagged = bool(d.get("false_boundary_detected", False))
+    return FalseBoundaryTest({str(k): int(v) for k, v in (d.get("detected") or {}).items()}, int(d.get("expected", -1)),
+                             tuple(int(i) for i in d.get("expected_ids") or ()), bool(d.get("counting_test", flagged)),
+                             bool(d.get("arrays_disagree", False)),
+                             {str(k): int(v) for k, v in (d.get("cut_squares") or {}).items()})
+
+
 @encode.register(StructuredLightCalibration)
 def _(x: StructuredLightCalibration) -> dict:
     """The rays' form, the fit's residuals and the common point (metres), and each target plane."""

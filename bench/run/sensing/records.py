@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from platebench.bench.config.sensing import VERIFY_GRID
+from platebench.bench.config.sensing import VERIFY_GRID, WORKSPACE_MM
 from platebench.reconstruction.strategy.planner import MAX_CURE_VIEWS, MAX_VIEWS
 from platebench.reconstruction.strategy.poses import Reach
 
@@ -47,7 +47,8 @@ def gt_visibility_dict(vis: dict) -> dict:
 
 @dataclass(frozen=True)
 class SensingOptions:
-    workspace_radius_m: float = 0.15  # stage 1 covers a disc of this radius around the workspace centre
+    # stage 1 covers a disc of this radius around the workspace centre (``platebench sense --workspace-mm``)
+    workspace_radius_m: float = WORKSPACE_MM / 1e3
     working_distance_m: float = 0.40  # cameras focused here: stage 2 comes no closer
     # Stage 3 places the projector on its centre line at this distance from the boundary centre;
     # None: at the cameras' distance (a fixed far projector shrinks its squares when cameras move).
